@@ -1,0 +1,3 @@
+from kinmo.cli import app
+
+app()

@@ -1,0 +1,1 @@
+"""``kinmo prepare``: read dataset folders into part-graph caches."""

@@ -1,0 +1,36 @@
+"""The geometry core (Rust, :mod:`kinmo._core`) with numpy-friendly wrappers.
+
+All functions take float64 arrays (points ``(N, 3)``) and integer faces ``(F, 3)``, check
+shapes, finiteness and index ranges (``ValueError`` naming the argument), and run in Rust with
+the GIL released. Frames are those of the input; PartNet objects are y-up.
+
+- :mod:`kinmo.geometry.mesh`: OBJ loading.
+- :mod:`kinmo.geometry.sampling`: area-weighted surface sampling.
+- :mod:`kinmo.geometry.obb`: oriented bounding boxes.
+- :mod:`kinmo.geometry.contact`: contact adjacency and mesh distances.
+- :mod:`kinmo.geometry.interaction`: interaction regions between two parts.
+- :mod:`kinmo.geometry.motion`: batched candidate motions.
+"""
+
+from kinmo.geometry.contact import contact_pairs, mesh_distance
+from kinmo.geometry.interaction import InteractionRegion, interaction_region
+from kinmo.geometry.mesh import load_obj, load_objs
+from kinmo.geometry.motion import apply_motions, motion_transforms
+from kinmo.geometry.obb import OBB, fit_obb, fit_obb_batch
+from kinmo.geometry.sampling import sample_surface, sample_surface_groups
+
+__all__ = [
+    "OBB",
+    "InteractionRegion",
+    "apply_motions",
+    "contact_pairs",
+    "fit_obb",
+    "fit_obb_batch",
+    "interaction_region",
+    "load_obj",
+    "load_objs",
+    "mesh_distance",
+    "motion_transforms",
+    "sample_surface",
+    "sample_surface_groups",
+]

@@ -1,0 +1,17 @@
+//! Pure-Rust geometry core of kinmo.
+//!
+//! Nothing here depends on Python: `cargo test -p kinmo-geometry` needs no interpreter.
+//! The Python bindings live in the `kinmo-py` crate (`kinmo._core`).
+//!
+//! Conventions: points are `nalgebra::Point3<f64>`, meshes are triangle soups with
+//! `u32` vertex indices, PartNet objects are y-up.
+
+pub mod contact;
+pub mod error;
+pub mod interaction;
+pub mod mesh;
+pub mod motion;
+pub mod obb;
+pub mod sampling;
+
+pub use error::{GeometryError, Result};

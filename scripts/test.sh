@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Set up everything kinmo needs (cached venv, Rust extension) and run all tests:
+# cargo fmt/clippy/test on the Rust crates, then pytest.
+#
+#   ./scripts/test.sh            # everything
+#   ./scripts/test.sh -k obb     # extra arguments go to pytest
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=env.sh
+. "$root/scripts/env.sh"
+cd "$root"
+echo "== cargo fmt --check"
+cargo fmt --all -- --check
+echo "== cargo clippy"
+cargo clippy --workspace --all-targets --release -q -- -D warnings
+echo "== cargo test"
+cargo test -p kinmo-geometry --release -q 2>&1 | grep -v "^$"
+echo "== pytest"
+python -m pytest -q -p no:cacheprovider "$@"
