@@ -105,7 +105,10 @@ def ancsh_loss(
     target : dict
         ``seg`` (B, N) int64 part labels; ``npcs`` (B, N, 3) NPCS of each point in its own
         part; ``naocs`` (B, N, 3); ``heatmap`` (B, N); ``unitvec`` (B, N, 3);
-        ``axis`` (B, N, 3); ``joint`` (B, N) int64 (0: not associated with any joint).
+        ``axis`` (B, N, 3); ``joint`` (B, N) int64 (0: not associated with any joint);
+        optional ``position_mask`` (B, N) bool: points whose heatmap and unit vector are
+        supervised (those associated with a revolute joint; prismatic joints have no axis
+        position). Defaults to ``joint > 0``.
     weights : ANCSHLossWeights, optional
 
     Returns
@@ -123,8 +126,11 @@ def ancsh_loss(
     terms["naocs"] = (pred["naocs"] - target["naocs"]).norm(dim=-1).mean()
     assoc = (target["joint"] > 0).float()
     denom = assoc.sum().clamp_min(1.0)
-    terms["heatmap"] = ((pred["heatmap"] - target["heatmap"]) ** 2 * assoc).sum() / denom
-    terms["unitvec"] = ((pred["unitvec"] - target["unitvec"]).norm(dim=-1) * assoc).sum() / denom
+    pos = target.get("position_mask")
+    pos = assoc if pos is None else pos.float()
+    pdenom = pos.sum().clamp_min(1.0)
+    terms["heatmap"] = ((pred["heatmap"] - target["heatmap"]) ** 2 * pos).sum() / pdenom
+    terms["unitvec"] = ((pred["unitvec"] - target["unitvec"]).norm(dim=-1) * pos).sum() / pdenom
     # axis orientation is a line direction: sign-invariant
     cos = (pred["axis"] * target["axis"]).sum(-1).abs()
     terms["axis"] = ((1.0 - cos) * assoc).sum() / denom
