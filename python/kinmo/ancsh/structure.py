@@ -52,3 +52,106 @@ class KinematicStructure:
         return ",".join(
             f"{self.parents[j + 1]}<{t[0].upper()}-{j + 1}" for j, t in enumerate(self.joint_types)
         )
+
+
+@dataclass(frozen=True)
+class ObjectParts:
+    """How one PartNet-Mobility object maps onto ANCSH parts.
+
+    Attributes
+    ----------
+    structure : KinematicStructure
+    link_part : dict of int to int
+        Link id → ANCSH part index (all links of a rigid group share the group's part).
+    joint_links : tuple of int
+        For joint ``j``: the id of the moving link heading part ``j + 1``.
+    """
+
+    structure: KinematicStructure
+    link_part: dict[int, int]
+    joint_links: tuple[int, ...]
+
+
+def object_parts(links: list, centroids: dict[int, "object"] | None = None) -> ObjectParts | None:
+    """The kinematic structure of one object, with a canonical part order.
+
+    Rigid groups (links joined by static / heavy / junk joints, see
+    :func:`kinmo.data.labels.rigid_groups`) become parts; the group of the root link is part
+    0. Each hinge (revolute) or slider (prismatic) starts a part. Children are numbered
+    breadth-first; siblings are ordered by joint type, semantic name, then (when ``centroids``
+    of the links are given, mesh frame, y-up) from top to bottom and left to right, else by
+    link id, so that e.g. the two doors of a refrigerator are numbered alike across objects.
+
+    Parameters
+    ----------
+    links : list of kinmo.data.model.Link
+    centroids : dict of int to (3,) array, optional
+        Mean point of each link's surface at rest.
+
+    Returns
+    -------
+    ObjectParts, or None when the object has a cylindrical joint (slider that rotates), which
+    ANCSH's revolute/prismatic structures cannot express, or no moving joint.
+    """
+    from kinmo.data.labels import rigid_groups
+    from kinmo.data.model import JointType
+
+    groups = rigid_groups(links)
+    by_id = {lk.id: lk for lk in links}
+    heads = sorted({g for g in groups.values()})
+    root = next((h for h in heads if by_id[h].parent == -1), None)
+    if root is None:
+        return None
+    moving = [by_id[h] for h in heads if h != root]
+    if not moving or any(lk.joint.type == JointType.SLIDER and lk.joint.rotates for lk in moving):
+        return None
+    if any(lk.joint.type not in (JointType.HINGE, JointType.SLIDER) for lk in moving):
+        return None
+
+    def key(lk):
+        c = centroids.get(lk.id) if centroids else None
+        pos = (-float(c[1]), float(c[0]), float(c[2])) if c is not None else (0.0, 0.0, 0.0)
+        return (lk.joint.type.value, lk.name, pos, lk.id)
+
+    part_of_group = {root: 0}
+    parents = [-1]
+    types: list[str] = []
+    joint_links: list[int] = []
+    frontier = [root]
+    while frontier:
+        nxt = []
+        for g in frontier:
+            kids = sorted((lk for lk in moving if groups[lk.parent] == g), key=key)
+            for lk in kids:
+                part_of_group[lk.id] = len(parents)
+                parents.append(part_of_group[g])
+                types.append("revolute" if lk.joint.type == JointType.HINGE else "prismatic")
+                joint_links.append(lk.id)
+                nxt.append(lk.id)
+        frontier = nxt
+    link_part = {lid: part_of_group[g] for lid, g in groups.items() if g in part_of_group}
+    return ObjectParts(KinematicStructure(tuple(parents), tuple(types)), link_part, tuple(joint_links))
+
+
+def category_structure(objects: dict[str, ObjectParts | None]) -> tuple[KinematicStructure | None, list[str]]:
+    """The most common structure of a category and the objects that fit it.
+
+    Parameters
+    ----------
+    objects : dict of str to ObjectParts or None
+        Object id → its parts (None: cannot be expressed).
+
+    Returns
+    -------
+    structure : KinematicStructure or None
+        Most common; ties broken by fewer parts, then by signature text (deterministic).
+    fitting : list of str
+        Sorted ids of the objects with exactly that structure.
+    """
+    from collections import Counter
+
+    counts = Counter(o.structure for o in objects.values() if o is not None)
+    if not counts:
+        return None, []
+    best = min(counts, key=lambda s: (-counts[s], s.n_parts, s.signature()))
+    return best, sorted(i for i, o in objects.items() if o is not None and o.structure == best)
