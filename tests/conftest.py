@@ -38,3 +38,85 @@ def mobility_root(shared_data: Path) -> Path:
 @pytest.fixture(scope="session")
 def partnet_root(shared_data: Path) -> Path:
     return shared_data / "partnet"
+
+
+# --- A synthetic PartNet-Mobility cabinet with known labels (kinmo.data tests) -----------
+
+#: Boxes of the synthetic cabinet, y-up: mesh name -> (min corner, max corner).
+CABINET_BOXES = {
+    "body": ((0.0, 0.1, 0.0), (1.0, 1.0, 0.5)),
+    "base": ((0.0, 0.0, 0.0), (1.0, 0.1, 0.5)),
+    "door": ((0.0, 0.5, 0.5), (0.5, 1.0, 0.52)),
+    "handle": ((0.4, 0.7, 0.52), (0.45, 0.8, 0.56)),
+    "drawer_front": ((0.5, 0.1, 0.5), (1.0, 0.5, 0.52)),
+    "drawer_box": ((0.55, 0.15, 0.1), (0.95, 0.45, 0.5)),
+    "knob": ((0.2, 0.6, 0.52), (0.3, 0.7, 0.55)),
+}
+
+
+def write_box_obj(path: Path, lo, hi) -> None:
+    """Write an axis-aligned box as a 12-triangle OBJ (quads split, 1-based indices)."""
+    import itertools
+
+    v = [(x, y, z) for x, y, z in itertools.product(*zip(lo, hi))]  # index = 4x + 2y + z
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    lines = [f"v {x} {y} {z}" for x, y, z in v]
+    for a, b, c, d in quads:
+        lines += [f"f {a + 1} {b + 1} {c + 1}", f"f {a + 1} {c + 1} {d + 1}"]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def write_cabinet(folder: Path) -> Path:
+    """Write the synthetic cabinet (PartNet-Mobility format) into ``folder``.
+
+    Hierarchy (node id: name [meshes]): 0 cabinet -> 1 body [body], 2 door -> (3 panel [door],
+    4 handle [handle]), 5 drawer [drawer_front, drawer_box], 6 knob [knob], 7 base [base].
+    Links: 0 hinge door (parts [2], inner node; axis x=0, z=0.51 along (0, 2, 0): not unit),
+    1 slider drawer (+z), 2 hinge knob on the door (axis through its centre along z),
+    3 heavy body (root), 4 static base (parent 3).
+    Expected fine types: door->body R_V_S, drawer->body P_H, knob->door R_H_C, body<->base
+    Fixed, knob->body None (the knob hangs on the door).
+    """
+    import json
+
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "textured_objs").mkdir(exist_ok=True)
+    for name, (lo, hi) in CABINET_BOXES.items():
+        write_box_obj(folder / "textured_objs" / f"{name}.obj", lo, hi)
+
+    def leaf(i, name, objs):
+        return {"id": i, "name": name, "text": name, "objs": objs}
+
+    tree = [{"id": 0, "name": "cabinet", "text": "Cabinet", "children": [
+        leaf(1, "body", ["body"]),
+        {"id": 2, "name": "door", "text": "door", "children": [
+            leaf(3, "panel", ["door"]), leaf(4, "handle", ["handle"])]},
+        leaf(5, "drawer", ["drawer_front", "drawer_box"]),
+        leaf(6, "knob", ["knob"]),
+        leaf(7, "base", ["base"]),
+    ]}]
+    lim = {"a": 0, "b": 90, "noLimit": False}
+    links = [
+        {"id": 0, "parent": 3, "joint": "hinge", "name": "door", "parts": [{"id": 2}],
+         "jointData": {"axis": {"origin": [0, 0.3, 0.51], "direction": [0, 2, 0]}, "limit": lim}},
+        {"id": 1, "parent": 3, "joint": "slider", "name": "drawer", "parts": [{"id": 5}],
+         "jointData": {"axis": {"origin": [0, 0, 0], "direction": [0, 0, 1]},
+                       "limit": {"a": 0, "b": 0.3, "noLimit": False, "rotates": False}}},
+        {"id": 2, "parent": 0, "joint": "hinge", "name": "knob", "parts": [{"id": 6}],
+         "jointData": {"axis": {"origin": [0.25, 0.65, 0.6], "direction": [0, 0, -1]},
+                       "limit": {"a": 0, "b": 0, "noLimit": True}}},
+        {"id": 3, "parent": -1, "joint": "heavy", "name": "body", "parts": [{"id": 1}],
+         "jointData": {}},
+        {"id": 4, "parent": 3, "joint": "static", "name": "base", "parts": [{"id": 7}],
+         "jointData": {}},
+    ]
+    (folder / "result.json").write_text(json.dumps(tree))
+    (folder / "mobility_v2.json").write_text(json.dumps(links))
+    (folder / "meta.json").write_text(json.dumps({"model_cat": "StorageFurniture"}))
+    return folder
+
+
+@pytest.fixture
+def cabinet(tmp_path: Path) -> Path:
+    """A fresh synthetic cabinet folder (see :func:`write_cabinet`)."""
+    return write_cabinet(tmp_path / "cabinet")

@@ -127,7 +127,8 @@ class PartGraph:
         return np.flatnonzero(below & self.is_leaf).astype(np.int64)
 
     def save(self, path: str | Path) -> None:
-        """Write the graph as one compressed ``.npz`` file, atomically."""
+        """Write the graph as one ``.npz`` file (uncompressed: saving is a quarter of
+        ``kinmo prepare``'s time when compressed, for 30% smaller files), atomically."""
         arrays: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
@@ -142,7 +143,7 @@ class PartGraph:
         arrays["meta_json"] = np.asarray(json.dumps(meta))
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **arrays)
+                np.savez(fh, **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> PartGraph:

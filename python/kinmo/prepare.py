@@ -1,0 +1,708 @@
+"""``kinmo prepare``: turn dataset folders into a cache of part graphs.
+
+:func:`prepare_dataset` finds every shape folder under a dataset root (PartNet or
+PartNet-Mobility, :func:`kinmo.data.readers.find_shapes`), builds each shape's
+:class:`~kinmo.data.graph.PartGraph` (:func:`kinmo.data.build.build_graph`) in worker
+processes, and writes:
+
+- ``<out>/<key>.npz``: one graph per shape (atomic). ``key`` is the shape folder's path
+  relative to the root with ``/`` replaced by ``__`` (just the folder name for the usual
+  flat layout ``root/<id>/``; the folder name when the root is itself a shape folder), so
+  nested layouts such as ``root/<category>/<id>/`` never collide;
+- ``<out>/manifest.csv`` and ``<out>/manifest.json``: one row per shape (columns
+  :data:`MANIFEST_COLUMNS`), status ``ok`` (built now), ``skipped`` (cache up to date) or
+  ``failed`` (with the one-line reason, naming the file), rewritten atomically as shapes
+  complete (at most every :data:`MANIFEST_INTERVAL_S` seconds, and at the end).
+
+Resume: a shape is skipped when its ``.npz`` exists and records the same cache version
+(:data:`kinmo.data.graph.CACHE_VERSION`), the same configuration (:class:`PrepareConfig`)
+and the same source fingerprint (:func:`source_fingerprint`: names, sizes and modification
+times of every file of the shape folder). The decision reads the ``.npz`` itself, not the
+manifest, so an interrupted run (stray ``.tmp`` files, which are removed at start; manifest
+rows without a cache file) resumes correctly. One run at a time per cache folder (a lock
+file, ``.lock``, enforces it).
+
+Parallelism: :func:`prepare_one` is a pure function of picklable arguments returning a
+:class:`ManifestRow`; it reads, builds, saves and reports one shape and never raises for bad
+input. :func:`prepare_dataset` maps it over the shapes with a
+:class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` start method, so Rust thread
+pools are never forked); the same function can be shipped unchanged to another executor
+(e.g. ``ray.remote(prepare_one)``) for cluster runs.
+
+Default cache folder (:func:`default_cache_dir`): ``./cache/<name of the dataset folder>``
+relative to the current directory.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import os
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, fields
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from kinmo.errors import KinmoDataError, KinmoError
+
+__all__ = [
+    "MANIFEST_COLUMNS",
+    "ManifestRow",
+    "PrepareConfig",
+    "PrepareResult",
+    "cache_key",
+    "default_cache_dir",
+    "prepare_dataset",
+    "prepare_one",
+    "read_manifest",
+    "source_fingerprint",
+]
+
+MANIFEST_COLUMNS: tuple[str, ...] = (
+    "id",
+    "category",
+    "format",
+    "n_nodes",
+    "n_leaves",
+    "n_sibling_edges",
+    "n_moving_joints",
+    "status",
+    "error",
+    "fingerprint",
+    "seconds",
+    "source",
+)
+#: Minimum seconds between two manifest rewrites during a run.
+MANIFEST_INTERVAL_S = 2.0
+_STATUSES = ("ok", "skipped", "failed")
+
+
+@dataclass(frozen=True)
+class PrepareConfig:
+    """Everything that changes the content of a cached graph.
+
+    Attributes
+    ----------
+    n_points : int
+        Surface points per node.
+    seed : int
+        Sampling seed.
+    contact_tolerance : float
+        Contact threshold, fraction of the shape's bounding-box diagonal.
+    distance_cap : float
+        Distance clip, fraction of the diagonal.
+    hierarchy : {"result", "merged"}
+        Hierarchy file preference (:func:`kinmo.data.readers.read_shape`).
+    """
+
+    n_points: int = 1024
+    seed: int = 0
+    contact_tolerance: float = 0.01
+    distance_cap: float = 0.1
+    hierarchy: str = "result"
+
+    def __post_init__(self) -> None:
+        if self.n_points < 1:
+            raise ValueError(f"n_points must be >= 1, got {self.n_points}")
+        if not 0 <= self.contact_tolerance <= self.distance_cap:
+            raise ValueError(
+                "need 0 <= contact_tolerance <= distance_cap, got "
+                f"{self.contact_tolerance}, {self.distance_cap}"
+            )
+        if self.hierarchy not in ("result", "merged"):
+            raise ValueError(f"hierarchy must be 'result' or 'merged', got {self.hierarchy!r}")
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (stored in every graph's ``meta["config"]``)."""
+        return asdict(self)
+
+
+@dataclass
+class ManifestRow:
+    """One shape's line in the manifest (see :data:`MANIFEST_COLUMNS`).
+
+    Counts are ``None`` when unknown (failed shapes). ``error`` is one line naming the file
+    and the problem, empty unless ``status == "failed"``. ``fingerprint`` is
+    :func:`source_fingerprint` of the shape folder, ``seconds`` the time spent on it.
+    """
+
+    id: str
+    source: str
+    status: str
+    category: str = ""
+    format: str = ""
+    n_nodes: int | None = None
+    n_leaves: int | None = None
+    n_sibling_edges: int | None = None
+    n_moving_joints: int | None = None
+    error: str = ""
+    fingerprint: str = ""
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        """Dict in :data:`MANIFEST_COLUMNS` order."""
+        d = asdict(self)
+        return {k: d[k] for k in MANIFEST_COLUMNS}
+
+
+@dataclass
+class PrepareResult:
+    """Outcome of :func:`prepare_dataset`.
+
+    Attributes
+    ----------
+    out : Path
+        The cache folder.
+    rows : list of ManifestRow
+        One per shape processed, sorted by ``id``.
+    n_shapes : int
+        Shapes found under the root.
+    seconds : float
+        Wall time of the run.
+    stopped : bool
+        True when ``strict`` stopped the run at a failure (some shapes not processed).
+    """
+
+    out: Path
+    rows: list[ManifestRow]
+    n_shapes: int
+    seconds: float
+    stopped: bool = False
+
+    def count(self, status: str) -> int:
+        """Number of rows with this status."""
+        return sum(r.status == status for r in self.rows)
+
+    @property
+    def failures(self) -> list[ManifestRow]:
+        """Failed rows."""
+        return [r for r in self.rows if r.status == "failed"]
+
+    @property
+    def ok(self) -> bool:
+        """True when every shape was processed and none failed."""
+        return not self.stopped and not self.failures and len(self.rows) == self.n_shapes
+
+
+# ------------------------------------------------------------------------------ per shape
+
+
+def source_fingerprint(folder: str | Path) -> str:
+    """Fingerprint of a shape folder's files: relative paths, sizes, modification times.
+
+    Parameters
+    ----------
+    folder : str or Path
+
+    Returns
+    -------
+    str
+        16 hex digits (SHA-256 prefix). Changes when any file is added, removed, resized or
+        touched.
+
+    Raises
+    ------
+    KinmoDataError
+        The folder cannot be listed.
+    """
+    folder = Path(folder)
+    entries: list[str] = []
+
+    def walk(d: Path, rel: str) -> None:
+        with os.scandir(d) as it:
+            for e in it:
+                name = f"{rel}{e.name}"
+                if e.is_dir(follow_symlinks=False):
+                    walk(Path(e.path), name + "/")
+                else:
+                    try:
+                        st = e.stat()
+                        entries.append(f"{name}\0{st.st_size}\0{st.st_mtime_ns}")
+                    except OSError:
+                        entries.append(f"{name}\0?")
+
+    try:
+        walk(folder, "")
+    except OSError as e:
+        raise KinmoDataError(folder, f"cannot list the folder: {e.strerror or e}") from None
+    h = hashlib.sha256("\n".join(sorted(entries)).encode())
+    return h.hexdigest()[:16]
+
+
+def cache_key(folder: str | Path, root: str | Path) -> str:
+    """Cache file stem of a shape folder (see the module docstring)."""
+    folder, root = Path(folder), Path(root)
+    try:
+        rel = folder.relative_to(root)
+    except ValueError:
+        rel = Path(folder.name)
+    if rel == Path("."):
+        rel = Path(folder.name)
+    return "__".join(rel.parts)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _cached_row(npz: Path, key: str, folder: Path, config: PrepareConfig, fp: str) -> ManifestRow | None:
+    """The row of an up-to-date cache file, or None when it must be (re)built."""
+    import numpy as np
+
+    from kinmo.data.graph import CACHE_VERSION
+
+    if not npz.is_file():
+        return None
+    try:
+        with np.load(npz, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta_json"]))
+            category, fmt = str(z["category"]), str(z["format"])
+    except Exception:  # unreadable or foreign file: rebuild it
+        return None
+    if (
+        meta.get("cache_version") != CACHE_VERSION
+        or meta.get("config") != config.as_dict()
+        or meta.get("fingerprint") != fp
+    ):
+        return None
+    c = meta.get("counts", {})
+    return ManifestRow(
+        id=key,
+        source=str(folder),
+        status="skipped",
+        category=category,
+        format=fmt,
+        n_nodes=c.get("n_nodes"),
+        n_leaves=c.get("n_leaves"),
+        n_sibling_edges=c.get("n_sibling_edges"),
+        n_moving_joints=c.get("n_moving_joints"),
+        fingerprint=fp,
+    )
+
+
+def _up_to_date(folder: Path, key: str, out: Path, config: PrepareConfig) -> ManifestRow | None:
+    t0 = time.perf_counter()
+    try:
+        fp = source_fingerprint(folder)
+    except KinmoDataError:
+        return None
+    row = _cached_row(out / f"{key}.npz", key, folder, config, fp)
+    if row is not None:
+        row.seconds = round(time.perf_counter() - t0, 4)
+    return row
+
+
+def prepare_one(
+    path: str | Path,
+    out_dir: str | Path,
+    config: PrepareConfig,
+    key: str | None = None,
+    force: bool = False,
+) -> ManifestRow:
+    """Build, save and report one shape; never raises for bad input.
+
+    A pure function of its (picklable) arguments, safe to run in any worker process or on
+    another machine sharing the file system (e.g. wrapped by ``ray.remote``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The shape folder.
+    out_dir : str or Path
+        The cache folder; the graph goes to ``out_dir/<key>.npz`` (atomic write).
+    config : PrepareConfig
+    key : str, optional
+        Cache file stem; the folder name by default.
+    force : bool
+        Rebuild even when the cache file is up to date.
+
+    Returns
+    -------
+    ManifestRow
+        ``ok`` (built now), ``skipped`` (an up-to-date cache file exists) or ``failed`` with
+        a one-line ``error``: a :class:`~kinmo.errors.KinmoDataError`'s message (naming the
+        file), or for an unexpected exception ``"<folder>: internal error <Type>: <message>"``.
+    """
+    from kinmo.data.build import build_graph
+    from kinmo.data.readers import detect_format, read_meta, read_shape
+
+    t0 = time.perf_counter()
+    folder = Path(path)
+    out_dir = Path(out_dir)
+    key = key or folder.name
+    row = ManifestRow(id=key, source=str(folder), status="failed")
+    try:
+        row.fingerprint = source_fingerprint(folder)
+        if not force:
+            cached = _cached_row(out_dir / f"{key}.npz", key, folder, config, row.fingerprint)
+            if cached is not None:
+                cached.seconds = round(time.perf_counter() - t0, 4)
+                return cached
+        shape = read_shape(folder, config.hierarchy)  # type: ignore[arg-type]
+        row.category, row.format = shape.category, shape.format.value
+        graph = build_graph(
+            shape,
+            n_points=config.n_points,
+            seed=config.seed,
+            contact_tolerance=config.contact_tolerance,
+            distance_cap=config.distance_cap,
+        )
+        graph.meta["config"] = config.as_dict()
+        graph.meta["fingerprint"] = row.fingerprint
+        graph.meta["key"] = key
+        graph.save(out_dir / f"{key}.npz")
+        c = graph.meta["counts"]
+        row.n_nodes, row.n_leaves = c["n_nodes"], c["n_leaves"]
+        row.n_sibling_edges, row.n_moving_joints = c["n_sibling_edges"], c["n_moving_joints"]
+        row.status = "ok"
+    except KinmoDataError as e:
+        row.error = _one_line(str(e))
+    except Exception as e:  # a bug or an environment problem: still one row, the run goes on
+        row.error = _one_line(f"{folder}: internal error {type(e).__name__}: {e}")
+    if row.status == "failed":
+        # Best effort: fill the format and category when they are readable.
+        try:
+            row.format = row.format or detect_format(folder).value
+            row.category = row.category or read_meta(folder)[0]
+        except Exception:
+            pass
+    row.seconds = round(time.perf_counter() - t0, 4)
+    return row
+
+
+# ------------------------------------------------------------------------------- manifest
+
+
+def _manifest_csv(rows: list[ManifestRow]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(MANIFEST_COLUMNS), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        d = r.as_dict()
+        w.writerow({k: "" if v is None else v for k, v in d.items()})
+    return buf.getvalue()
+
+
+def _write_manifest(
+    out: Path, root: Path, config: PrepareConfig, rows: list[ManifestRow], n_shapes: int,
+    complete: bool,
+) -> None:
+    from kinmo import __version__
+    from kinmo.data.graph import CACHE_VERSION
+    from kinmo.io import write_json, write_text
+
+    rows = sorted(rows, key=lambda r: r.id)
+    write_text(out / "manifest.csv", _manifest_csv(rows))
+    write_json(
+        out / "manifest.json",
+        {
+            "kinmo_version": __version__,
+            "cache_version": CACHE_VERSION,
+            "root": str(root),
+            "config": config.as_dict(),
+            "n_shapes": n_shapes,
+            "complete": complete,
+            "counts": {s: sum(r.status == s for r in rows) for s in _STATUSES},
+            "shapes": [r.as_dict() for r in rows],
+        },
+    )
+
+
+def read_manifest(path: str | Path) -> list[ManifestRow]:
+    """Read ``manifest.csv`` (or a cache folder holding one) back into rows.
+
+    Raises
+    ------
+    KinmoDataError
+        Missing or malformed manifest.
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / "manifest.csv"
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            if tuple(reader.fieldnames or ()) != MANIFEST_COLUMNS:
+                raise KinmoDataError(path, f"unexpected columns {reader.fieldnames}")
+            out = []
+            for d in reader:
+                kw: dict[str, Any] = {}
+                for fl in fields(ManifestRow):
+                    v = d[fl.name]
+                    if fl.name.startswith("n_"):
+                        kw[fl.name] = int(v) if v != "" else None
+                    elif fl.name == "seconds":
+                        kw[fl.name] = float(v) if v != "" else 0.0
+                    else:
+                        kw[fl.name] = v
+                out.append(ManifestRow(**kw))
+            return out
+    except FileNotFoundError:
+        raise KinmoDataError(path, "file is missing") from None
+    except (ValueError, KeyError, csv.Error) as e:
+        if isinstance(e, KinmoDataError):
+            raise
+        raise KinmoDataError(path, f"malformed manifest: {e}") from None
+
+
+# ------------------------------------------------------------------------------- the run
+
+
+def default_cache_dir(root: str | Path) -> Path:
+    """``./cache/<name of root>`` (relative to the current directory)."""
+    return Path("cache") / Path(root).resolve().name
+
+
+@contextmanager
+def _lock(out: Path) -> Iterator[None]:
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    fh = open(out / ".lock", "a+")
+    try:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise KinmoError(f"{out}: another kinmo prepare is writing this cache") from None
+        yield
+    finally:
+        fh.close()
+
+
+def _clean_tmp(out: Path) -> int:
+    n = 0
+    for p in out.glob(".*.tmp"):
+        try:
+            p.unlink()
+            n += 1
+        except OSError:
+            pass
+    return n
+
+
+def _init_worker(threads: int) -> None:
+    # Rust (rayon) thread pools size themselves on first use: give each worker its share.
+    os.environ.setdefault("RAYON_NUM_THREADS", str(threads))
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover
+        return os.cpu_count() or 1
+
+
+def prepare_dataset(
+    root: str | Path,
+    out: str | Path | None = None,
+    config: PrepareConfig | None = None,
+    workers: int = 0,
+    strict: bool = False,
+    force: bool = False,
+    progress: bool = True,
+    on_row: Callable[[ManifestRow], None] | None = None,
+) -> PrepareResult:
+    """Prepare every shape under ``root`` into the cache folder ``out``.
+
+    Parameters
+    ----------
+    root : str or Path
+        Dataset folder (either format, possibly nested) or a single shape folder.
+    out : str or Path, optional
+        Cache folder, created if needed; :func:`default_cache_dir` by default.
+    config : PrepareConfig, optional
+    workers : int
+        Worker processes; 0 = one per available CPU; 1 = in this process.
+    strict : bool
+        Stop at the first failed shape (pending shapes are cancelled).
+    force : bool
+        Rebuild shapes whose cache file is up to date.
+    progress : bool
+        Show a rich progress bar (on stderr).
+    on_row : callable, optional
+        Called in this process with each row as it completes.
+
+    Returns
+    -------
+    PrepareResult
+        Failed shapes are reported in it and in the manifest, never raised.
+
+    Raises
+    ------
+    KinmoDataError
+        ``root`` is not a folder or holds no shape folder.
+    KinmoError
+        Another run holds the cache folder's lock.
+    """
+    t0 = time.perf_counter()
+    config = config or PrepareConfig()
+    root = Path(root)
+    from kinmo.data.readers import find_shapes
+
+    folders = find_shapes(root)
+    if not folders:
+        raise KinmoDataError(
+            root, "no shape folders found (folders holding result.json or mobility_v2.json)"
+        )
+    out = Path(out) if out is not None else default_cache_dir(root)
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = [(f, cache_key(f, root)) for f in folders]
+    n_workers = workers if workers > 0 else _cpus()
+    n_workers = max(1, min(n_workers, len(jobs)))
+
+    rows: dict[str, ManifestRow] = {}
+    stopped = False
+    with _lock(out):
+        _clean_tmp(out)
+        last_write = 0.0
+
+        def record(row: ManifestRow, bar: Any) -> bool:
+            nonlocal last_write
+            rows[row.id] = row
+            if on_row is not None:
+                on_row(row)
+            if bar is not None:
+                bar.advance(row)
+            now = time.monotonic()
+            if now - last_write >= MANIFEST_INTERVAL_S:
+                _write_manifest(out, root, config, list(rows.values()), len(jobs), False)
+                last_write = now
+            return strict and row.status == "failed"
+
+        with _Bar(len(jobs), progress, root.name) as bar:
+            try:
+                # Up-to-date shapes are settled here, so that a resumed run starts no worker
+                # for them (prepare_one checks again, for callers that use it alone).
+                todo = []
+                for f, key in jobs:
+                    cached = None if force else _up_to_date(f, key, out, config)
+                    if cached is not None:
+                        record(cached, bar)
+                    else:
+                        todo.append((f, key))
+                n_workers = max(1, min(n_workers, len(todo)))
+                if n_workers == 1:
+                    for f, key in todo:
+                        if record(prepare_one(f, out, config, key, force), bar):
+                            stopped = True
+                            break
+                else:
+                    stopped = _run_pool(todo, out, config, force, n_workers, record, bar)
+            finally:
+                _write_manifest(
+                    out, root, config, list(rows.values()), len(jobs),
+                    complete=len(rows) == len(jobs),
+                )
+    result = PrepareResult(
+        out=out,
+        rows=sorted(rows.values(), key=lambda r: r.id),
+        n_shapes=len(jobs),
+        seconds=time.perf_counter() - t0,
+        stopped=stopped,
+    )
+    return result
+
+
+def _run_pool(
+    jobs: list[tuple[Path, str]],
+    out: Path,
+    config: PrepareConfig,
+    force: bool,
+    n_workers: int,
+    record: Callable[[ManifestRow, Any], bool],
+    bar: Any,
+) -> bool:
+    threads = max(1, _cpus() // n_workers)
+    ex = ProcessPoolExecutor(
+        max_workers=n_workers,
+        mp_context=get_context("spawn"),
+        initializer=_init_worker,
+        initargs=(threads,),
+    )
+    stopped = False
+    try:
+        pending: dict[Future, tuple[Path, str]] = {}
+        it = iter(jobs)
+        # Keep the queue short (2 per worker) so that a strict stop cancels little work.
+
+        def fill() -> None:
+            while len(pending) < 2 * n_workers:
+                try:
+                    f, key = next(it)
+                except StopIteration:
+                    return
+                pending[ex.submit(prepare_one, f, out, config, key, force)] = (f, key)
+
+        fill()
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                f, key = pending.pop(fut)
+                try:
+                    row = fut.result()
+                except Exception as e:  # the worker died (e.g. killed for memory)
+                    row = ManifestRow(
+                        id=key, source=str(f), status="failed",
+                        error=_one_line(f"{f}: worker process failed: {type(e).__name__}: {e}"),
+                    )
+                if record(row, bar):
+                    stopped = True
+            if stopped:
+                break
+            fill()
+    finally:
+        ex.shutdown(wait=True, cancel_futures=True)
+    return stopped
+
+
+class _Bar:
+    """A rich progress bar counting shapes and failures (a no-op when disabled)."""
+
+    def __init__(self, total: int, enabled: bool, label: str) -> None:
+        self.total, self.enabled, self.label = total, enabled, label
+        self.failed = 0
+        self._progress: Any = None
+
+    def __enter__(self) -> _Bar:
+        if self.enabled:
+            from rich.console import Console
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._progress = Progress(
+                TextColumn("[bold]prepare[/] {task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("[red]{task.fields[failed]} failed"),
+                TimeElapsedColumn(),
+                TimeRemainingColumn(),
+                console=Console(stderr=True),
+                transient=False,
+            )
+            self._progress.__enter__()
+            self._task = self._progress.add_task(self.label, total=self.total, failed=0)
+        return self
+
+    def advance(self, row: ManifestRow) -> None:
+        if row.status == "failed":
+            self.failed += 1
+        if self._progress is not None:
+            self._progress.update(self._task, advance=1, failed=self.failed)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._progress is not None:
+            self._progress.__exit__(*exc)
