@@ -15,5 +15,7 @@ echo "== cargo clippy"
 cargo clippy --workspace --all-targets --release -q -- -D warnings
 echo "== cargo test"
 cargo test -p kinmo-geometry --release -q 2>&1 | grep -v "^$"
+# the report tests open the HTML in a headless Chromium: install it on a fresh machine
+command -v chromium >/dev/null || { [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null && (apt-get update -qq && apt-get install -y -qq chromium >/dev/null); } || true
 echo "== pytest"
 python -m pytest -q -p no:cacheprovider "$@"
