@@ -73,3 +73,12 @@ def test_ransac_is_reproducible():
     b = ransac_similarity(src, dst, threshold=0.1, seed=7)
     np.testing.assert_array_equal(a.inliers, b.inliers)
     np.testing.assert_array_equal(a.transform.rotation, b.transform.rotation)
+
+
+def test_ransac_max_scale_rejects_degenerate_blow_ups():
+    rng = np.random.default_rng(4)
+    src = 0.5 + rng.normal(scale=1e-4, size=(200, 3))  # a collapsed prediction
+    dst = rng.normal(size=(200, 3))
+    res = ransac_similarity(src, dst, threshold=0.1, seed=0, max_scale=5.0)
+    assert res.transform.scale <= 5.0 + 1e-9
+    assert np.isfinite(res.transform.translation).all()

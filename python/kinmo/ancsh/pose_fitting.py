@@ -102,6 +102,7 @@ def ransac_similarity(
     confidence: float = 0.999,
     sample_size: int = 4,
     seed: int = 0,
+    max_scale: float | None = None,
 ) -> RansacResult:
     """Robust similarity transform by RANSAC around :func:`umeyama` (ANCSH Sec. 4.3).
 
@@ -123,6 +124,9 @@ def ransac_similarity(
         Minimal sample, >= 3.
     seed : int
         Seed of the sampler (reproducible).
+    max_scale : float, optional
+        Hypotheses with a larger scale are rejected (degenerate samples of nearly equal
+        source points give huge scales); the final refit is clipped to it too.
 
     Returns
     -------
@@ -153,7 +157,7 @@ def ransac_similarity(
             hyp = umeyama(src[idx], dst[idx])
         except ValueError:
             continue
-        if not np.isfinite(hyp.scale) or hyp.scale <= 0:
+        if not np.isfinite(hyp.scale) or hyp.scale <= 0 or (max_scale is not None and hyp.scale > max_scale):
             continue
         res = np.linalg.norm(hyp.apply(src) - dst, axis=1)
         inl = res < threshold
@@ -174,4 +178,9 @@ def ransac_similarity(
     if inl.sum() >= max(3, best_inliers.sum()):
         final = umeyama(src[inl], dst[inl])
         best_inliers = inl
+    if max_scale is not None and final.scale > max_scale:
+        # keep the rotation, refit the translation at the largest allowed scale
+        s = float(max_scale)
+        t = (dst[best_inliers] - s * src[best_inliers] @ final.rotation.T).mean(0)
+        final = Similarity(final.rotation, t, s)
     return RansacResult(final, best_inliers, it)
