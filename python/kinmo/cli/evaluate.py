@@ -1,0 +1,42 @@
+"""``kinmo eval pre-segmented``: paper Table 1 (GNN rows) on pre-segmented test shapes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from kinmo.cli._apps import eval_app
+
+
+@eval_app.command("pre-segmented")
+def pre_segmented_cmd(
+    model: list[Path] = typer.Option(..., "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns."),
+    data: Path = typer.Option(..., "--data", "-d", help="Part-graph cache (`kinmo prepare`) or PartNet-Mobility dataset folder."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for table1.csv, table1.md, shapes.csv [default: first run folder/eval]."),  # noqa: UP007
+    split: Optional[Path] = typer.Option(None, "--split", help="Split file; default: the first run's split.json (its test ids)."),  # noqa: UP007
+    all_shapes: bool = typer.Option(False, "--all", help="Evaluate every labelled shape of DATA, ignoring the split."),
+    render: bool = typer.Option(False, "--render", help="Write a PNG per shape and model (OUT/renders/<model>/<id>.png)."),
+    axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: add OBB_fine / OBB_coarse columns with refined axes."),  # noqa: UP007
+    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+) -> None:
+    """Evaluate motion GNN(s) on the test split: type accuracy, mobile-part detection, axis errors."""
+    from rich.console import Console
+
+    from kinmo.errors import KinmoError
+    from kinmo.evaluate.pre_segmented import run_evaluation
+
+    console = Console()
+    if not console.is_terminal:  # pipes and logs: do not squeeze the 11-column tables
+        console = Console(width=max(console.width, 140))
+    err = Console(stderr=True)
+    try:
+        report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
+                                       render=render, device=device, progress=not quiet,
+                                       console=console, axis_model=axis_model)
+    except KinmoError as e:
+        err.print(f"[red]error:[/] {e}")
+        raise typer.Exit(1) from None
+    console.print(f"wrote {paths['csv']} and {paths['markdown']}")

@@ -1,0 +1,51 @@
+"""``kinmo predict``: predict mobile parts, joint types and axes of pre-segmented shapes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from kinmo.cli._apps import app
+
+
+@app.command("predict")
+def predict_cmd(
+    data: Path = typer.Argument(..., metavar="DIR", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder."),
+    model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
+    cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
+    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
+    hinge_max: float = typer.Option(90.0, "--hinge-max", help="Upper limit of predicted hinges (degrees)."),
+    slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, help="Slider range as a fraction of the part's size."),
+    render: bool = typer.Option(False, "--render", help="Also write OUT/<id>/prediction.png."),
+    axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the predicted axes (paper Sec. 3.3)."),  # noqa: UP007
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+) -> None:
+    """Predict the motion of every shape under DIR; write PartNet-Mobility files and URDFs.
+
+    Exit code 1 when any shape failed (listed at the end, and in OUT/predictions.csv).
+    """
+    from rich.console import Console
+
+    from kinmo.errors import KinmoError
+    from kinmo.mobility_tree import TreeOptions
+    from kinmo.predict import predict_dataset
+
+    console = Console()
+    err = Console(stderr=True)
+    try:
+        rows = predict_dataset(data, model, out, cache=cache, device=device,
+                               options=TreeOptions((0.0, hinge_max), slider_fraction),
+                               progress=not quiet, render=render, axis_model=axis_model)
+    except KinmoError as e:
+        err.print(f"[red]error:[/] {e}")
+        raise typer.Exit(1) from None
+    ok = [r for r in rows if r.status == "ok"]
+    bad = [r for r in rows if r.status != "ok"]
+    console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {out}")
+    for r in bad:
+        err.print(f"[red]failed[/] {r.id}: {r.error}")
+    if bad:
+        raise typer.Exit(1)

@@ -1,0 +1,439 @@
+"""From per-edge motion predictions to a mobility tree of links and joints.
+
+The motion GNN (Liu et al. 2023, Sec. 3.2) labels every directed sibling edge ``(i, j)`` of
+the part hierarchy ("part i moves relative to part j") with a motion type and an axis. This
+module turns those edge labels into PartNet-Mobility links (:class:`~kinmo.data.model.Link`)
+by the following deterministic rules.
+
+1. **Moving nodes.** An edge is *moving* when its predicted type (the arg-max of its
+   probabilities) is prismatic, revolute or both. Its *confidence* is the total probability
+   of the moving types. A node with several moving edges (a part predicted to move relative
+   to two references) keeps the most confident one (ties: the lower edge index). Its other
+   end is the node's *reference*.
+2. **Cycles.** Among siblings, "moves relative to" must be acyclic: in every cycle of
+   references (``i -> j -> i``, ``i -> j -> k -> i``) the least confident edge is dropped
+   (ties: the higher edge index), repeatedly, until none is left.
+3. **Fixed merge.** Moving nodes with the same reference that are joined by an edge predicted
+   ``Fixed`` (either direction) are one rigid part (a door and its handle, both moving
+   relative to the cabinet): they form one *motion group* whose joint is that of its largest
+   member (OBB volume, then number of leaves, then pre-order index).
+4. **Attachment.** A non-moving sibling of a moving node joins that node's group when its
+   most probable ``Fixed`` edge (among the edges predicted ``Fixed``) goes to a member of the
+   group: it is fixed to a moving part, so it moves with it.
+5. **Pruning.** Nodes taking no part in motion are dropped: every leaf belongs to the group of
+   its nearest ancestor-or-self that is a member of a group, or to the **root link** (joint
+   ``free``) when there is none. A group's **parent link** is the link of its reference
+   node (by the same rule), so nested motions (a knob on a door) and chains (a drawer inside
+   a sliding tray) come out naturally.
+6. **Link cycles.** If groups still form a cycle of parent links (possible after merging),
+   the least confident group of the cycle loses its motion: it becomes a ``static`` link
+   attached to the link enclosing it in the hierarchy (keeping the predicted part as a
+   link), and the check repeats.
+
+**Joints** (mesh frame, y-up). Types: ``P`` → ``slider``, ``R`` → ``hinge``, ``PR`` →
+``slider`` with ``rotates`` (cylindrical). The axis is the representative edge's predicted
+direction and point; a slider's axis passes through its part's OBB centre (a prismatic axis
+has no position; the network is not trained on one). Direction signs are chosen so that a
+positive joint value moves the part away from its reference: a slider opens along
+``+d`` when ``d . (c_i - c_j) > 0``; a hinge rotates the part's centre towards
+``c_i - c_j`` (``c`` the OBB centres). **Default limits** (:class:`TreeOptions`): hinges
+``0``–``90`` degrees; sliders ``0`` to ``0.3`` times the part's size (the longest side of its
+OBB, mesh units); cylindrical joints rotate without limit (``rotation_limit=None``).
+
+Link ids: the root link is ``0`` (joint ``free``, parent ``-1``, name ``"base"``); moving and
+static links follow, numbered in the pre-order of their representative node. A link's
+``parts`` are the PartNet node ids of the maximal nodes all of whose leaves belong to it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinmo.data.graph import PartGraph
+from kinmo.data.model import COARSE_INDEX, FINE_TO_COARSE, FINE_TYPES, Joint, JointType, Link
+
+__all__ = ["EdgePrediction", "MobilityTree", "TreeOptions", "build_mobility_tree", "coarse_probs"]
+
+_P, _R, _PR, _FIXED, _NONE = (COARSE_INDEX[n] for n in ("P", "R", "PR", "Fixed", "None"))
+_MOVING = (_P, _R, _PR)
+
+
+@dataclass
+class EdgePrediction:
+    """Per-edge predictions for one part graph, in the mesh frame.
+
+    Attributes
+    ----------
+    probs : (E, K) float64
+        Type probabilities over the fine (``K = 10``) or coarse (``K = 5``) types, in the
+        order of :data:`~kinmo.data.model.FINE_TYPES` / :data:`~kinmo.data.model.COARSE_TYPES`.
+    direction : (E, 3) float64
+        Unit axis directions (mesh frame).
+    origin : (E, 3) float64
+        Axis points (mesh frame, mesh units).
+    """
+
+    probs: np.ndarray
+    direction: np.ndarray
+    origin: np.ndarray
+
+    @property
+    def types(self) -> str:
+        """``"fine"`` or ``"coarse"`` from the number of columns."""
+        return "fine" if self.probs.shape[1] == len(FINE_TYPES) else "coarse"
+
+    def coarse(self) -> np.ndarray:
+        """Probabilities over the 5 coarse types, ``(E, 5) float64``."""
+        return coarse_probs(self.probs)
+
+    def labels(self) -> np.ndarray:
+        """Predicted type index of each edge (arg-max), ``(E,) int64``, in :attr:`types`."""
+        return np.argmax(self.probs, axis=1).astype(np.int64)
+
+    def coarse_labels(self) -> np.ndarray:
+        """Predicted coarse type of each edge (the arg-max type, mapped to coarse)."""
+        lab = self.labels()
+        if self.types == "fine":
+            return np.asarray(FINE_TO_COARSE, dtype=np.int64)[lab]
+        return lab
+
+
+def coarse_probs(probs: np.ndarray) -> np.ndarray:
+    """Sum fine-type probabilities ``(E, 10)`` into coarse ones ``(E, 5)`` (identity on 5).
+
+    Raises
+    ------
+    ValueError
+        Neither 10 nor 5 columns.
+    """
+    p = np.asarray(probs, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] not in (len(FINE_TYPES), len(COARSE_INDEX)):
+        raise ValueError(f"probs must be (E, 10) or (E, 5), got {p.shape}")
+    if p.shape[1] == len(COARSE_INDEX):
+        return p
+    out = np.zeros((p.shape[0], len(COARSE_INDEX)))
+    for f, c in enumerate(FINE_TO_COARSE):
+        out[:, c] += p[:, f]
+    return out
+
+
+@dataclass(frozen=True)
+class TreeOptions:
+    """Defaults of the joints of a predicted mobility tree.
+
+    Attributes
+    ----------
+    hinge_limit : (float, float)
+        Hinge range in degrees (default 0–90).
+    slider_fraction : float
+        Slider range ``(0, slider_fraction * size)``, ``size`` the longest side of the
+        moving part's OBB (default 0.3).
+    """
+
+    hinge_limit: tuple[float, float] = (0.0, 90.0)
+    slider_fraction: float = 0.3
+
+
+@dataclass
+class MobilityTree:
+    """A predicted kinematic structure.
+
+    Attributes
+    ----------
+    links : list of Link
+        Root link first (id 0), see the module docstring.
+    leaf_link : (V,) int64
+        Link id of every node's leaves for leaves; for inner nodes the link of all their
+        leaves when they agree, else -1.
+    link_edge : dict of int to int
+        Representative sibling-edge index of each moving or static link.
+    link_nodes : dict of int to list of int
+        Node indices of each group (members and attached nodes); empty for the root link.
+    confidence : dict of int to float
+        Confidence of each moving or static link's joint (module docstring, rule 1).
+    dropped_edges : list of int
+        Moving edges discarded by conflicts and cycles.
+    """
+
+    links: list[Link]
+    leaf_link: np.ndarray
+    link_edge: dict[int, int] = field(default_factory=dict)
+    link_nodes: dict[int, list[int]] = field(default_factory=dict)
+    confidence: dict[int, float] = field(default_factory=dict)
+    dropped_edges: list[int] = field(default_factory=list)
+
+    @property
+    def moving_links(self) -> list[Link]:
+        """Links with a hinge or slider joint."""
+        return [lk for lk in self.links if lk.joint.is_moving]
+
+
+class _DSU:
+    def __init__(self, items: list[int]) -> None:
+        self.p = {i: i for i in items}
+
+    def find(self, x: int) -> int:
+        while self.p[x] != x:
+            self.p[x] = self.p[self.p[x]]
+            x = self.p[x]
+        return x
+
+    def union(self, a: int, b: int) -> None:
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            self.p[max(ra, rb)] = min(ra, rb)
+
+
+def _break_cycles(ref: dict[int, tuple[int, int]], conf: np.ndarray, dropped: list[int]) -> None:
+    """Drop the least confident edge of every cycle of ``node -> (reference, edge)``."""
+    while True:
+        cycle = None
+        state: dict[int, int] = {}
+        for start in sorted(ref):
+            if start in state:
+                continue
+            path = []
+            v = start
+            while v in ref and v not in state:
+                state[v] = 1
+                path.append(v)
+                v = ref[v][0]
+            if v in ref and state.get(v) == 1 and v in path:
+                cycle = path[path.index(v):]
+            for u in path:
+                state[u] = 2
+            if cycle:
+                break
+        if not cycle:
+            return
+        # least confident; ties broken by the higher edge index
+        worst = min(cycle, key=lambda u: (conf[ref[u][1]], -ref[u][1]))
+        dropped.append(ref[worst][1])
+        del ref[worst]
+
+
+def _compact_parts(graph: PartGraph, leaf_owner: dict[int, int], link: int) -> tuple[int, ...]:
+    """PartNet ids of the maximal nodes all of whose leaves belong to ``link``."""
+    v = graph.n_nodes
+    parent = np.asarray(graph.parent)
+    pure = np.zeros(v, dtype=bool)
+    has_leaf = np.zeros(v, dtype=bool)
+    mixed = np.zeros(v, dtype=bool)
+    for n in range(v - 1, -1, -1):  # reverse pre-order: children before parents
+        if graph.is_leaf[n]:
+            ok = leaf_owner[n] == link
+            mixed[n] = not ok
+            has_leaf[n] = ok
+        p = parent[n]
+        if p >= 0:
+            mixed[p] |= mixed[n]
+            has_leaf[p] |= has_leaf[n]
+    pure = has_leaf & ~mixed
+    out = [int(graph.node_ids[n]) for n in range(v) if pure[n] and not (parent[n] >= 0 and pure[parent[n]])]
+    return tuple(out)
+
+
+def build_mobility_tree(
+    graph: PartGraph, pred: EdgePrediction, options: TreeOptions = TreeOptions()
+) -> MobilityTree:
+    """Turn per-edge predictions into links and joints (rules of the module docstring).
+
+    Parameters
+    ----------
+    graph : PartGraph
+        The shape's part graph (hierarchy, OBBs, sibling edges; mesh frame).
+    pred : EdgePrediction
+        One row per ``graph.sibling_edges`` row, mesh frame.
+    options : TreeOptions
+
+    Returns
+    -------
+    MobilityTree
+
+    Raises
+    ------
+    ValueError
+        ``pred`` does not match the graph's edges.
+    """
+    edges = np.asarray(graph.sibling_edges, dtype=np.int64).reshape(-1, 2)
+    n_e = edges.shape[0]
+    if pred.probs.shape[0] != n_e or pred.direction.shape != (n_e, 3) or pred.origin.shape != (n_e, 3):
+        raise ValueError(
+            f"{graph.shape_id}: predictions for {pred.probs.shape[0]} edges, graph has {n_e}"
+        )
+    v = graph.n_nodes
+    parent = np.asarray(graph.parent, dtype=np.int64)
+    is_leaf = np.asarray(graph.is_leaf, dtype=bool)
+    cp = pred.coarse()
+    lab = pred.coarse_labels()
+    conf = cp[:, list(_MOVING)].sum(axis=1)
+    center = np.asarray(graph.obb_center, dtype=np.float64)
+    half = np.asarray(graph.obb_half_extents, dtype=np.float64)
+    volume = np.prod(2.0 * half, axis=1)
+    n_leaves = np.array([len(graph.leaves_of(n)) for n in range(v)])
+    edge_index = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
+
+    # 1. one reference per moving node
+    dropped: list[int] = []
+    ref: dict[int, tuple[int, int]] = {}
+    for k in np.argsort(-conf, kind="stable"):
+        k = int(k)
+        if lab[k] not in _MOVING:
+            continue
+        i, j = int(edges[k, 0]), int(edges[k, 1])
+        if i in ref:
+            dropped.append(k)
+        else:
+            ref[i] = (j, k)
+    # 2. acyclic references
+    _break_cycles(ref, conf, dropped)
+
+    # 3. Fixed merge of moving nodes sharing a reference
+    moving = sorted(ref)
+    dsu = _DSU(moving)
+    for a in moving:
+        for b in moving:
+            if a < b and ref[a][0] == ref[b][0]:
+                fixed = any(
+                    (e := edge_index.get(pair)) is not None and lab[e] == _FIXED
+                    for pair in ((a, b), (b, a))
+                )
+                if fixed:
+                    dsu.union(a, b)
+    members: dict[int, list[int]] = {}
+    for a in moving:
+        members.setdefault(dsu.find(a), []).append(a)
+    groups: dict[int, dict] = {}
+    for root, mem in members.items():
+        rep = max(mem, key=lambda n: (volume[n], n_leaves[n], -n))
+        groups[rep] = {"members": sorted(mem), "rep": rep, "edge": ref[rep][1],
+                       "ref": ref[rep][0], "conf": float(conf[ref[rep][1]]), "attached": []}
+    node_group = {n: rep for rep, g in groups.items() for n in g["members"]}
+
+    # 4. attach non-moving siblings fixed to a moving node
+    best_fixed: dict[int, tuple[float, int]] = {}
+    for k in range(n_e):
+        if lab[k] != _FIXED:
+            continue
+        i, j = int(edges[k, 0]), int(edges[k, 1])
+        key = (float(cp[k, _FIXED]), -k)
+        if i not in best_fixed or key > (best_fixed[i][0], -best_fixed[i][1]):
+            best_fixed[i] = (float(cp[k, _FIXED]), k)
+    for i, (_, k) in sorted(best_fixed.items()):
+        if i in node_group:
+            continue
+        j = int(edges[k, 1])
+        if j in node_group:
+            groups[node_group[j]]["attached"].append(i)
+    for rep, g in groups.items():
+        for n in g["attached"]:
+            node_group[n] = rep
+
+    static: set[int] = set()
+    while True:
+        # 5. owners: nearest ancestor-or-self in a group, else the root link (-1)
+        owner = np.full(v, -1, dtype=np.int64)
+        for n in range(v):  # pre-order: parents first
+            if n in node_group:
+                owner[n] = node_group[n]
+            elif parent[n] >= 0:
+                owner[n] = owner[parent[n]]
+        gparent: dict[int, int] = {}
+        for rep, g in groups.items():
+            if rep in static:
+                p = parent[rep]
+                gparent[rep] = int(owner[p]) if p >= 0 else -1
+            else:
+                gparent[rep] = int(owner[g["ref"]])
+        # 6. cycles among group parents
+        cycle = None
+        for start in sorted(groups):
+            seen = []
+            cur = start
+            while cur != -1 and cur not in seen:
+                seen.append(cur)
+                cur = gparent[cur]
+            if cur != -1:
+                cycle = seen[seen.index(cur):]
+                break
+        if cycle is None:
+            break
+        cand = [r for r in cycle if r not in static]
+        if not cand:  # defensive: cannot happen (static links hang from hierarchy ancestors)
+            for r in cycle:
+                gparent[r] = -1
+            break
+        worst = min(cand, key=lambda r: (groups[r]["conf"], -groups[r]["edge"]))
+        static.add(worst)
+
+    # Links: root 0, then groups in pre-order of their representative node
+    order = sorted(groups)
+    link_id = {-1: 0}
+    for n, rep in enumerate(order, start=1):
+        link_id[rep] = n
+    leaf_owner = {n: link_id[int(owner[n])] for n in range(v) if is_leaf[n]}
+    links: list[Link] = [Link(0, -1, "base", _compact_parts(graph, leaf_owner, 0), Joint(JointType.FREE))]
+    tree = MobilityTree(links=links, leaf_link=np.full(v, -1, dtype=np.int64), dropped_edges=sorted(dropped))
+    tree.link_nodes[0] = []
+    for rep in order:
+        g = groups[rep]
+        lid = link_id[rep]
+        plink = link_id[gparent[rep]]
+        k = g["edge"]
+        name = graph.node_names[rep] if rep < len(graph.node_names) else f"part_{rep}"
+        parts = _compact_parts(graph, leaf_owner, lid)
+        if rep in static:
+            joint = Joint(JointType.STATIC)
+        else:
+            joint = _joint(k, int(lab[k]), rep, g["ref"], pred, center, half, options)
+        links.append(Link(lid, plink, name, parts, joint))
+        tree.link_edge[lid] = k
+        tree.link_nodes[lid] = sorted(g["members"] + g["attached"])
+        tree.confidence[lid] = g["conf"]
+    # node -> link (pure nodes)
+    ll = np.full(v, -2, dtype=np.int64)
+    for n in range(v - 1, -1, -1):
+        if is_leaf[n]:
+            ll[n] = leaf_owner[n]
+        p = parent[n]
+        if p >= 0:
+            if ll[p] == -2:
+                ll[p] = ll[n]
+            elif ll[p] != ll[n]:
+                ll[p] = -1
+    ll[ll == -2] = -1
+    tree.leaf_link = ll
+    return tree
+
+
+def _joint(k: int, lab: int, i: int, j: int, pred: EdgePrediction, center: np.ndarray,
+           half: np.ndarray, options: TreeOptions) -> Joint:
+    d = np.asarray(pred.direction[k], dtype=np.float64)
+    n = np.linalg.norm(d)
+    d = d / n if n > 0 and np.isfinite(n) else np.array([0.0, 1.0, 0.0])
+    away = center[i] - center[j]
+    if lab == _R:
+        o = np.asarray(pred.origin[k], dtype=np.float64)
+        r = center[i] - o
+        r = r - np.dot(r, d) * d
+        if np.dot(np.cross(d, r), away) < 0:
+            d = -d
+        lo, hi = options.hinge_limit
+        return Joint(JointType.HINGE, origin=o, direction=d, limit=(float(lo), float(hi)))
+    # prismatic (possibly rotating): the axis passes through the part's OBB centre
+    if np.dot(d, away) < 0:
+        d = -d
+    o = center[i].copy()
+    if lab == _PR:
+        o = np.asarray(pred.origin[k], dtype=np.float64)
+    size = float(2.0 * np.max(half[i]))
+    return Joint(
+        JointType.SLIDER,
+        origin=o,
+        direction=d,
+        limit=(0.0, float(options.slider_fraction * size)),
+        rotates=lab == _PR,
+        rotation_limit=None,
+    )

@@ -1,0 +1,11 @@
+"""Training of kinmo's models.
+
+- :mod:`kinmo.train.config`: :class:`TrainConfig` and its presets (``quick``, ``paper``).
+- :mod:`kinmo.train.split`: deterministic category-stratified train/test splits.
+- :mod:`kinmo.train.gnn`: the motion GNN training loop (``kinmo train gnn``).
+"""
+
+from kinmo.train.config import PRESETS, TrainConfig, preset
+from kinmo.train.split import Split, make_split
+
+__all__ = ["PRESETS", "Split", "TrainConfig", "make_split", "preset"]

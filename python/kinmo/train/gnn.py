@@ -1,0 +1,539 @@
+"""Training loop of the motion GNN (``kinmo train gnn``; Liu et al. 2023, Sec. 3.2).
+
+:func:`train_gnn` reads a cache of part graphs (``kinmo prepare``), splits the labelled
+(PartNet-Mobility) graphs into train and test sets by category (:mod:`kinmo.train.split`,
+or a given split file), trains :class:`~kinmo.models.motion_gnn.MotionGNN` with the loss of
+Eq. 1-4 (:mod:`kinmo.models.losses`) and writes a **run folder**:
+
+- ``config.json``: the :class:`~kinmo.train.config.TrainConfig` (with the model's vocabulary
+  size filled in);
+- ``split.json``: the train/test split used;
+- ``model.pt``: the checkpoint (state dict, config, semantic vocabulary, class weights);
+- ``metrics.csv``: one row per epoch (:data:`METRIC_COLUMNS`): learning rate, training loss
+  terms and edge accuracy, and the same on the test split when it is not empty (edge type
+  accuracy, recall of moving edges, edge-level axis angle error in degrees and axis position
+  error as a fraction of the shape's bounding-box diagonal);
+- ``recall.json``: per-class recall of the edge types on the training and test sets at the
+  end, and the training time (wall clock and CPU seconds, torch threads, device).
+
+Runs are reproducible: ``seed`` seeds torch, the batch order and the augmentation, and torch's
+deterministic algorithms are switched on for the duration of the run.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import random
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from kinmo.data.graph import PartGraph
+from kinmo.data.model import FINE_TO_COARSE
+from kinmo.errors import KinmoDataError
+from kinmo.features import GraphBatch, GraphTensors, SemanticVocab, collate, graph_tensors, yaw_rotation
+from kinmo.io import atomic_path, write_json, write_text
+from kinmo.models.losses import MotionLoss, class_weights
+from kinmo.models.motion_gnn import ModelConfig, MotionGNN
+from kinmo.train.config import TrainConfig, resolve_device
+from kinmo.train.split import Split, make_split
+
+__all__ = [
+    "METRIC_COLUMNS",
+    "Run",
+    "TrainResult",
+    "edge_metrics",
+    "load_cache",
+    "load_run",
+    "train_gnn",
+]
+
+METRIC_COLUMNS: tuple[str, ...] = (
+    "epoch", "lr", "loss", "loss_type", "loss_dir", "loss_pos", "train_acc",
+    "test_loss", "test_acc", "test_moving_recall", "test_angle_deg", "test_pos_dist", "seconds",
+)
+
+
+_COARSE_LUT = torch.tensor(FINE_TO_COARSE, dtype=torch.int64)
+
+
+def load_cache(cache: str | Path, ids: Sequence[str] | None = None) -> list[PartGraph]:
+    """Read the part graphs of a cache folder written by ``kinmo prepare``.
+
+    Parameters
+    ----------
+    cache : str or Path
+        Folder with ``<id>.npz`` files and (normally) ``manifest.csv``. With a manifest only
+        its ``ok``/``skipped`` rows are read; without one every ``*.npz``.
+    ids : sequence of str, optional
+        Read only these ids (in this order).
+
+    Returns
+    -------
+    list of PartGraph
+        Sorted by id unless ``ids`` is given.
+
+    Raises
+    ------
+    KinmoDataError
+        The folder does not exist, holds no graphs, or a requested id is missing.
+    """
+    cache = Path(cache)
+    if not cache.is_dir():
+        raise KinmoDataError(cache, "cache folder does not exist (run `kinmo prepare`)")
+    if ids is None:
+        if (cache / "manifest.csv").is_file():
+            from kinmo.prepare import read_manifest
+
+            keys = sorted(r.id for r in read_manifest(cache) if r.status in ("ok", "skipped"))
+        else:
+            keys = sorted(p.stem for p in cache.glob("*.npz"))
+        if not keys:
+            raise KinmoDataError(cache, "no part graphs in the cache (run `kinmo prepare`)")
+    else:
+        keys = [str(i) for i in ids]
+    out = []
+    for k in keys:
+        p = cache / f"{k}.npz"
+        if not p.is_file():
+            raise KinmoDataError(p, "part graph is missing from the cache")
+        out.append(PartGraph.load(p))
+    return out
+
+
+@dataclass
+class Run:
+    """A trained model loaded from a run folder.
+
+    Attributes
+    ----------
+    model : MotionGNN
+        In eval mode, on ``device``.
+    config : TrainConfig
+    vocab : SemanticVocab
+    device : torch.device
+    path : Path
+        The run folder.
+    """
+
+    model: MotionGNN
+    config: TrainConfig
+    vocab: SemanticVocab
+    device: torch.device
+    path: Path
+
+    @property
+    def types(self) -> str:
+        """``"fine"`` or ``"coarse"``."""
+        return self.config.model.types
+
+
+def save_checkpoint(path: Path, model: MotionGNN, config: TrainConfig, vocab: SemanticVocab,
+                    weights: torch.Tensor | None, epoch: int) -> None:
+    """Write ``model.pt`` atomically (state dict + config + vocabulary)."""
+    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
+    payload = {
+        "format": "kinmo-motion-gnn",
+        "version": 1,
+        "state_dict": state,
+        "config": config.model_dump(),
+        "vocab": vocab.names,
+        "class_weights": None if weights is None else weights.cpu(),
+        "epoch": epoch,
+    }
+    with atomic_path(path) as tmp:
+        torch.save(payload, tmp)
+
+
+def load_run(run: str | Path, device: str = "auto") -> Run:
+    """Load a trained motion GNN from a run folder (or a ``model.pt`` file).
+
+    Parameters
+    ----------
+    run : str or Path
+        Run folder written by :func:`train_gnn`, or its ``model.pt``.
+    device : str
+        See :func:`kinmo.train.config.resolve_device`.
+
+    Returns
+    -------
+    Run
+
+    Raises
+    ------
+    KinmoDataError
+        Missing or unreadable checkpoint, or one that is not a kinmo motion GNN.
+    """
+    run = Path(run)
+    ckpt = run / "model.pt" if run.is_dir() else run
+    if not ckpt.is_file():
+        raise KinmoDataError(ckpt, "checkpoint is missing (train with `kinmo train gnn`)")
+    try:
+        payload = torch.load(ckpt, map_location="cpu", weights_only=True)
+    except Exception as e:  # torch raises many types for corrupt files
+        raise KinmoDataError(ckpt, f"cannot read checkpoint: {e}") from None
+    if not isinstance(payload, dict) or payload.get("format") != "kinmo-motion-gnn":
+        raise KinmoDataError(ckpt, "not a kinmo motion-GNN checkpoint")
+    try:
+        raw = payload["config"]
+        # checkpoints written before the candidate direction head have no ``axis_mode``:
+        # they regress the direction
+        if isinstance(raw, dict) and "axis_mode" not in raw.get("model", {}):
+            raw = {**raw, "model": {**raw.get("model", {}), "axis_mode": "regress"}}
+        config = TrainConfig.model_validate(raw)
+        model = MotionGNN(config.model)
+        model.load_state_dict(payload["state_dict"])
+    except Exception as e:
+        raise KinmoDataError(ckpt, f"checkpoint does not match the model: {e}") from None
+    dev = resolve_device(device)
+    model.to(dev).eval()
+    vocab = SemanticVocab(payload.get("vocab", []))
+    return Run(model, config, vocab, dev, ckpt.parent)
+
+
+def edge_metrics(logits: torch.Tensor, direction: torch.Tensor, origin: torch.Tensor,
+                 batch: GraphBatch, types: str) -> dict[str, Any]:
+    """Edge-level metrics of a labelled batch (SWMP's test protocol).
+
+    Parameters
+    ----------
+    logits : (E, K) float
+    direction : (E, 3) float
+        Predicted unit axis directions (normalised frame).
+    origin : (E, 3) float
+        Predicted axis points (normalised frame).
+    batch : GraphBatch
+        Labelled.
+    types : {"fine", "coarse"}
+
+    Returns
+    -------
+    dict
+        ``n_edges``, ``correct`` (edges with the right type), ``moving`` / ``moving_correct``
+        (edges whose true type has an axis / and predicted right), ``confusion`` ``(K, K)``
+        int64 (rows true, columns predicted), ``angles`` (degrees, ``min(θ, 180-θ)``, over
+        edges whose true type has an axis), ``pos`` (distance of the predicted point to the
+        true axis line over rotating edges, fraction of the shape's AABB diagonal, which is
+        the unit of the normalised frame).
+    """
+    from kinmo.features import moving_fine_mask, rotating_fine_mask
+    from kinmo.models.losses import position_loss
+
+    target = batch.edge_labels(types).cpu()
+    pred = logits.argmax(dim=1).cpu()
+    k = logits.shape[1]
+    conf = torch.bincount(target * k + pred, minlength=k * k).reshape(k, k)
+    fine = batch.edge_fine.cpu()
+    has = (moving_fine_mask()[fine] & batch.has_axis.cpu())
+    rot = (rotating_fine_mask()[fine] & batch.has_axis.cpu())
+    d = direction.detach().cpu()
+    o = origin.detach().cpu()
+    td = batch.axis_direction.cpu()
+    cos = (d[has] * td[has]).sum(1).abs().clamp(max=1.0)
+    angles = torch.rad2deg(torch.acos(cos)).numpy()
+    pos = position_loss(o[rot], batch.axis_origin.cpu()[rot], td[rot]).numpy()
+    return {
+        "n_edges": int(target.numel()),
+        "correct": int((pred == target).sum()),
+        "moving": int(has.sum()),
+        "moving_correct": int(((pred == target) & has).sum()),
+        "confusion": conf.numpy().astype(np.int64),
+        "angles": angles,
+        "pos": pos,
+    }
+
+
+def _merge(acc: dict[str, Any] | None, m: dict[str, Any]) -> dict[str, Any]:
+    if acc is None:
+        return {**m, "angles": [m["angles"]], "pos": [m["pos"]]}
+    for key in ("n_edges", "correct", "moving", "moving_correct"):
+        acc[key] += m[key]
+    acc["confusion"] = acc["confusion"] + m["confusion"]
+    acc["angles"].append(m["angles"])
+    acc["pos"].append(m["pos"])
+    return acc
+
+
+def _summary(acc: dict[str, Any]) -> dict[str, float]:
+    ang = np.concatenate(acc["angles"]) if acc["angles"] else np.zeros(0)
+    pos = np.concatenate(acc["pos"]) if acc["pos"] else np.zeros(0)
+    return {
+        "acc": acc["correct"] / max(acc["n_edges"], 1),
+        "moving_recall": acc["moving_correct"] / acc["moving"] if acc["moving"] else float("nan"),
+        "angle_deg": float(ang.mean()) if ang.size else float("nan"),
+        "pos_dist": float(pos.mean()) if pos.size else float("nan"),
+    }
+
+
+def per_class_recall(confusion: np.ndarray, names: Sequence[str]) -> dict[str, dict[str, float]]:
+    """Recall of every class from a ``(K, K)`` confusion matrix (rows true).
+
+    Returns
+    -------
+    dict
+        ``name -> {"recall": float or NaN when absent, "support": int}``.
+    """
+    out = {}
+    for c, name in enumerate(names):
+        n = int(confusion[c].sum())
+        out[name] = {"recall": float(confusion[c, c] / n) if n else float("nan"), "support": n}
+    return out
+
+
+@torch.no_grad()
+def evaluate_edges(model: MotionGNN, tensors: Sequence[GraphTensors], config: TrainConfig,
+                   device: torch.device, loss_fn: MotionLoss | None = None) -> tuple[dict, float]:
+    """Edge metrics (:func:`edge_metrics`, accumulated) and mean loss over labelled graphs."""
+    model.eval()
+    acc = None
+    losses = []
+    for start in range(0, len(tensors), max(config.batch_size, 1)):
+        batch = collate(tensors[start:start + config.batch_size], n_points=config.n_points)
+        batch = batch.to(device)
+        out = model(batch)
+        if loss_fn is not None:
+            losses.append(float(loss_fn(out, batch).total))
+        acc = _merge(acc, edge_metrics(out.logits, out.direction, out.origin, batch,
+                                       config.model.types))
+    model.train()
+    return acc or {}, float(np.mean(losses)) if losses else float("nan")
+
+
+@dataclass
+class TrainResult:
+    """Outcome of :func:`train_gnn`.
+
+    Attributes
+    ----------
+    run_dir : Path
+    config : TrainConfig
+    split : Split
+    history : list of dict
+        The rows of ``metrics.csv``.
+    seconds : float
+        Wall-clock training time (excluding data loading).
+    cpu_seconds : float
+        CPU time of the process over the same span (all threads; the fair measure on a shared
+        machine).
+    recall : dict
+        Per-class recall on ``"train"`` and ``"test"``.
+    """
+
+    run_dir: Path
+    config: TrainConfig
+    split: Split
+    history: list[dict[str, float]] = field(default_factory=list)
+    seconds: float = 0.0
+    recall: dict[str, Any] = field(default_factory=dict)
+    cpu_seconds: float = 0.0
+
+
+def _fmt(v: float) -> str:
+    if isinstance(v, float):
+        return "" if math.isnan(v) else f"{v:.6g}"
+    return str(v)
+
+
+def _metrics_csv(rows: list[dict[str, float]]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(METRIC_COLUMNS)
+    for r in rows:
+        w.writerow([_fmt(r[c]) for c in METRIC_COLUMNS])
+    return buf.getvalue()
+
+
+def _labelled(graphs: Sequence[PartGraph]) -> list[PartGraph]:
+    return [g for g in graphs if g.has_labels and len(g.sibling_edges) > 0]
+
+
+def train_gnn(
+    cache: str | Path | Sequence[PartGraph],
+    out: str | Path,
+    config: TrainConfig,
+    split: Split | str | Path | None = None,
+    progress: bool = True,
+    on_epoch: Callable[[dict[str, float]], None] | None = None,
+) -> TrainResult:
+    """Train the motion GNN and write a run folder (module docstring).
+
+    Parameters
+    ----------
+    cache : str, Path or sequence of PartGraph
+        Cache folder of ``kinmo prepare`` (or graphs already loaded). Only graphs with
+        ground-truth labels and at least one sibling edge are used.
+    out : str or Path
+        Run folder (created).
+    config : TrainConfig
+    split : Split, str or Path, optional
+        A split (or its JSON file). By default one is made with
+        :func:`~kinmo.train.split.make_split` (``config.test_fraction``, ``config.seed``).
+        Ids of the split missing from the cache are ignored.
+    progress : bool
+        Show a rich progress bar.
+    on_epoch : callable, optional
+        Called with each epoch's metrics row.
+
+    Returns
+    -------
+    TrainResult
+
+    Raises
+    ------
+    KinmoDataError
+        No labelled graphs, or a split leaving no training graph.
+    """
+    out = Path(out)
+    graphs = list(cache) if not isinstance(cache, (str, Path)) else load_cache(cache)
+    where = cache if isinstance(cache, (str, Path)) else out
+    graphs = _labelled(graphs)
+    if not graphs:
+        raise KinmoDataError(where, "no labelled (PartNet-Mobility) part graphs to train on")
+    by_id = {g.shape_id: g for g in graphs}
+    if split is None:
+        split = make_split(list(by_id), [g.category for g in by_id.values()],
+                           config.test_fraction, config.seed)
+    elif not isinstance(split, Split):
+        split = Split.load(split)
+    train_g = [by_id[i] for i in split.train if i in by_id]
+    test_g = [by_id[i] for i in split.test if i in by_id]
+    if not train_g:
+        raise KinmoDataError(where, "the split leaves no labelled graph for training")
+
+    prev_det = torch.are_deterministic_algorithms_enabled()
+    prev_threads = torch.get_num_threads()
+    try:
+        torch.use_deterministic_algorithms(True, warn_only=True)
+        if config.threads > 0:
+            torch.set_num_threads(config.threads)
+        return _train(train_g, test_g, out, config, split, progress, on_epoch)
+    finally:
+        torch.use_deterministic_algorithms(prev_det)
+        torch.set_num_threads(prev_threads)
+
+
+def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config: TrainConfig,
+           split: Split, progress: bool,
+           on_epoch: Callable[[dict[str, float]], None] | None) -> TrainResult:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    device = resolve_device(config.device)
+    torch.manual_seed(config.seed)
+    random.seed(config.seed)
+    np.random.seed(config.seed % (2**32))
+    vocab = SemanticVocab.from_graphs(train_g) if config.model.semantic_dim > 0 else SemanticVocab()
+    mdata = config.model.model_dump()
+    mdata["vocab_size"] = len(vocab)
+    config = config.model_copy(update={"model": ModelConfig.model_validate(mdata)})
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "config.json", config.model_dump())
+    split.save(out / "split.json")
+
+    train_t = [graph_tensors(g, vocab) for g in train_g]
+    test_t = [graph_tensors(g, vocab) for g in test_g]
+    k = len(config.model.type_names)
+    counts = np.zeros(k, dtype=np.int64)
+    for t in train_t:
+        lab = t.edge_fine if config.model.types == "fine" else _COARSE_LUT[t.edge_fine]
+        counts += np.bincount(lab.numpy(), minlength=k)
+    weights = class_weights(counts) if config.class_weighting == "inv_sqrt" else None
+
+    model = MotionGNN(config.model).to(device)
+    loss_fn = MotionLoss(config.model.types, weights, config.focal_gamma, config.w_dir,
+                         config.w_pos, config.balance).to(device)
+    opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    if config.schedule == "cosine":
+        sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(config.epochs, 1))
+    elif config.schedule == "step":
+        sched = torch.optim.lr_scheduler.StepLR(opt, config.step_size, config.step_gamma)
+    else:
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
+    gen = torch.Generator().manual_seed(config.seed)
+
+    history: list[dict[str, float]] = []
+    t0 = time.perf_counter()
+    c0 = time.process_time()
+    columns = [TextColumn("[bold]train gnn[/]"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("{task.fields[info]}"), TimeElapsedColumn()]
+    with Progress(*columns, disable=not progress, transient=False) as bar:
+        task = bar.add_task("epochs", total=config.epochs, info="")
+        for epoch in range(1, config.epochs + 1):
+            model.train()
+            order = torch.randperm(len(train_t), generator=gen).tolist()
+            sums = np.zeros(4)
+            n_b = 0
+            acc = None
+            for start in range(0, len(order), config.batch_size):
+                members = [train_t[i] for i in order[start:start + config.batch_size]]
+                if config.augment_yaw:
+                    angles = torch.rand(len(members), generator=gen) * (2 * math.pi)
+                    members = [m.rotated(yaw_rotation(float(a))) for m, a in zip(members, angles)]
+                batch = collate(members, n_points=config.n_points, generator=gen).to(device)
+                outp = model(batch)
+                terms = loss_fn(outp, batch)
+                opt.zero_grad(set_to_none=True)
+                terms.total.backward()
+                if config.grad_clip > 0:
+                    torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
+                opt.step()
+                sums += [float(terms.total.detach()), float(terms.type.detach()),
+                         float(terms.direction.detach()), float(terms.position.detach())]
+                n_b += 1
+                acc = _merge(acc, edge_metrics(outp.logits.detach(), outp.direction.detach(),
+                                               outp.origin.detach(), batch, config.model.types))
+            lr = opt.param_groups[0]["lr"]
+            sched.step()
+            row: dict[str, float] = {
+                "epoch": epoch, "lr": lr,
+                "loss": sums[0] / n_b, "loss_type": sums[1] / n_b,
+                "loss_dir": sums[2] / n_b, "loss_pos": sums[3] / n_b,
+                "train_acc": _summary(acc)["acc"],
+            }
+            if test_t:
+                tacc, tloss = evaluate_edges(model, test_t, config, device, loss_fn)
+                s = _summary(tacc)
+                row.update(test_loss=tloss, test_acc=s["acc"],
+                           test_moving_recall=s["moving_recall"], test_angle_deg=s["angle_deg"],
+                           test_pos_dist=s["pos_dist"])
+            else:
+                row.update(test_loss=float("nan"), test_acc=float("nan"),
+                           test_moving_recall=float("nan"), test_angle_deg=float("nan"),
+                           test_pos_dist=float("nan"))
+            row["seconds"] = time.perf_counter() - t0
+            history.append(row)
+            write_text(out / "metrics.csv", _metrics_csv(history))
+            info = f"loss {row['loss']:.3f} acc {row['train_acc']:.3f}"
+            if test_t:
+                info += f" | test acc {row['test_acc']:.3f} angle {row['test_angle_deg']:.1f}°"
+            bar.update(task, advance=1, info=info)
+            if on_epoch is not None:
+                on_epoch(row)
+    seconds = time.perf_counter() - t0
+    cpu_seconds = time.process_time() - c0
+    save_checkpoint(out / "model.pt", model, config, vocab, weights, config.epochs)
+    names = config.model.type_names
+    tr_acc, _ = evaluate_edges(model, train_t, config, device)
+    recall: dict[str, Any] = {"train": per_class_recall(tr_acc["confusion"], names),
+                              "train_seconds": seconds, "train_cpu_seconds": cpu_seconds,
+                              "torch_threads": torch.get_num_threads(), "device": str(device),
+                              "n_train": len(train_t), "n_test": len(test_t)}
+    if test_t:
+        te_acc, _ = evaluate_edges(model, test_t, config, device)
+        recall["test"] = per_class_recall(te_acc["confusion"], names)
+    write_json(out / "recall.json", _jsonable(recall))
+    return TrainResult(out, config, split, history, seconds, recall, cpu_seconds)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, float) and math.isnan(obj):
+        return None
+    return obj
