@@ -1,4 +1,14 @@
-"""Interaction region between a moving part and its reference part (Hu et al. 2015)."""
+"""Interaction region between a moving part and its reference part.
+
+The interaction region of two parts is the set of points of each part within a radius of the
+other part (Hu et al., *Interaction Context (ICON): Towards a Geometric Functionality
+Descriptor*, SIGGRAPH 2015). Its centroid is the pivot candidate of the motion refinement
+stage of Liu et al., *Semi-Weakly Supervised Object Kinematic Motion Prediction*, CVPR 2023,
+Sec. 3.3 (see :mod:`kinmo.refine.candidates`).
+
+Rust (``kinmo-geometry/src/interaction.rs``): a k-d tree per point set (median split,
+bounding box per node) queried with early exit, ``O((Na + Nb) log(Na + Nb))``.
+"""
 
 from __future__ import annotations
 
@@ -39,13 +49,24 @@ def interaction_region(
     Parameters
     ----------
     moving : (Na, 3) float64
+        Points of the moving part (e.g. surface samples), ``Na >= 1``.
     reference : (Nb, 3) float64
+        Points of the reference part, same frame and units, ``Nb >= 1``.
     radius : float
-        Absolute distance, > 0.
+        Absolute distance, finite and > 0, in the units of the points; a point is selected
+        when its nearest point of the other part is at distance ``<= radius``.
 
     Returns
     -------
     InteractionRegion
+        Masks, centroid (mean of the selected points of both parts, or the midpoint of the
+        closest pair when nothing is selected) and the ``empty`` flag.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, empty or non-finite point sets (naming ``moving`` / ``reference``), or a
+        radius that is not finite and positive.
     """
     ma, mb, c, empty = _core.interaction_region(
         np.ascontiguousarray(moving, dtype=np.float64),

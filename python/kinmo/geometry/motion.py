@@ -43,7 +43,13 @@ def motion_transforms(
     Returns
     -------
     (C, 4, 4) float64
-        Homogeneous matrices acting on column vectors.
+        Homogeneous matrices acting on column vectors: ``x' = M[:3, :3] x + M[:3, 3]``.
+
+    Raises
+    ------
+    ValueError
+        Wrong shapes or lengths, NaN/inf values, or a zero-length direction (the message
+        names the argument and the candidate index).
     """
     return _core.motion_transforms(*_args(origins, directions, angles, translations))
 
@@ -65,7 +71,13 @@ def apply_motions(
     Returns
     -------
     (C, N, 3) float64
-        Parallel over candidates (Rust threads), written straight into the output array.
+        ``out[c, i]`` is point ``i`` moved by candidate ``c``. Parallel over candidates and
+        blocks of points (Rust threads, GIL released), written straight into the output.
+
+    Raises
+    ------
+    ValueError
+        As :func:`motion_transforms`, or ``points`` not of shape ``(N, 3)`` / not finite.
     """
     p = np.ascontiguousarray(points, dtype=np.float64)
     return _core.apply_motions(p, *_args(origins, directions, angles, translations))

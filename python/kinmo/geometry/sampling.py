@@ -14,17 +14,23 @@ def sample_surface(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sample ``n`` points uniformly by area on a triangle mesh.
 
-    Faces are chosen with probability proportional to their area (zero-area faces are never
-    chosen), points uniformly inside the face (barycentric ``sqrt`` trick). Reproducible: the
-    same inputs and ``seed`` give the same points on every machine.
+    Faces are chosen with probability proportional to their area (Walker/Vose alias table;
+    zero-area faces are never chosen), points uniformly inside the face with the square-root
+    barycentric formula of Osada et al., *Shape distributions* (ACM TOG 2002):
+    ``(1 - sqrt(r1)) a + sqrt(r1) (1 - r2) b + sqrt(r1) r2 c``. Random numbers come from
+    xoshiro256++ seeded with SplitMix64 (integer arithmetic only), so the same inputs and
+    ``seed`` give bit-identical points on every machine. Runs in Rust with the GIL released.
 
     Parameters
     ----------
     vertices : (V, 3) float64
+        Mesh frame, any units.
     faces : (F, 3) int
+        Zero-based vertex indices.
     n : int
         Number of points, >= 1.
     seed : int
+        In ``[0, 2**64)``.
 
     Returns
     -------
@@ -35,7 +41,8 @@ def sample_surface(
     Raises
     ------
     ValueError
-        Bad shapes, non-finite vertices, out-of-range indices, or zero total area.
+        Bad shapes, non-finite vertices, out-of-range indices, zero total area, ``n < 1`` or
+        a seed out of range (the message names the argument).
     """
     return _core.sample_surface(
         np.ascontiguousarray(vertices, dtype=np.float64),
@@ -54,8 +61,10 @@ def sample_surface_groups(
     """Sample ``n`` points on the union of each group of meshes, in parallel.
 
     Used for part graphs: a leaf node is a group of its own meshes, an inner node the group
-    of all meshes below it. Group ``g`` is sampled with a seed derived from ``(seed, g)``, so
-    results do not depend on the number of threads.
+    of all meshes below it. Group ``g`` is sampled like :func:`sample_surface` on the
+    concatenation of its meshes (in the listed order) with a seed derived from ``(seed, g)``
+    (SplitMix64), so results do not depend on the number of threads nor on the other groups.
+    Parallel over groups (Rust threads, GIL released), one output buffer.
 
     Parameters
     ----------

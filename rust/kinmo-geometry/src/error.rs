@@ -27,7 +27,9 @@ pub enum GeometryError {
         index: usize,
     },
     /// A face referenced a vertex that does not exist.
-    #[error("{what}: face {face} references vertex {vertex}, but there are only {n_vertices} vertices")]
+    #[error(
+        "{what}: face {face} references vertex {vertex}, but there are only {n_vertices} vertices"
+    )]
     IndexOutOfRange {
         /// Argument name.
         what: String,

@@ -111,9 +111,11 @@ impl TriMesh {
     /// Unreferenced vertices count too (as in trimesh with `process=False`).
     pub fn bounds(&self) -> Option<(Point3<f64>, Point3<f64>)> {
         let first = *self.vertices.first()?;
-        Some(self.vertices.iter().fold((first, first), |(lo, hi), p| {
-            (lo.inf(p), hi.sup(p))
-        }))
+        Some(
+            self.vertices
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+        )
     }
 }
 
@@ -149,12 +151,17 @@ pub fn check_finite(points: &[Point3<f64>], what: &str) -> Result<()> {
 /// Vertices are in the file's frame and units.
 ///
 /// # Errors
-/// [`GeometryError::Io`] naming the file when it is missing, unreadable or does not parse,
-/// has a non-finite vertex, or a face index out of range.
+/// [`GeometryError::Io`] naming the file when it is missing or unreadable;
+/// [`GeometryError::Parse`] naming the file when it does not parse, has a non-finite
+/// vertex, or a face index out of range.
 pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
     let path = path.as_ref();
     let name = path.display().to_string();
     let io = |message: String| GeometryError::Io {
+        path: name.clone(),
+        message,
+    };
+    let parse = |message: String| GeometryError::Parse {
         path: name.clone(),
         message,
     };
@@ -164,13 +171,19 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let file = std::fs::File::open(path).map_err(|e| io(format!("cannot open: {e}")))?;
-    let mut reader = std::io::BufReader::with_capacity(1 << 16, file);
+    let bytes = std::fs::read(path).map_err(|e| io(format!("cannot read: {e}")))?;
+    if bytes.contains(&0) {
+        return Err(parse(
+            "binary data (NUL bytes): not a text OBJ file".to_string(),
+        ));
+    }
+    // Invalid UTF-8 (e.g. Latin-1 comments or group names) is replaced, not fatal.
+    let text = String::from_utf8_lossy(&bytes);
     // Materials are never read: a missing or broken `.mtl` cannot fail the load.
-    let (models, _materials) = tobj::load_obj_buf(&mut reader, &opts, |_| {
-        Ok((Vec::new(), std::collections::HashMap::new()))
+    let (models, _materials) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |_| {
+        Ok((Vec::new(), Default::default()))
     })
-    .map_err(|e| io(obj_error(&e)))?;
+    .map_err(|e| parse(obj_error(&e)))?;
 
     let n_vertices: usize = models.iter().map(|m| m.mesh.positions.len() / 3).sum();
     let n_faces: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
@@ -185,32 +198,31 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
                 .chunks_exact(3)
                 .map(|c| Point3::new(c[0], c[1], c[2])),
         );
-        for (k, tri) in mesh.indices.chunks_exact(3).enumerate() {
+        for tri in mesh.indices.chunks_exact(3) {
             let mut face = [0u32; 3];
             for (slot, &i) in face.iter_mut().zip(tri) {
                 let i = i as usize;
                 if i >= n_here {
-                    return Err(io(format!(
+                    return Err(parse(format!(
                         "face {} of object '{}' references vertex {} of {}",
-                        faces.len() + k,
+                        faces.len(),
                         model.name,
                         i,
                         n_here
                     )));
                 }
                 *slot = u32::try_from(offset + i)
-                    .map_err(|_| io("more than 2^32 vertices".to_string()))?;
+                    .map_err(|_| parse("more than 2^32 vertices".to_string()))?;
             }
             faces.push(face);
         }
     }
     TriMesh::new(vertices, faces, &name).map_err(|e| match e {
-        GeometryError::NonFinite { index, .. } => io(format!(
-            "non-finite coordinate in vertex {} (1-based line order of 'v' records: {})",
-            index / 3,
-            index / 3 + 1
+        GeometryError::NonFinite { index, .. } => parse(format!(
+            "vertex {} (counted in object order) has a non-finite coordinate (NaN or inf)",
+            index / 3
         )),
-        other => io(other.to_string()),
+        other => parse(other.to_string()),
     })
 }
 
@@ -232,18 +244,153 @@ fn obj_error(e: &tobj::LoadError) -> String {
     use tobj::LoadError as E;
     match e {
         E::OpenFileFailed => "cannot open the file".to_string(),
-        E::ReadError => "read error (not a text file?)".to_string(),
+        E::ReadError => "read error".to_string(),
         E::UnrecognizedCharacter => "malformed OBJ: unrecognized character".to_string(),
         E::PositionParseError => "malformed OBJ: cannot parse a vertex position".to_string(),
         E::NormalParseError => "malformed OBJ: cannot parse a vertex normal".to_string(),
-        E::TexcoordParseError => {
-            "malformed OBJ: cannot parse a texture coordinate".to_string()
-        }
+        E::TexcoordParseError => "malformed OBJ: cannot parse a texture coordinate".to_string(),
         E::FaceParseError => "malformed OBJ: cannot parse a face".to_string(),
         E::FaceVertexOutOfBounds => "malformed OBJ: face vertex index out of range".to_string(),
         E::FaceTexCoordOutOfBounds | E::FaceNormalOutOfBounds => {
             "malformed OBJ: face attribute index out of range".to_string()
         }
         other => format!("malformed OBJ: {other}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    /// A test file, removed when dropped.
+    struct TempObj(PathBuf);
+
+    impl std::ops::Deref for TempObj {
+        type Target = Path;
+        fn deref(&self) -> &Path {
+            &self.0
+        }
+    }
+
+    impl AsRef<Path> for TempObj {
+        fn as_ref(&self) -> &Path {
+            &self.0
+        }
+    }
+
+    impl Drop for TempObj {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+
+    /// Write `text` to a fresh file in the temp folder (names are unique per test).
+    fn obj_file(name: &str, text: impl AsRef<[u8]>) -> TempObj {
+        let dir = std::env::temp_dir().join(format!("kinmo-mesh-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join(name);
+        std::fs::write(&path, text).expect("write obj");
+        TempObj(path)
+    }
+
+    #[test]
+    fn quads_triangulated_objects_merged_materials_ignored() {
+        let path = obj_file(
+            "two_objects.obj",
+            "mtllib missing.mtl\no a\nusemtl nothing\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+             f 1 2 3 4\no b\nv 0 0 2\nv 2 0 2\nv 0 2 2\nf -3 -2 -1\n",
+        );
+        let m = load_obj(&path).expect("loads");
+        assert_eq!(m.n_vertices(), 7);
+        assert_eq!(m.n_faces(), 3);
+        // Unit square (area 1) + right triangle of legs 2 (area 2).
+        assert!((m.area() - 3.0).abs() < 1e-15);
+        // The second object's face indexes the merged vertex list.
+        assert!(m.faces()[2].iter().all(|&i| i >= 4));
+        let (lo, hi) = m.bounds().expect("non-empty");
+        assert_eq!(
+            (lo, hi),
+            (Point3::new(0.0, 0.0, 0.0), Point3::new(2.0, 2.0, 2.0))
+        );
+    }
+
+    #[test]
+    fn io_errors_name_the_file() {
+        let missing = std::env::temp_dir().join("kinmo-definitely-missing.obj");
+        match load_obj(&missing) {
+            Err(GeometryError::Io { path, .. }) => {
+                assert!(path.contains("kinmo-definitely-missing"))
+            }
+            other => panic!("expected Io, got {other:?}"),
+        }
+        for (name, text) in [
+            ("bad_vertex.obj", "v 0 zero 0\nf 1 1 1\n"),
+            ("bad_face.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n"),
+            ("nan_vertex.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n"),
+            ("inf_vertex.obj", "v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n"),
+            ("zero_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"),
+            ("binary.obj", "v 0 0 0\n\0\x01\x02\n"),
+        ] {
+            let path = obj_file(name, text);
+            match load_obj(&path) {
+                Err(GeometryError::Parse { path, message }) => {
+                    assert!(path.contains(name), "{message}")
+                }
+                other => panic!("{name}: expected Parse, got {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn latin1_comments_and_directories() {
+        let path = obj_file(
+            "latin1.obj",
+            b"# caf\xe9\ng chaise_\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        );
+        assert_eq!(load_obj(&path).expect("loads").n_faces(), 1);
+        let dir = path.parent().expect("has a parent");
+        assert!(matches!(load_obj(dir), Err(GeometryError::Io { .. })));
+    }
+
+    #[test]
+    fn load_objs_keeps_order_and_reports_first_error() {
+        let a = obj_file("a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        let b = obj_file(
+            "b.obj",
+            "v 0 0 0\nv 2 0 0\nv 0 2 0\nv 2 2 0\nf 1 2 3\nf 2 4 3\n",
+        );
+        let ms = load_objs(&[&a, &b, &a]).expect("loads");
+        assert_eq!(
+            ms.iter().map(TriMesh::n_faces).collect::<Vec<_>>(),
+            [1, 2, 1]
+        );
+        let bad = obj_file("c.obj", "v 0 0 0\nf 1 2 3\n");
+        match load_objs(&[&a, &bad, &b]) {
+            Err(GeometryError::Parse { path, .. }) => assert!(path.ends_with("c.obj")),
+            other => panic!("expected Parse, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn trimesh_new_validates() {
+        let v = vec![Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0)];
+        assert!(matches!(
+            TriMesh::new(v.clone(), vec![[0, 1, 2]], "m"),
+            Err(GeometryError::IndexOutOfRange {
+                face: 0,
+                vertex: 2,
+                ..
+            })
+        ));
+        let w = vec![Point3::new(0.0, f64::INFINITY, 0.0)];
+        assert!(matches!(
+            TriMesh::new(w, vec![], "m"),
+            Err(GeometryError::NonFinite { index: 1, .. })
+        ));
+        assert!(TriMesh::new(vec![], vec![], "m")
+            .expect("empty ok")
+            .bounds()
+            .is_none());
     }
 }

@@ -1,0 +1,107 @@
+"""Type stubs of :mod:`kinmo._core`, the native (Rust, pyo3) module.
+
+Hand-written: keep in step with ``rust/kinmo-py/src``. The public, documented API is
+:mod:`kinmo.geometry`; these functions take exactly-typed, C-compatible numpy arrays
+(float64 coordinates, int64 faces) and raise ``ValueError`` (bad input) or ``OSError``
+(files) naming the problem. The GIL is released while the Rust code runs.
+"""
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
+Mesh = tuple[F64, I64]
+
+# --- mesh (rust/kinmo-py/src/mesh.rs) ---------------------------------------------------
+
+def load_obj(path: str) -> Mesh:
+    """Read one OBJ file: ``(vertices (V, 3) float64, faces (F, 3) int64)``.
+
+    Triangulated, all objects/groups merged, materials ignored. ``OSError`` naming the file
+    when it is missing or unreadable; ``ValueError`` naming it when it is malformed, binary,
+    has non-finite vertices or out-of-range face indices.
+    """
+
+def load_objs(paths: Sequence[str]) -> list[Mesh]:
+    """Read many OBJ files in parallel (input order); the first failing file raises."""
+
+# --- sampling (rust/kinmo-py/src/sampling.rs) -------------------------------------------
+
+def sample_surface(vertices: F64, faces: I64, n: int, seed: int) -> tuple[F64, I64]:
+    """``n >= 1`` area-weighted points ``(n, 3)`` and their face indices ``(n,)``.
+
+    ``0 <= seed < 2**64``; xoshiro256++ stream, bit-identical on every machine.
+    """
+
+def sample_surface_groups(
+    meshes: Sequence[Mesh], groups: Sequence[Sequence[int]], n: int, seed: int
+) -> F64:
+    """``(G, n, 3)``: ``n`` points on the union of each group of meshes (parallel)."""
+
+# --- obb (rust/kinmo-py/src/obb.rs) ------------------------------------------------------
+
+def fit_obb(
+    points: F64,
+    *,
+    volume_tolerance: float = 0.01,
+    up: tuple[float, float, float] | None = (0.0, 1.0, 0.0),
+    symmetry: bool = True,
+) -> tuple[F64, F64, F64]:
+    """``(center (3,), axes (3, 3) rows, half_extents (3,))`` of a point set ``(N, 3)``.
+
+    Tight, up- and symmetry-aligned, canonical rows (see :mod:`kinmo.geometry.obb`).
+    ``ValueError`` on empty input, bad shape, NaN/inf or bad options.
+    """
+
+def fit_obb_batch(
+    point_sets: Sequence[F64],
+    *,
+    volume_tolerance: float = 0.01,
+    up: tuple[float, float, float] | None = (0.0, 1.0, 0.0),
+    symmetry: bool = True,
+) -> tuple[F64, F64, F64]:
+    """``(centers (B, 3), axes (B, 3, 3), half_extents (B, 3))``, parallel; set ``i`` is
+    named ``point_sets[i]`` in errors."""
+
+# --- contact (rust/kinmo-py/src/contact.rs) ----------------------------------------------
+
+def contact_pairs(meshes: Sequence[Mesh], tolerance: float) -> tuple[I64, F64]:
+    """``(pairs (K, 2) int64 with i < j, distances (K,) float64)`` within ``tolerance``.
+
+    Exact surface distances (triangles); ``tolerance`` finite, >= 0. Meshes without faces
+    pair with nothing. Mesh ``i`` is named ``meshes[i]`` in errors.
+    """
+
+def mesh_distance(vertices_a: F64, faces_a: I64, vertices_b: F64, faces_b: I64) -> float:
+    """Exact minimum distance between two triangle-mesh surfaces (0 when touching).
+
+    ``ValueError`` when a mesh has no faces.
+    """
+
+# --- interaction (rust/kinmo-py/src/interaction.rs) --------------------------------------
+
+def interaction_region(
+    moving: F64, reference: F64, radius: float
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], F64, bool]:
+    """``(mask_moving (Na,), mask_reference (Nb,), centroid (3,), empty)``.
+
+    ``radius`` finite, > 0 (a point is selected at distance <= radius); both point sets
+    non-empty and finite.
+    """
+
+# --- motion (rust/kinmo-py/src/motion.rs) ------------------------------------------------
+
+def motion_transforms(origins: F64, directions: F64, angles: F64, translations: F64) -> F64:
+    """``(C, 4, 4)`` homogeneous matrices: rotate ``angles[c]`` rad about the line
+    ``(origins[c], directions[c])`` (right-hand rule), then translate ``translations[c]``
+    along the unit direction. Zero-length direction: ``ValueError`` naming the candidate."""
+
+def apply_motions(
+    points: F64, origins: F64, directions: F64, angles: F64, translations: F64
+) -> F64:
+    """``(C, N, 3)``: every candidate motion applied to ``points (N, 3)``, parallel."""

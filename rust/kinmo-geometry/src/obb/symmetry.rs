@@ -1,0 +1,183 @@
+//! Reflective-symmetry error of a box's three mid-planes.
+//!
+//! For a candidate frame (center `c`, orthonormal rows `a_k`), the points are reflected
+//! through each mid-plane `{x : (x - c) . a_k = 0}` and the mean distance from a reflected
+//! point to its nearest original point is measured (the same measure as the symmetry
+//! transform scores of Mitra et al., *Partial and approximate symmetry detection for 3D
+//! geometry*, SIGGRAPH 2006, used by Fish et al. 2014 to align part boxes). The error is
+//! the mean over the three planes, divided by the box diagonal, so it is dimensionless:
+//! `0` for a set that is mirror-symmetric about all three mid-planes.
+//!
+//! To stay cheap, at most `max_samples` points are used: a permutation-independent
+//! subsample (the points with the smallest SplitMix64 hash of their coordinate bits),
+//! with a small static k-d tree for the nearest-neighbour queries.
+
+use nalgebra::{Point3, Vector3};
+
+/// SplitMix64 finaliser (Steele, Lea & Flood 2014) of one word.
+fn mix(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// A static k-d tree over a few hundred points (implicit layout, median splits).
+#[derive(Debug, Clone)]
+pub(crate) struct KdTree {
+    pts: Vec<Point3<f64>>,
+}
+
+impl KdTree {
+    /// Build the tree (reorders a copy of `pts`).
+    pub fn new(mut pts: Vec<Point3<f64>>) -> Self {
+        fn build(p: &mut [Point3<f64>], depth: usize) {
+            if p.len() <= 1 {
+                return;
+            }
+            let mid = p.len() / 2;
+            let ax = depth % 3;
+            p.select_nth_unstable_by(mid, |a, b| a[ax].total_cmp(&b[ax]));
+            let (l, r) = p.split_at_mut(mid);
+            build(l, depth + 1);
+            build(&mut r[1..], depth + 1);
+        }
+        build(&mut pts, 0);
+        KdTree { pts }
+    }
+
+    /// Squared distance from `q` to the nearest point (infinity when empty).
+    pub fn nearest_sq(&self, q: &Point3<f64>) -> f64 {
+        fn go(p: &[Point3<f64>], depth: usize, q: &Point3<f64>, best: &mut f64) {
+            if p.is_empty() {
+                return;
+            }
+            let mid = p.len() / 2;
+            let d = (p[mid] - q).norm_squared();
+            if d < *best {
+                *best = d;
+            }
+            let ax = depth % 3;
+            let diff = q[ax] - p[mid][ax];
+            let (near, far) = if diff < 0.0 {
+                (&p[..mid], &p[mid + 1..])
+            } else {
+                (&p[mid + 1..], &p[..mid])
+            };
+            go(near, depth + 1, q, best);
+            if diff * diff < *best {
+                go(far, depth + 1, q, best);
+            }
+        }
+        let mut best = f64::INFINITY;
+        go(&self.pts, 0, q, &mut best);
+        best
+    }
+
+    /// The points (in tree order).
+    pub fn points(&self) -> &[Point3<f64>] {
+        &self.pts
+    }
+}
+
+/// At most `max` points of `pts`, chosen independently of their order: those with the
+/// smallest hash of their coordinate bits (ties, i.e. duplicates, are interchangeable).
+pub(crate) fn subsample(pts: &[Point3<f64>], max: usize) -> Vec<Point3<f64>> {
+    if pts.len() <= max {
+        return pts.to_vec();
+    }
+    if max == 0 {
+        return Vec::new();
+    }
+    let hash = |p: &Point3<f64>| mix(mix(mix(p.x.to_bits()) ^ p.y.to_bits()) ^ p.z.to_bits());
+    let mut keyed: Vec<(u64, Point3<f64>)> = pts.iter().map(|p| (hash(p), *p)).collect();
+    keyed.select_nth_unstable_by_key(max - 1, |k| k.0);
+    keyed.truncate(max);
+    keyed.sort_unstable_by_key(|k| k.0);
+    keyed.into_iter().map(|k| k.1).collect()
+}
+
+/// Mean (over the three mid-planes of the frame) of the mean nearest-neighbour distance
+/// of the reflected samples, divided by `diag` (the box diagonal).
+pub(crate) fn symmetry_error(
+    tree: &KdTree,
+    center: &Point3<f64>,
+    axes: &[Vector3<f64>; 3],
+    diag: f64,
+) -> f64 {
+    let pts = tree.points();
+    if pts.is_empty() || diag <= 0.0 {
+        return 0.0;
+    }
+    let mut total = 0.0;
+    for a in axes {
+        let mut sum = 0.0;
+        for p in pts {
+            let r = p - a * (2.0 * (p - center).dot(a));
+            sum += tree.nearest_sq(&r).sqrt();
+        }
+        total += sum / pts.len() as f64;
+    }
+    total / (3.0 * diag)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64) / ((1u64 << 53) as f64)
+    }
+
+    #[test]
+    fn kdtree_matches_brute_force() {
+        let mut s = 11;
+        let pts: Vec<Point3<f64>> = (0..300)
+            .map(|_| Point3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)))
+            .collect();
+        let tree = KdTree::new(pts.clone());
+        for _ in 0..100 {
+            let q = Point3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s));
+            let brute = pts
+                .iter()
+                .map(|p| (p - q).norm_squared())
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(tree.nearest_sq(&q), brute);
+        }
+    }
+
+    #[test]
+    fn mirror_symmetric_set_has_zero_error_on_its_planes() {
+        // A set symmetric about x = 0 only.
+        let mut s = 5;
+        let mut pts = Vec::new();
+        for _ in 0..50 {
+            let (x, y, z) = (lcg(&mut s), lcg(&mut s), lcg(&mut s));
+            pts.push(Point3::new(x, y, z));
+            pts.push(Point3::new(-x, y, z));
+        }
+        let tree = KdTree::new(pts.clone());
+        let c = Point3::origin();
+        let x = Vector3::x();
+        let e_x = symmetry_error(&tree, &c, &[x, x, x], 1.0);
+        assert!(e_x < 1e-15, "{e_x}");
+        let axes = [Vector3::y(), Vector3::y(), Vector3::y()];
+        assert!(symmetry_error(&tree, &Point3::new(0.0, 0.5, 0.0), &axes, 1.0) > 1e-3);
+    }
+
+    #[test]
+    fn subsample_is_order_independent() {
+        let mut s = 9;
+        let pts: Vec<Point3<f64>> = (0..1000)
+            .map(|_| Point3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)))
+            .collect();
+        let mut rev = pts.clone();
+        rev.reverse();
+        let a = subsample(&pts, 64);
+        assert_eq!(a.len(), 64);
+        assert_eq!(a, subsample(&rev, 64));
+    }
+}
