@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from _geometry import point_mesh_distance
+from ._geometry import point_mesh_distance
 from kinmo.data.labels import rigid_groups
 from kinmo.data.readers import read_shape
 from kinmo.geometry import load_obj

@@ -15,7 +15,7 @@ import pytest
 from typer.testing import CliRunner
 
 from kinmo.cli import app
-from report_fake_run import (
+from .report_fake_run import (
     TABLE2,
     make_run,
     table2_means,

@@ -9,5 +9,15 @@ from kinmo.cli._apps import app, eval_app, train_app
 
 # Importing a module registers its commands.
 from kinmo.cli import prepare as _prepare  # noqa: F401,E402
+from kinmo.cli import gnn as _gnn  # noqa: F401,E402
+from kinmo.cli import predict as _predict  # noqa: F401,E402
+from kinmo.cli import evaluate as _evaluate  # noqa: F401,E402
+from kinmo.cli import synth as _synth  # noqa: F401,E402
+from kinmo.cli import render as _render  # noqa: F401,E402
+from kinmo.cli import axis as _axis  # noqa: F401,E402
+from kinmo.cli import pseudo_label as _pseudo_label  # noqa: F401,E402
+from kinmo.cli import ancsh as _ancsh  # noqa: F401,E402
+from kinmo.cli import report as _report  # noqa: F401,E402
+from kinmo.cli import pipeline as _pipeline  # noqa: F401,E402
 
 __all__ = ["app", "eval_app", "train_app"]

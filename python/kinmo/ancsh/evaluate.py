@@ -1,0 +1,586 @@
+"""Table 2 of Liu et al. CVPR 2023: ANCSH on partial scans of held-out objects (``kinmo eval``).
+
+For one category, :func:`evaluate_category` renders (or reuses) scans of the test objects of
+the runs' split (:mod:`kinmo.ancsh.train`), runs every trained model (one row per setting:
+``supervised``, ``semi``, ``semi-weakly``), post-processes each prediction
+(:func:`kinmo.ancsh.postprocess.estimate`) and compares it with the rendered ground truth
+(:func:`frame_truth`). Per frame (:func:`frame_errors`):
+
+- per part ``k`` (ANCSH order, part 0 the base): **rotation error** (degrees, geodesic),
+  **translation error** (distance between the predicted and true centres of the part's NPCS
+  box in the camera frame, mesh units; ANCSH's code compares the images of the NPCS origin,
+  which mixes in the rotation error), **3D IoU** of the amodal boxes (predicted box: the
+  estimator's, from the NPCS extent of the part's points; true box: the part's full rest box);
+- per joint ``j`` (child part ``j + 1``): **joint state error** (degrees for revolute joints,
+  mesh units for prismatic ones; the predicted state is negated when the predicted axis
+  direction opposes the true one, as an axis and its reverse describe the same line),
+  **axis angle error** (degrees in [0, 90], :func:`kinmo.metrics.axis.axis_angle_deg`) and
+  **axis distance** (revolute joints: distance between the axis lines,
+  :func:`kinmo.metrics.axis.line_distance`, mesh units; prismatic axes have no position).
+
+Table entries are means over frames; the "mean" columns average the parts (or joints).
+Outputs in the evaluation folder: ``table2.csv`` (one row per run), ``table2.md``,
+``frames.csv`` (every frame's errors) and ``eval.json`` (test objects, frames, runs).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+import zlib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinmo.ancsh.postprocess import ANCSHEstimate, JointEstimate, PartPose
+from kinmo.ancsh.structure import KinematicStructure, ObjectParts
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.metrics.axis import axis_angle_deg, line_distance
+from kinmo.metrics.pose import box_iou_3d, rotation_error_deg
+
+__all__ = [
+    "FrameErrors",
+    "FrameTruth",
+    "Table2Row",
+    "evaluate_category",
+    "find_runs",
+    "frame_errors",
+    "frame_truth",
+    "ground_truth_estimate",
+    "ground_truth_predictions",
+    "summarize",
+    "table2_markdown",
+]
+
+SETTING_ORDER = {"supervised": 0, "semi": 1, "semi-weakly": 2}
+
+
+# ---------------------------------------------------------------------------- ground truth
+
+
+@dataclass
+class FrameTruth:
+    """Ground truth of one rendered frame in ANCSH order (camera frame, mesh units).
+
+    Attributes
+    ----------
+    parts : list of PartPose
+        Per ANCSH part: NPCS -> camera similarity, ``box_half`` the half extents of its full
+        rest box in NPCS, ``n_points`` visible points.
+    joints : list of JointEstimate
+        Per joint: origin and unit direction in the camera frame, state (radians / mesh
+        units, 0 at rest), type.
+    """
+
+    parts: list[PartPose]
+    joints: list[JointEstimate]
+
+
+def _orthonormal(r: Any) -> np.ndarray:
+    """The rotation nearest to ``r`` (frames store float32 matrices)."""
+    u, _, vt = np.linalg.svd(np.asarray(r, dtype=np.float64))
+    m = u @ vt
+    if np.linalg.det(m) < 0:
+        u[:, -1] *= -1
+        m = u @ vt
+    return m
+
+
+def frame_truth(frame: Mapping[str, Any], parts: ObjectParts) -> FrameTruth:
+    """Ground truth of a frame (:func:`kinmo.render.dataset.load_frame`) in ANCSH order.
+
+    Parameters
+    ----------
+    frame : mapping
+    parts : ObjectParts
+        The object's mapping onto ANCSH parts (:func:`kinmo.ancsh.dataset.object_parts_of`).
+
+    Returns
+    -------
+    FrameTruth
+
+    Raises
+    ------
+    KinmoDataError
+        A part or joint of ``parts`` is missing from the frame.
+    """
+    meta = frame.get("meta", {})
+    where = f"frame {meta.get('frame', '?')} of {meta.get('key', '?')}"
+    pids = [int(p) for p in np.asarray(frame["part_ids"])]
+    k = parts.structure.n_parts
+    row_of_part: dict[int, int] = {}
+    for r, pid in enumerate(pids):
+        if pid in parts.link_part:
+            row_of_part.setdefault(parts.link_part[pid], r)
+    if sorted(row_of_part) != list(range(k)):
+        raise KinmoDataError(where, f"rigid parts {pids} do not cover the {k} ANCSH parts")
+    point_part = np.array([parts.link_part.get(int(l), -1) for l in np.asarray(frame["link"])], dtype=np.int64)
+    vis = [int((point_part == a).sum()) for a in range(k)]
+    out_parts = []
+    for a in range(k):
+        r = row_of_part[a]
+        lo, hi = np.asarray(frame["part_bounds"][r], dtype=np.float64)
+        out_parts.append(PartPose(
+            _orthonormal(frame["part_rotation"][r]),
+            np.asarray(frame["part_translation"][r], dtype=np.float64),
+            float(frame["part_scale"][r]), (hi - lo) / 2.0, vis[a],
+        ))
+    jids = [int(j) for j in np.asarray(frame["joint_ids"])]
+    kinds = ("revolute", "prismatic", "cylindrical")
+    out_joints = []
+    for j, lid in enumerate(parts.joint_links):
+        if lid not in jids:
+            raise KinmoDataError(where, f"joint {j} (moving link {lid}) is missing")
+        r = jids.index(lid)
+        kind = kinds[int(frame["joint_type"][r])]
+        d = np.asarray(frame["joint_direction"][r], dtype=np.float64)
+        state = float(frame["joint_angle"][r]) if kind == "revolute" else float(frame["joint_translation"][r])
+        out_joints.append(JointEstimate(np.asarray(frame["joint_origin"][r], dtype=np.float64),
+                                        d / np.linalg.norm(d), state, kind))
+    return FrameTruth(out_parts, out_joints)
+
+
+def ground_truth_estimate(truth: FrameTruth, segmentation: np.ndarray | None = None) -> ANCSHEstimate:
+    """An :class:`~kinmo.ancsh.postprocess.ANCSHEstimate` equal to the ground truth (the
+    identity check of the metric path: :func:`frame_errors` of it is zero, IoU one)."""
+    from kinmo.ancsh.pose_fitting import Similarity
+
+    parts = [PartPose(p.rotation.copy(), p.translation.copy(), p.scale, p.box_half.copy(), p.n_points)
+             for p in truth.parts]
+    joints = [JointEstimate(j.origin.copy(), j.direction.copy(), j.state, j.type) for j in truth.joints]
+    seg = np.zeros(0, dtype=np.int64) if segmentation is None else np.asarray(segmentation)
+    return ANCSHEstimate(parts, joints, Similarity(np.eye(3), np.zeros(3), 1.0), seg)
+
+
+def ground_truth_predictions(sample: Any, structure: KinematicStructure, logit: float = 10.0) -> dict[str, np.ndarray]:
+    """Per-point "predictions" equal to a sample's targets (one-hot logits), the input of
+    :func:`kinmo.ancsh.postprocess.estimate` a perfect network would give.
+
+    Parameters
+    ----------
+    sample : FrameSample
+    structure : KinematicStructure
+    logit : float
+        Logit of the true class (others 0).
+
+    Returns
+    -------
+    dict of numpy arrays, ANCSH output layout without batch dimension.
+    """
+    k, j = structure.n_parts, structure.n_joints
+    return {
+        "seg_logits": np.eye(k)[sample.seg] * logit,
+        "npcs": np.repeat(np.asarray(sample.npcs, dtype=np.float64)[:, None], k, axis=1),
+        "naocs": np.asarray(sample.naocs, dtype=np.float64),
+        "heatmap": np.asarray(sample.heatmap, dtype=np.float64),
+        "unitvec": np.asarray(sample.unitvec, dtype=np.float64),
+        "axis": np.asarray(sample.axis, dtype=np.float64),
+        "joint_logits": np.eye(j + 1)[sample.joint] * logit,
+    }
+
+
+# --------------------------------------------------------------------------------- errors
+
+
+@dataclass
+class FrameErrors:
+    """Errors of one estimate against one frame's truth (module docstring).
+
+    Attributes
+    ----------
+    rotation_deg, translation, iou : (K,) float64
+    state, angle_deg, distance : (J,) float64
+        ``state``: degrees (revolute) or mesh units (prismatic); ``distance``: NaN for
+        prismatic joints.
+    """
+
+    rotation_deg: np.ndarray
+    translation: np.ndarray
+    iou: np.ndarray
+    state: np.ndarray
+    angle_deg: np.ndarray
+    distance: np.ndarray
+
+
+def _center(p: PartPose) -> np.ndarray:
+    return p.scale * p.rotation @ np.full(3, 0.5) + p.translation
+
+
+def frame_errors(est: ANCSHEstimate, truth: FrameTruth) -> FrameErrors:
+    """Per-part and per-joint errors of an estimate (module docstring).
+
+    Raises
+    ------
+    ValueError
+        Different numbers of parts or joints.
+    """
+    if len(est.parts) != len(truth.parts) or len(est.joints) != len(truth.joints):
+        raise ValueError(f"estimate has {len(est.parts)} parts / {len(est.joints)} joints, truth "
+                         f"{len(truth.parts)} / {len(truth.joints)}")
+    rot, tra, iou = [], [], []
+    for p, t in zip(est.parts, truth.parts):
+        rot.append(rotation_error_deg(p.rotation, t.rotation))
+        tra.append(float(np.linalg.norm(_center(p) - _center(t))))
+        iou.append(box_iou_3d(*p.box(), *t.box()))
+    state, ang, dist = [], [], []
+    for p, t in zip(est.joints, truth.joints):
+        d = np.asarray(p.direction, dtype=np.float64)
+        s = -p.state if float(d @ t.direction) < 0 else p.state
+        if t.type == "revolute":  # angle difference wrapped to [0, 180] degrees
+            state.append(float(np.degrees(abs((s - t.state + np.pi) % (2 * np.pi) - np.pi))))
+            dist.append(float(line_distance(p.origin, d, t.origin, t.direction)))
+        else:
+            state.append(abs(s - t.state))
+            dist.append(float("nan"))
+        ang.append(float(axis_angle_deg(d, t.direction)))
+    f = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
+    return FrameErrors(f(rot), f(tra), f(iou), f(state), f(ang), f(dist))
+
+
+# ---------------------------------------------------------------------------------- table
+
+
+@dataclass
+class Table2Row:
+    """One row of Table 2: mean errors of one run over the test frames.
+
+    Attributes
+    ----------
+    setting, run : str
+        The run's setting and folder.
+    frames : int
+    rotation_deg, translation, iou : (K,) float64
+    state, angle_deg, distance : (J,) float64
+    joint_types : tuple of str
+    training : dict
+        Scans the run trained on (``labeled``, ``pseudo_labeled``, ``pseudo_targets``) and the
+        object counts.
+    """
+
+    setting: str
+    run: str
+    frames: int
+    rotation_deg: np.ndarray
+    translation: np.ndarray
+    iou: np.ndarray
+    state: np.ndarray
+    angle_deg: np.ndarray
+    distance: np.ndarray
+    joint_types: tuple[str, ...]
+    training: dict[str, Any] = field(default_factory=dict)
+
+    def mean(self, name: str) -> float:
+        """Mean over parts / joints of a metric (NaN entries ignored; NaN when none)."""
+        v = np.asarray(getattr(self, name), dtype=np.float64)
+        v = v[np.isfinite(v)]
+        return float(v.mean()) if len(v) else float("nan")
+
+
+_METRICS = ("rotation_deg", "translation", "iou", "state", "angle_deg", "distance")
+
+
+def summarize(setting: str, run: str, errors: Sequence[FrameErrors], joint_types: Sequence[str],
+              training: Mapping[str, Any] | None = None) -> Table2Row:
+    """Mean of per-frame errors (NaNs ignored per entry)."""
+    def m(name: str) -> np.ndarray:
+        a = np.stack([getattr(e, name) for e in errors]) if errors else np.zeros((0, 0))
+        with np.errstate(invalid="ignore"):
+            return np.array([np.nanmean(c) if np.isfinite(c).any() else np.nan for c in a.T])
+    return Table2Row(setting, run, len(errors), *(m(n) for n in _METRICS), tuple(joint_types),
+                     dict(training or {}))
+
+
+def _fmt(x: float, digits: int = 3) -> str:
+    return "—" if not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def _cell(row: Table2Row, name: str, digits: int) -> str:
+    v = np.asarray(getattr(row, name))
+    finite = v[np.isfinite(v)]
+    if len(v) == 1:
+        return _fmt(float(v[0]), digits)
+    if name in ("state",) and len(set(row.joint_types)) > 1:  # no mean across units
+        return " / ".join(_fmt(float(x), digits) for x in v)
+    mean = float(finite.mean()) if len(finite) else float("nan")
+    return f"{_fmt(mean, digits)} ({' / '.join(_fmt(float(x), digits) for x in v)})"
+
+
+_HEADERS = (
+    ("rotation_deg", "rotation error (°)", 2), ("translation", "translation error", 4),
+    ("iou", "3D IoU", 3), ("state", "joint state error", 3), ("angle_deg", "axis angle error (°)", 2),
+    ("distance", "axis distance", 4),
+)
+_SHORT = {"rotation_deg": "rot. (°)", "translation": "transl.", "iou": "IoU", "state": "state",
+          "angle_deg": "axis (°)", "distance": "axis dist."}
+
+
+def table2_markdown(rows: Sequence[Table2Row], category: str, structure: KinematicStructure,
+                    notes: Sequence[str] = ()) -> str:
+    """Table 2 of the paper for one category as Markdown (module docstring for the metrics)."""
+    state_unit = "°" if set(structure.joint_types) == {"revolute"} else (
+        "mesh units" if set(structure.joint_types) == {"prismatic"} else "° or mesh units")
+    lines = [
+        f"# Table 2 — {category} (structure {structure.signature()})", "",
+        "ANCSH on single-view partial scans of the held-out test objects; means over frames. "
+        "Cells with several parts (joints): mean (part 0 / part 1 / …); part 0 is the base. "
+        f"Joint state error in {state_unit}; translation and axis distance in mesh units.", "",
+        "| setting | frames | training scans (labelled / pseudo-labelled / pseudo-targets) | "
+        + " | ".join(h for _, h, _ in _HEADERS) + " |",
+        "|---|---:|---|" + "---:|" * len(_HEADERS),
+    ]
+    for r in rows:
+        t = r.training
+        tr = f"{t.get('labeled_scans', 0)} / {t.get('pseudo_labeled_scans', 0)} / {t.get('pseudo_target_scans', 0)}"
+        lines.append(f"| {r.setting} | {r.frames} | {tr} | "
+                     + " | ".join(_cell(r, n, d) for n, _, d in _HEADERS) + " |")
+    if notes:
+        lines += [""] + [f"- {n}" for n in notes]
+    return "\n".join(lines) + "\n"
+
+
+def _table2_csv(rows: Sequence[Table2Row], k: int, jn: int) -> str:
+    cols = ["setting", "run", "frames", "labeled_scans", "pseudo_labeled_scans", "pseudo_target_scans"]
+    for n in _METRICS:
+        per, width = ("part", k) if n in ("rotation_deg", "translation", "iou") else ("joint", jn)
+        cols += [f"{n}_mean"] + [f"{n}_{per}{i}" for i in range(width)]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for r in rows:
+        t = r.training
+        vals: list[Any] = [r.setting, r.run, r.frames, t.get("labeled_scans", 0),
+                           t.get("pseudo_labeled_scans", 0), t.get("pseudo_target_scans", 0)]
+        for n in _METRICS:
+            vals.append(_num(r.mean(n)))
+            vals += [_num(float(x)) for x in getattr(r, n)]
+        w.writerow(vals)
+    return buf.getvalue()
+
+
+def _num(x: float) -> str:
+    return "" if not np.isfinite(x) else f"{x:.6g}"
+
+
+# ------------------------------------------------------------------------------ the runs
+
+
+def find_runs(paths: Sequence[str | Path], category: str | None = None) -> list[Path]:
+    """ANCSH run folders at or below ``paths`` (two levels), optionally of one category.
+
+    A run folder holds ``model.pt`` and ``config.json`` of ``kinmo train ancsh``. Sorted by
+    setting (supervised, semi, semi-weakly), then path.
+    """
+    import json
+
+    from kinmo.ancsh.dataset import category_key
+
+    found: list[tuple[int, str, Path]] = []
+    seen: set[Path] = set()
+
+    def consider(d: Path) -> bool:
+        cfg = d / "config.json"
+        if not ((d / "model.pt").is_file() and cfg.is_file()):
+            return False
+        try:
+            c = json.loads(cfg.read_text())
+        except (OSError, ValueError):
+            return False
+        if not isinstance(c, dict) or "setting" not in c or "width" not in c:
+            return False  # another model's run
+        if category is not None and category_key(c.get("category", "")) != category_key(category):
+            return True
+        if d.resolve() not in seen:
+            seen.add(d.resolve())
+            found.append((SETTING_ORDER.get(c["setting"], 9), str(d), d))
+        return True
+
+    for p in map(Path, paths):
+        if not p.is_dir():
+            raise KinmoDataError(p, "run folder does not exist")
+        if consider(p):
+            continue
+        for d in sorted(x for x in p.iterdir() if x.is_dir()):
+            if not consider(d):
+                for e in sorted(x for x in d.iterdir() if x.is_dir()):
+                    consider(e)
+    return [d for _, _, d in sorted(found)]
+
+
+def evaluate_category(
+    category: str,
+    runs: Sequence[str | Path],
+    data: str | Path | None = None,
+    out: str | Path | None = None,
+    scans: str | Path | None = None,
+    frames: int | None = None,
+    seed: int = 0,
+    device: str = "auto",
+    workers: int = 0,
+    progress: bool = True,
+    console: Any = None,
+) -> tuple[list[Table2Row], dict[str, Path]]:
+    """Table 2 for one category (module docstring).
+
+    Parameters
+    ----------
+    category : str
+        Any spelling (``refrigerator``, ``storage_furniture``).
+    runs : sequence of path
+        Run folders of ``kinmo train ancsh``, or folders holding them (:func:`find_runs`).
+    data : str or Path, optional
+        PartNet-Mobility dataset folder; default: the one the first run trained on.
+    out : str or Path, optional
+        Evaluation folder; default ``<first runs path>/eval-<category>``.
+    scans : str or Path, optional
+        Render cache of the test scans; default ``out/scans``.
+    frames : int, optional
+        Scans per test object; default the first run's ``test_frames_per_object``.
+    seed : int
+        Seed of the test renders and point sampling.
+    device : str
+    workers : int
+        Rendering processes (0: one per CPU, 1: in this process).
+    progress : bool
+    console : rich.console.Console, optional
+        When given, the table is printed on it.
+
+    Returns
+    -------
+    rows : list of Table2Row
+    paths : dict of str to Path
+        ``csv``, ``markdown``, ``frames``, ``json``.
+
+    Raises
+    ------
+    KinmoError
+        No run of the category, runs with different structures, a test object a run trained
+        on, no test object.
+    """
+    import json
+
+    from kinmo.ancsh.dataset import category_key, scan_category
+    from kinmo.ancsh.train import _torch_threads, load_run, predict_scans, quiet_estimate, render_objects
+    from kinmo.io import write_json, write_text
+    from kinmo.render.dataset import load_frame
+    from kinmo.train.split import Split
+
+    t0 = time.perf_counter()
+    if not runs:
+        raise KinmoError("no run folder given (--runs)")
+    run_dirs = find_runs(runs, category)
+    if not run_dirs:
+        raise KinmoError(f"no ANCSH run of category {category!r} under {', '.join(map(str, runs))} "
+                         "(train one with `kinmo train ancsh`)")
+    loaded = [load_run(d, device) for d in run_dirs]
+    structure = loaded[0].structure
+    for r in loaded[1:]:
+        if r.structure != structure:
+            raise KinmoError(f"{r.path}: structure {r.structure.signature()} differs from "
+                             f"{loaded[0].path}'s {structure.signature()}")
+    infos = []
+    for r in loaded:
+        p = r.path / "data.json"
+        infos.append(json.loads(p.read_text()) if p.is_file() else {})
+    if data is None:
+        data = infos[0].get("data")
+        if not data:
+            raise KinmoError(f"{loaded[0].path}: no data.json naming the dataset; give --data")
+    data = Path(data)
+    cat = scan_category(data, category, structure)
+    sp = Split.load(loaded[0].path / "split.json")
+    test_ids = [i for i in cat.fitting if i in set(sp.test)]
+    if not test_ids:
+        raise KinmoError(f"category {cat.category}: no test object of the split fits {structure.signature()}")
+    for r, info in zip(loaded, infos):
+        trained = set(info.get("labeled_objects", [])) | set(info.get("pseudo_labeled_objects", [])) | set(
+            info.get("unlabeled_objects", []))
+        leak = sorted(trained & set(test_ids))
+        if leak:
+            raise KinmoError(f"{r.path}: trained on test objects {leak}; evaluate with that run's split")
+    cfg0 = loaded[0].config
+    frames = frames or cfg0.test_frames_per_object
+    out = Path(out) if out is not None else Path(runs[0]) / f"eval-{category_key(cat.category)}"
+    out.mkdir(parents=True, exist_ok=True)
+    scans_dir = Path(scans) if scans is not None else out / "scans"
+    rcfg = cfg0.model_copy(update={"seed": seed, "render_workers": workers})
+    files, failed = render_objects({i: cat.folders[i] for i in test_ids}, out / "objects" / "test",
+                                   scans_dir / "test", frames, rcfg, progress)
+    if not files:
+        raise KinmoError(f"no test scan could be rendered: {failed}")
+    frames_data = []
+    for f in files:
+        fr = load_frame(f)
+        if len(fr["points"]) < 32:
+            continue
+        key = str(fr["meta"]["key"])
+        frames_data.append((f, fr, frame_truth(fr, cat.parts[key])))  # type: ignore[arg-type]
+    seeds = [zlib.crc32(f"{seed}:{fr['meta']['key']}:{fr['meta']['frame']}".encode()) for _, fr, _ in frames_data]
+
+    rows: list[Table2Row] = []
+    frame_lines: list[dict[str, Any]] = []
+    for r, info in zip(loaded, infos):
+        with _torch_threads(r.config.threads):
+            preds = predict_scans(r.model, [fr["points"] for _, fr, _ in frames_data], r.config.n_points,
+                                  r.device, seeds)
+        errs: list[FrameErrors] = []
+        for (f, fr, truth), (pts, pred) in zip(frames_data, preds):
+            est = quiet_estimate(pts, pred, structure, theta=r.config.theta, seed=seed)
+            e = frame_errors(est, truth)
+            errs.append(e)
+            line: dict[str, Any] = {"setting": r.setting, "run": str(r.path), "id": fr["meta"]["key"],
+                                    "frame": int(fr["meta"]["frame"])}
+            for n in _METRICS:
+                for i, x in enumerate(getattr(e, n)):
+                    line[f"{n}_{i}"] = _num(float(x))
+            frame_lines.append(line)
+        training = {k: info.get(k, 0) for k in ("labeled_scans", "pseudo_labeled_scans", "pseudo_target_scans")}
+        training.update({f"{k}_count": len(info.get(k, [])) for k in
+                         ("labeled_objects", "pseudo_labeled_objects", "unlabeled_objects")})
+        rows.append(summarize(r.setting, str(r.path), errs, structure.joint_types, training))
+
+    notes = [f"test objects: {', '.join(test_ids)}; {len(frames_data)} scans "
+             f"({frames} per object, render seed {seed})",
+             f"runs: {', '.join(f'{r.setting} = {r.path}' for r in loaded)}"]
+    paths = {"csv": out / "table2.csv", "markdown": out / "table2.md", "frames": out / "frames.csv",
+             "json": out / "eval.json"}
+    write_text(paths["csv"], _table2_csv(rows, structure.n_parts, structure.n_joints))
+    write_text(paths["markdown"], table2_markdown(rows, cat.category, structure, notes))
+    head = ["setting", "run", "id", "frame"]
+    cols = head + sorted({k for ln in frame_lines for k in ln} - set(head))
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
+    w.writeheader()
+    w.writerows(frame_lines)
+    write_text(paths["frames"], buf.getvalue())
+    write_json(paths["json"], {
+        "category": cat.category, "structure": structure.signature(), "data": str(data),
+        "test_objects": test_ids, "scans": len(frames_data), "frames_per_object": frames, "seed": seed,
+        "render_failed": failed, "runs": [str(r.path) for r in loaded],
+        "seconds": round(time.perf_counter() - t0, 2),
+    })
+    if console is not None:
+        console.print(rich_table(rows, cat.category, structure))
+    return rows, paths
+
+
+def rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStructure) -> Any:
+    """The rows as a :class:`rich.table.Table`."""
+    from rich.table import Table
+
+    t = Table(title=f"Table 2 — {category} ({structure.signature()}), means over test scans",
+              caption="train scans: labelled + pseudo-labelled + pseudo-targets; cells: mean (per part / joint)")
+    t.add_column("setting", no_wrap=True)
+    t.add_column("frames", justify="right")
+    t.add_column("train scans", justify="right")
+    for n, _, _ in _HEADERS:
+        t.add_column(_SHORT[n], justify="right")
+    for r in rows:
+        tr = r.training
+        t.add_row(r.setting, str(r.frames),
+                  f"{tr.get('labeled_scans', 0)}+{tr.get('pseudo_labeled_scans', 0)}+{tr.get('pseudo_target_scans', 0)}",
+                  *(_cell(r, n, d) for n, _, d in _HEADERS))
+    return t

@@ -1,0 +1,150 @@
+"""``kinmo train ancsh`` and ``kinmo eval --category C``: ANCSH on partial scans, paper Table 2
+(:mod:`kinmo.ancsh.train`, :mod:`kinmo.ancsh.evaluate`)."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from kinmo.cli._apps import eval_app, train_app
+
+
+def _snake(name: str) -> str:
+    """``StorageFurniture`` -> ``storage_furniture``; other spellings lower-cased."""
+    s = re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name.strip())
+    return re.sub(r"[\s\-]+", "_", s).lower()
+
+
+def _single_blas_thread() -> None:
+    """numpy / scipy BLAS on one thread unless the user chose otherwise: the post-processing
+    solves many tiny least-squares problems, which multi-threaded OpenBLAS slows down by up to
+    20x on busy machines. Effective when numpy is not imported yet (the normal CLI case)."""
+    for var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # not OMP: torch uses it
+        os.environ.setdefault(var, "1")
+
+
+def _default_data(sub: str) -> Optional[Path]:  # noqa: UP007
+    root = os.environ.get("KINMO_DATA")
+    return Path(root) / sub if root else None
+
+
+@train_app.command("ancsh")
+def train_ancsh_cmd(
+    category: str = typer.Option(..., "--category", "-c", help="Object category, any case or snake_case (laptop, storage_furniture)."),
+    setting: str = typer.Option("supervised", "--setting", "-s", help="supervised, semi (self-training on unlabelled PartNet scans) or semi-weakly (adds `kinmo pseudo-label` shapes)."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder (default: runs/ancsh/<category>/<setting>)."),  # noqa: UP007
+    preset: str = typer.Option("quick", "--preset", help="quick (CPU, minutes) or paper (ANCSH's sizes, GPU)."),
+    labeled_fraction: Optional[float] = typer.Option(None, "--labeled-fraction", min=0.0, max=1.0, help="Share of the labelled training objects used (default: 1)."),  # noqa: UP007
+    seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the split, renders, initialisation and sampling (default: 0)."),  # noqa: UP007
+    data: Optional[Path] = typer.Option(None, "--data", "-d", help="PartNet-Mobility dataset folder (default: $KINMO_DATA/partnet-mobility)."),  # noqa: UP007
+    partnet: Optional[Path] = typer.Option(None, "--partnet", help="semi: PartNet folder of unlabelled shapes (default: DATA/../partnet)."),  # noqa: UP007
+    pseudo: Optional[Path] = typer.Option(None, "--pseudo", help="semi-weakly: output folder of `kinmo pseudo-label`."),  # noqa: UP007
+    split: Optional[Path] = typer.Option(None, "--split", help="A split.json (e.g. the GNN run's) instead of making one."),  # noqa: UP007
+    scans: Optional[Path] = typer.Option(None, "--scans", help="Render cache, shareable by the runs of an experiment (default: OUT/scans)."),  # noqa: UP007
+    init: Optional[Path] = typer.Option(None, "--init", help="semi: start from this supervised run instead of retraining it."),  # noqa: UP007
+    epochs: Optional[int] = typer.Option(None, "--epochs", min=1, help="Override the preset's epochs."),  # noqa: UP007
+    steps_per_epoch: Optional[int] = typer.Option(None, "--steps-per-epoch", min=1, help="Override the preset's batches per epoch."),  # noqa: UP007
+    semi_epochs: Optional[int] = typer.Option(None, "--semi-epochs", min=1, help="semi: epochs on labelled + pseudo-targeted scans."),  # noqa: UP007
+    frames_per_object: Optional[int] = typer.Option(None, "--frames-per-object", min=1, help="Training scans per object."),  # noqa: UP007
+    batch_size: Optional[int] = typer.Option(None, "--batch-size", min=2, help="Scans per step."),  # noqa: UP007
+    device: Optional[str] = typer.Option(None, "--device", help="auto, cpu, cuda, cuda:1 ... (default: auto)."),  # noqa: UP007
+    threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: torch's default)."),  # noqa: UP007
+    workers: Optional[int] = typer.Option(None, "--workers", "-j", min=0, help="Rendering processes (0: one per CPU, 1: none)."),  # noqa: UP007
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bars."),
+) -> None:
+    """Train ANCSH on rendered partial scans of one category (Liu et al. 2023, Table 2).
+
+    Renders scans of the category's labelled training objects (random joint states and
+    viewpoints), trains ANCSH, and for `semi` / `semi-weakly` adds unlabelled or
+    pseudo-labelled PartNet shapes. Writes model.pt, config.json, split.json, metrics.csv
+    and data.json to OUT. Test objects of the split are never used.
+    """
+    _single_blas_thread()
+    from rich.console import Console
+
+    from kinmo.ancsh.config import SETTINGS
+    from kinmo.ancsh.config import preset as make_preset
+    from kinmo.ancsh.train import train_ancsh
+    from kinmo.errors import KinmoError
+
+    console = Console()
+    err = Console(stderr=True)
+    if setting not in SETTINGS:
+        err.print(f"[red]error:[/] --setting must be one of {', '.join(SETTINGS)}, got {setting!r}", highlight=False)
+        raise typer.Exit(2)
+    data = data or _default_data("partnet-mobility")
+    if data is None:
+        err.print("[red]error:[/] give --data (the PartNet-Mobility folder) or set KINMO_DATA", highlight=False)
+        raise typer.Exit(2)
+    try:
+        cfg = make_preset(preset, labeled_fraction=labeled_fraction, seed=seed, epochs=epochs,
+                          steps_per_epoch=steps_per_epoch, semi_epochs=semi_epochs,
+                          frames_per_object=frames_per_object,
+                          batch_size=batch_size, device=device, threads=threads, render_workers=workers)
+    except ValueError as e:
+        err.print(f"[red]error:[/] {e}", highlight=False)
+        raise typer.Exit(2) from None
+    out = out or Path("runs") / "ancsh" / _snake(category) / setting
+    try:
+        res = train_ancsh(category, setting, out, cfg, data=data, partnet=partnet, pseudo=pseudo,
+                          split=split, scans=scans, init=init, progress=not quiet, console=console)
+    except KinmoError as e:
+        err.print(f"[red]error:[/] {e}", highlight=False)
+        raise typer.Exit(1) from None
+    last = res.history[-1]
+    d = res.data
+    console.print(
+        f"trained ANCSH ({res.config.preset}, {setting}) for {res.config.category} "
+        f"[{res.structure.signature()}] in {res.seconds:.1f} s on {d['labeled_scans']} labelled, "
+        f"{d['pseudo_labeled_scans']} pseudo-labelled and {d['pseudo_target_scans']} pseudo-target scans: "
+        f"loss {last['loss']:.3f}, segmentation accuracy {last['seg_acc']:.3f}",
+        highlight=False, soft_wrap=True,
+    )
+    console.print(f"run folder: {res.run_dir}", highlight=False, soft_wrap=True)
+
+
+@eval_app.callback()
+def eval_ancsh_cmd(
+    ctx: typer.Context,
+    category: Optional[str] = typer.Option(None, "--category", "-c", help="Category to evaluate ANCSH on (paper Table 2), any case or snake_case."),  # noqa: UP007
+    runs: Optional[list[Path]] = typer.Option(None, "--runs", "-r", help="ANCSH run folder(s), or folders holding them (default: runs/ancsh/<category>)."),  # noqa: UP007
+    data: Optional[Path] = typer.Option(None, "--data", "-d", help="PartNet-Mobility dataset folder (default: the runs' dataset)."),  # noqa: UP007
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for table2.csv, table2.md, frames.csv (default: RUNS/eval-<category>)."),  # noqa: UP007
+    scans: Optional[Path] = typer.Option(None, "--scans", help="Render cache of the test scans (default: OUT/scans)."),  # noqa: UP007
+    frames: Optional[int] = typer.Option(None, "--frames", min=1, help="Scans per test object (default: the run's preset)."),  # noqa: UP007
+    seed: int = typer.Option(0, "--seed", help="Seed of the test renders and point sampling."),
+    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
+    workers: int = typer.Option(0, "--workers", "-j", min=0, help="Rendering processes (0: one per CPU, 1: none)."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+) -> None:
+    """Evaluate models. With --category: ANCSH on partial scans of the held-out objects, one
+    row per training setting (paper Table 2): part rotation / translation errors, 3D IoU,
+    joint state, axis angle and axis distance errors."""
+    if ctx.invoked_subcommand is not None:
+        return
+    _single_blas_thread()
+    from rich.console import Console
+
+    console = Console()
+    err = Console(stderr=True)
+    if category is None:
+        console.print(ctx.get_help())
+        raise typer.Exit(0)
+
+    from kinmo.ancsh.evaluate import evaluate_category
+    from kinmo.errors import KinmoError
+
+    run_paths = list(runs) if runs else [Path("runs") / "ancsh" / _snake(category)]
+    try:
+        rows, paths = evaluate_category(category, run_paths, data=data, out=out, scans=scans, frames=frames,
+                                        seed=seed, device=device, workers=workers, progress=not quiet,
+                                        console=console)
+    except KinmoError as e:
+        err.print(f"[red]error:[/] {e}", highlight=False)
+        raise typer.Exit(1) from None
+    console.print(f"wrote {paths['csv']}, {paths['markdown']} and {paths['frames']}", highlight=False,
+                  soft_wrap=True)

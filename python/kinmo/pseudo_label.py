@@ -1,0 +1,672 @@
+"""Pseudo-labels: PartNet shapes turned into PartNet-Mobility objects (Liu et al. 2023, Sec. 3).
+
+The semi-weakly supervised part of the paper: a motion GNN trained on the few labelled
+PartNet-Mobility objects predicts the motions of the many unlabelled PartNet shapes, the
+refinement stage (:mod:`kinmo.refine`) snaps every predicted axis to a geometric candidate and
+scores it, and the shapes whose every joint is confident enough become new training objects.
+
+For every shape folder below ``DIR`` (:func:`kinmo.data.readers.find_shapes`):
+
+1. read the shape and build its part graph (:func:`kinmo.data.build.build_graph`, or read it
+   from a ``kinmo prepare`` cache);
+2. predict every sibling edge's motion (:func:`kinmo.predict.infer_edges`) and refine the
+   axes of the moving ones (:func:`kinmo.refine.refine.refine_predictions`);
+3. build the mobility tree from the refined predictions
+   (:func:`kinmo.mobility_tree.build_mobility_tree`; default limits: hinges 0–90°, sliders
+   0–0.3 × part size);
+4. keep the shape when it has at least one moving joint and the refinement score of every
+   moving joint (its representative edge's confidence, :mod:`kinmo.refine.scoring`) is at least
+   ``threshold``.
+
+A kept shape becomes ``OUT/<id>/`` in the PartNet-Mobility format, read by kinmo (and by
+PartNet-Mobility tools) exactly like a real object:
+
+- ``result.json`` (the hierarchy file used, copied byte for byte; ``result_after_merging.json``
+  too when present), ``meta.json`` (copied; written with ``model_cat`` and ``anno_id`` when the
+  source has none);
+- ``textured_objs/<name>.obj``: the shape's meshes, symbolic links to the source files (copies
+  where links cannot be made, or with ``link="copy"``);
+- ``mobility_v2.json``, ``semantics.txt`` (:mod:`kinmo.data.writers`), ``mobility.urdf``
+  (:func:`kinmo.urdf.write_urdf`, meshes relative to it);
+- ``scores.json``: the per-joint scores (refinement confidence, feasibility, direction and
+  position agreement, type probability, candidate kind), the threshold and the models used.
+
+Every shape's folder is assembled in ``OUT/.staging/`` and renamed into place, so ``OUT/<id>/``
+is complete or absent. Each processed shape leaves a record ``OUT/.records/<id>.json``
+(status, reason, scores, fingerprint of the source folder, models and options): a re-run skips
+shapes whose record is current, so an interrupted run resumes. ``OUT/shapes.csv`` lists every
+shape (status ``kept``, ``no_moving_joint``, ``below_threshold`` or ``failed`` with the reason)
+and ``OUT/summary.csv`` counts them per category. Shapes run in parallel worker processes
+(``spawn``; each loads the models once).
+
+Frames and units: mesh frame (y-up), mesh units; hinge limits in degrees.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import os
+import shutil
+import time
+import uuid
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field, replace
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.io import write_json, write_text
+from kinmo.refine.refine import RefineConfig
+
+__all__ = [
+    "STATUSES",
+    "PseudoLabelConfig",
+    "PseudoLabelResult",
+    "ShapeRecord",
+    "pseudo_label_dataset",
+    "pseudo_label_shape",
+    "summary_rows",
+]
+
+#: Status of a processed shape.
+STATUSES: tuple[str, ...] = ("kept", "no_moving_joint", "below_threshold", "failed")
+SHAPE_COLUMNS: tuple[str, ...] = (
+    "id", "category", "status", "reason", "n_moving", "min_score", "seconds", "source",
+)
+SUMMARY_COLUMNS: tuple[str, ...] = ("category", "shapes") + STATUSES
+_RECORD_VERSION = 1
+
+
+class PseudoLabelConfig(BaseModel):
+    """Options of a pseudo-labelling run (part of every record's fingerprint).
+
+    Attributes
+    ----------
+    threshold : float
+        Minimum refinement score of every moving joint of a kept shape.
+    refine : RefineConfig
+        Candidate, motion and scoring options.
+    hinge_limit : (float, float)
+        Limits written for predicted hinges (degrees).
+    slider_fraction : float
+        Predicted sliders move ``0 .. slider_fraction * size`` (``size``: longest OBB side).
+    sign : {"tree", "feasibility"}
+        Direction of motion of a joint: the mobility tree's rule (away from the reference
+        part) or the direction the axis-selection network found feasible.
+    link : {"symlink", "copy"}
+        How meshes get into ``textured_objs/``.
+    device : str
+        Torch device of both networks.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    threshold: float = Field(0.6, ge=0.0, le=1.0)
+    refine: RefineConfig = Field(default_factory=RefineConfig)
+    hinge_limit: tuple[float, float] = (0.0, 90.0)
+    slider_fraction: float = Field(0.3, gt=0)
+    sign: Literal["tree", "feasibility"] = "tree"
+    link: Literal["symlink", "copy"] = "symlink"
+    device: str = "cpu"
+
+
+@dataclass
+class ShapeRecord:
+    """The outcome of one shape (a row of ``shapes.csv``, the content of its record).
+
+    Attributes
+    ----------
+    id, category : str
+    status : str
+        One of :data:`STATUSES`.
+    reason : str
+        Why a shape was not kept (one line); empty when kept.
+    n_moving : int
+        Moving joints of the predicted mobility tree.
+    min_score : float
+        Lowest joint score (NaN without moving joints).
+    seconds : float
+    source : str
+        The shape folder.
+    joints : list of dict
+        Per moving joint: link id, name, joint type, score and its terms.
+    fingerprint : str
+        Of the source folder, the models and the options.
+    """
+
+    id: str
+    category: str
+    status: str
+    reason: str = ""
+    n_moving: int = 0
+    min_score: float = float("nan")
+    seconds: float = 0.0
+    source: str = ""
+    joints: list[dict[str, Any]] = field(default_factory=list)
+    fingerprint: str = ""
+
+
+@dataclass
+class PseudoLabelResult:
+    """Outcome of :func:`pseudo_label_dataset`.
+
+    Attributes
+    ----------
+    out : Path
+    records : list of ShapeRecord
+        Sorted by id.
+    n_skipped : int
+        Shapes whose record was current (not recomputed).
+    seconds : float
+    """
+
+    out: Path
+    records: list[ShapeRecord]
+    n_skipped: int
+    seconds: float
+
+    def count(self, status: str) -> int:
+        """Number of shapes with ``status``."""
+        return sum(r.status == status for r in self.records)
+
+
+# ----------------------------------------------------------------------------- fingerprints
+
+
+def _file_digest(path: Path) -> str:
+    st = path.stat()
+    return f"{path.resolve()}:{st.st_size}:{st.st_mtime_ns}"
+
+
+def _models_fingerprint(gnn_run: Path, axis_run: Path) -> str:
+    gnn = gnn_run / "model.pt" if gnn_run.is_dir() else gnn_run
+    axis = axis_run / "model.pt" if axis_run.is_dir() else axis_run
+    for p in (gnn, axis):
+        if not p.is_file():
+            raise KinmoDataError(p, "checkpoint is missing")
+    return hashlib.sha256(f"{_file_digest(gnn)}|{_file_digest(axis)}".encode()).hexdigest()[:16]
+
+
+def _fingerprint(source_fp: str, models_fp: str, config: PseudoLabelConfig) -> str:
+    blob = json.dumps([_RECORD_VERSION, source_fp, models_fp, config.model_dump(mode="json")],
+                      sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+# ----------------------------------------------------------------------------- one shape
+
+
+@dataclass
+class _Models:
+    run: Any
+    axis: Any
+    models_fp: str
+    gnn_path: str
+    axis_path: str
+
+
+_WORKER_MODELS: _Models | None = None
+
+
+def _load_models(gnn_run: Path, axis_run: Path, device: str) -> _Models:
+    from kinmo.refine.train import load_axis_model
+    from kinmo.train.gnn import load_run
+
+    fp = _models_fingerprint(gnn_run, axis_run)
+    return _Models(load_run(gnn_run, device), load_axis_model(axis_run, device), fp,
+                   str(gnn_run), str(axis_run))
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _link_or_copy(src: Path, dst: Path, mode: str) -> None:
+    if mode == "symlink":
+        try:
+            os.symlink(src.resolve(), dst)
+            return
+        except OSError:
+            pass
+    shutil.copyfile(src, dst)
+
+
+def _write_folder(
+    stage: Path, shape, hierarchy_file: Path, links, records: list[dict[str, Any]],
+    config: PseudoLabelConfig, models: _Models,
+) -> None:
+    """Assemble the PartNet-Mobility folder of a kept shape in ``stage``."""
+    from kinmo.data.readers import read_shape
+    from kinmo.data.writers import write_mobility_v2, write_semantics
+    from kinmo.urdf import write_urdf
+
+    stage.mkdir(parents=True)
+    shutil.copyfile(hierarchy_file, stage / "result.json")
+    merged = shape.path / "result_after_merging.json"
+    if merged.is_file() and merged.resolve() != hierarchy_file.resolve():
+        shutil.copyfile(merged, stage / "result_after_merging.json")
+    if (shape.path / "meta.json").is_file():
+        shutil.copyfile(shape.path / "meta.json", stage / "meta.json")
+    else:
+        write_json(stage / "meta.json", {"model_cat": shape.category, "anno_id": shape.id})
+    tex = stage / "textured_objs"
+    tex.mkdir()
+    names = {m for nid in shape.hierarchy.nodes for m in shape.hierarchy.nodes[nid].objs}
+    for name in sorted(names):
+        _link_or_copy(shape.mesh_path(name), tex / f"{name}.obj", config.link)
+    write_mobility_v2(links, stage / "mobility_v2.json", shape.hierarchy)
+    write_semantics(links, stage / "semantics.txt",
+                    {lk.id: "_".join(lk.name.split()) or f"link_{lk.id}" for lk in links})
+    out_shape = read_shape(stage)  # the folder as kinmo reads it (validates the round trip)
+    write_urdf(out_shape, stage / "mobility.urdf", out_shape.links, name=shape.id)
+    write_json(stage / "scores.json", {
+        "shape_id": shape.id,
+        "category": shape.category,
+        "source": str(shape.path),
+        "threshold": config.threshold,
+        "min_score": min(r["score"] for r in records),
+        "joints": records,
+        "models": {"gnn": models.gnn_path, "axis": models.axis_path},
+        "options": config.model_dump(mode="json"),
+        "frame": "mesh (y-up)",
+    })
+
+
+def _place(stage: Path, final: Path) -> None:
+    """Move a staged folder onto ``final``, replacing an older one."""
+    old = None
+    if final.exists() or final.is_symlink():
+        old = final.parent / ".staging" / f"old-{final.name}-{uuid.uuid4().hex[:8]}"
+        os.replace(final, old)
+    os.replace(stage, final)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def pseudo_label_shape(
+    folder: str | Path,
+    out: str | Path,
+    models: _Models,
+    config: PseudoLabelConfig,
+    cache: str | Path | None = None,
+    root: str | Path | None = None,
+) -> ShapeRecord:
+    """Predict, refine, judge and (if kept) write one shape (module docstring).
+
+    Parameters
+    ----------
+    folder : str or Path
+        A PartNet (or PartNet-Mobility) shape folder.
+    out : str or Path
+        The output root: the shape becomes ``out/<id>/``.
+    models : _Models
+        Loaded networks (:func:`pseudo_label_dataset` loads them).
+    config : PseudoLabelConfig
+    cache : str or Path, optional
+        A ``kinmo prepare`` cache of ``root`` to read the part graph from.
+    root : str or Path, optional
+        The dataset root (for cache keys).
+
+    Returns
+    -------
+    ShapeRecord
+        Bad input gives status ``failed`` with the reason; nothing is raised for it.
+    """
+    from kinmo.data.build import build_graph
+    from kinmo.data.graph import PartGraph
+    from kinmo.data.readers import HIERARCHY_FILES, read_shape
+    from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
+    from kinmo.predict import infer_edges
+    from kinmo.prepare import cache_key, source_fingerprint
+    from kinmo.refine.refine import refine_predictions
+
+    t0 = time.perf_counter()
+    folder = Path(folder)
+    out = Path(out)
+    rec = ShapeRecord(id=folder.name, category="unknown", status="failed", source=str(folder))
+    try:
+        rec.fingerprint = _fingerprint(source_fingerprint(folder), models.models_fp, config)
+        shape = read_shape(folder)
+        rec.id, rec.category = shape.id, shape.category
+        graph = None
+        if cache is not None:
+            p = Path(cache) / f"{cache_key(folder, root or folder.parent)}.npz"
+            if p.is_file():
+                graph = PartGraph.load(p)
+        if graph is None:
+            graph = build_graph(shape)
+        pred = infer_edges(models.run, [graph])[0]
+        refined = refine_predictions(graph, pred, models.axis, config.refine)
+        d = refined.axis_direction.copy()
+        tree_pred = EdgePrediction(pred.probs, d, refined.axis_origin.copy())
+        tree = build_mobility_tree(graph, tree_pred, TreeOptions(
+            tuple(config.hinge_limit), config.slider_fraction))
+        links = list(tree.links)
+        joints: list[dict[str, Any]] = []
+        for n, lk in enumerate(links):
+            if not lk.joint.is_moving:
+                continue
+            k = tree.link_edge[lk.id]
+            det = refined.details.get(int(k))
+            if det is None:  # not refined (cannot happen for a moving edge): score 0
+                score, terms = 0.0, {}
+            else:
+                b = det.scores.best
+                score = float(det.confidence)
+                terms = {"feasibility": float(det.scores.feasibility[b]),
+                         "direction_agreement": float(det.scores.direction[b]),
+                         "position_agreement": float(det.scores.position[b]),
+                         "candidate": det.kind, "n_candidates": len(det.candidates)}
+                if config.sign == "feasibility":
+                    links[n] = replace(lk, joint=replace(lk.joint, direction=det.direction.copy()))
+            i, j = (int(x) for x in graph.sibling_edges[k])
+            joints.append({
+                "link": lk.id, "name": lk.name, "joint": lk.joint.type.value,
+                "rotates": bool(lk.joint.rotates),
+                "type": refined.types[k],
+                "type_prob": float(refined.type_prob[k, refined.type_index[k]]),
+                "moving_node": int(graph.node_ids[i]), "reference_node": int(graph.node_ids[j]),
+                "score": score, **terms,
+            })
+        rec.joints = joints
+        rec.n_moving = len(joints)
+        if not joints:
+            rec.status, rec.reason = "no_moving_joint", "no moving joint predicted"
+        else:
+            rec.min_score = min(j["score"] for j in joints)
+            low = [j for j in joints if not j["score"] >= config.threshold]
+            if low:
+                worst = min(low, key=lambda j: j["score"])
+                rec.status = "below_threshold"
+                rec.reason = (f"{len(low)} of {len(joints)} joints below {config.threshold:g} "
+                              f"(lowest: link {worst['link']} {worst['name']!r} "
+                              f"{worst['score']:.3f})")
+            else:
+                hfile = next((shape.path / h for h in HIERARCHY_FILES
+                              if (shape.path / h).is_file()), None)
+                if hfile is None:
+                    raise KinmoDataError(shape.path, "no hierarchy file")
+                stage = out / ".staging" / f"{shape.id}-{uuid.uuid4().hex[:8]}"
+                try:
+                    _write_folder(stage, shape, hfile, links, joints, config, models)
+                    _place(stage, out / shape.id)
+                finally:
+                    if stage.exists():
+                        shutil.rmtree(stage, ignore_errors=True)
+                rec.status = "kept"
+    except (KinmoError, OSError, ValueError) as e:
+        rec.status, rec.reason = "failed", _one_line(e)
+    except Exception as e:  # keep a long batch going; the reason names the error type
+        rec.status, rec.reason = "failed", _one_line(f"internal error: {type(e).__name__}: {e}")
+    rec.seconds = time.perf_counter() - t0
+    if rec.status != "kept" and (out / rec.id).is_dir() and rec.fingerprint:
+        shutil.rmtree(out / rec.id, ignore_errors=True)  # a stale folder of an earlier run
+    write_json(out / ".records" / f"{rec.id}.json", _record_json(rec))
+    return rec
+
+
+def _record_json(rec: ShapeRecord) -> dict[str, Any]:
+    d = asdict(rec)
+    d["min_score"] = None if not np.isfinite(rec.min_score) else rec.min_score
+    return d
+
+
+def _record_from_json(d: dict[str, Any]) -> ShapeRecord:
+    d = dict(d)
+    d["min_score"] = float("nan") if d.get("min_score") is None else float(d["min_score"])
+    return ShapeRecord(**d)
+
+
+def _worker_init(gnn_run: str, axis_run: str, device: str) -> None:
+    import torch
+
+    torch.set_num_threads(1)
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    global _WORKER_MODELS
+    _WORKER_MODELS = _load_models(Path(gnn_run), Path(axis_run), device)
+
+
+def _worker_run(folder: str, out: str, config_json: dict, cache: str | None, root: str
+                ) -> ShapeRecord:
+    assert _WORKER_MODELS is not None
+    return pseudo_label_shape(folder, out, _WORKER_MODELS, PseudoLabelConfig(**config_json),
+                              cache, root)
+
+
+# ----------------------------------------------------------------------------- the dataset
+
+
+def _current_record(out: Path, folder: Path, models_fp: str, config: PseudoLabelConfig
+                    ) -> ShapeRecord | None:
+    from kinmo.prepare import source_fingerprint
+
+    p = out / ".records" / f"{folder.name}.json"
+    if not p.is_file():
+        return None
+    try:
+        rec = _record_from_json(json.loads(p.read_text()))
+        fp = _fingerprint(source_fingerprint(folder), models_fp, config)
+    except (OSError, ValueError, TypeError, KinmoError):
+        return None
+    if rec.fingerprint != fp:
+        return None
+    if rec.status == "kept" and not (out / rec.id / "scores.json").is_file():
+        return None
+    return rec
+
+
+def summary_rows(records: Sequence[ShapeRecord]) -> list[dict[str, Any]]:
+    """Per-category counts of each status, plus a final ``all`` row.
+
+    Returns
+    -------
+    list of dict
+        Keys :data:`SUMMARY_COLUMNS`, categories sorted.
+    """
+    cats: dict[str, dict[str, Any]] = {}
+    for r in records:
+        row = cats.setdefault(r.category, {"category": r.category, "shapes": 0,
+                                           **{s: 0 for s in STATUSES}})
+        row["shapes"] += 1
+        row[r.status] += 1
+    rows = [cats[c] for c in sorted(cats)]
+    total = {"category": "all", "shapes": len(records),
+             **{s: sum(r.status == s for r in records) for s in STATUSES}}
+    return rows + [total]
+
+
+def _csv(columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n", extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in r.items()})
+    return buf.getvalue()
+
+
+def _write_tables(out: Path, records: Sequence[ShapeRecord]) -> None:
+    rows = [{**asdict(r), "min_score": r.min_score if np.isfinite(r.min_score) else ""}
+            for r in sorted(records, key=lambda r: r.id)]
+    write_text(out / "shapes.csv", _csv(SHAPE_COLUMNS, rows))
+    write_text(out / "summary.csv", _csv(SUMMARY_COLUMNS, summary_rows(records)))
+
+
+def pseudo_label_dataset(
+    data: str | Path,
+    gnn_run: str | Path,
+    axis_run: str | Path,
+    out: str | Path,
+    config: PseudoLabelConfig | None = None,
+    workers: int = 1,
+    cache: str | Path | None = None,
+    force: bool = False,
+    progress: bool = True,
+    on_record: Callable[[ShapeRecord], None] | None = None,
+) -> PseudoLabelResult:
+    """Pseudo-label every shape folder below ``data`` (module docstring).
+
+    Parameters
+    ----------
+    data : str or Path
+        A PartNet dataset folder (or one shape folder).
+    gnn_run : str or Path
+        Run folder (or ``model.pt``) of ``kinmo train gnn``.
+    axis_run : str or Path
+        Run folder (or ``model.pt``) of ``kinmo train axis``.
+    out : str or Path
+        Output folder.
+    config : PseudoLabelConfig, optional
+    workers : int
+        Worker processes (1: in this process; 0: one per CPU).
+    cache : str or Path, optional
+        A ``kinmo prepare`` cache of ``data`` (part graphs are built when missing).
+    force : bool
+        Redo shapes whose record is current.
+    progress : bool
+        Show a rich progress bar.
+    on_record : callable, optional
+        Called with every finished shape's record.
+
+    Returns
+    -------
+    PseudoLabelResult
+
+    Raises
+    ------
+    KinmoDataError
+        ``data`` holds no shape folder, or a checkpoint is missing or unreadable.
+    """
+    from kinmo.data.readers import find_shapes
+
+    config = config or PseudoLabelConfig()
+    t0 = time.perf_counter()
+    data, out, gnn_run, axis_run = Path(data), Path(out), Path(gnn_run), Path(axis_run)
+    folders = find_shapes(data)
+    if not folders:
+        raise KinmoDataError(data, "no shape folder found")
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.rmtree(out / ".staging", ignore_errors=True)  # leftovers of an interrupted run
+    models_fp = _models_fingerprint(gnn_run, axis_run)
+    records: dict[str, ShapeRecord] = {}
+    todo: list[Path] = []
+    for f in folders:
+        rec = None if force else _current_record(out, f, models_fp, config)
+        if rec is not None:
+            records[str(f)] = rec
+        else:
+            todo.append(f)
+    n_skipped = len(records)
+    if workers == 0:
+        workers = max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                      else (os.cpu_count() or 1))
+    workers = max(1, min(workers, len(todo))) if todo else 1
+    bar = _Bar(len(folders), progress)
+    with bar:
+        for r in records.values():
+            bar.advance(r)
+
+        def record(folder: Path, rec: ShapeRecord) -> None:
+            records[str(folder)] = rec
+            bar.advance(rec)
+            if on_record is not None:
+                on_record(rec)
+            if len(records) % 10 == 0:
+                _write_tables(out, list(records.values()))
+
+        if todo and workers == 1:
+            models = _load_models(gnn_run, axis_run, config.device)
+            for f in todo:
+                record(f, pseudo_label_shape(f, out, models, config, cache, data))
+        elif todo:
+            _run_pool(todo, out, config, cache, data, gnn_run, axis_run, workers, record)
+    recs = sorted(records.values(), key=lambda r: r.id)
+    _write_tables(out, recs)
+    shutil.rmtree(out / ".staging", ignore_errors=True)
+    return PseudoLabelResult(out, recs, n_skipped, time.perf_counter() - t0)
+
+
+def _run_pool(todo: list[Path], out: Path, config: PseudoLabelConfig, cache, root: Path,
+              gnn_run: Path, axis_run: Path, workers: int,
+              record: Callable[[Path, ShapeRecord], None]) -> None:
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
+                             initializer=_worker_init,
+                             initargs=(str(gnn_run), str(axis_run), config.device))
+    cfg = config.model_dump(mode="json")
+    try:
+        pending: dict[Future, Path] = {}
+        it = iter(todo)
+
+        def fill() -> None:
+            while len(pending) < 2 * workers:
+                try:
+                    f = next(it)
+                except StopIteration:
+                    return
+                pending[ex.submit(_worker_run, str(f), str(out), cfg,
+                                  None if cache is None else str(cache), str(root))] = f
+
+        fill()
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                f = pending.pop(fut)
+                try:
+                    rec = fut.result()
+                except Exception as e:  # the worker died (e.g. killed for memory)
+                    rec = ShapeRecord(id=f.name, category="unknown", status="failed",
+                                      source=str(f),
+                                      reason=_one_line(f"worker process failed: "
+                                                       f"{type(e).__name__}: {e}"))
+                record(f, rec)
+            fill()
+    finally:
+        ex.shutdown(wait=True, cancel_futures=True)
+
+
+class _Bar:
+    """A rich progress bar counting kept and failed shapes (a no-op when disabled)."""
+
+    def __init__(self, total: int, enabled: bool) -> None:
+        self.total, self.enabled = total, enabled
+        self.kept = self.failed = 0
+        self._p: Any = None
+
+    def __enter__(self) -> _Bar:
+        if self.enabled:
+            from rich.console import Console
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._p = Progress(
+                TextColumn("[bold]pseudo-label[/]"), BarColumn(), MofNCompleteColumn(),
+                TextColumn("[green]{task.fields[kept]} kept[/] [red]{task.fields[failed]} "
+                           "failed[/]"),
+                TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True),
+            )
+            self._p.__enter__()
+            self._task = self._p.add_task("shapes", total=self.total, kept=0, failed=0)
+        return self
+
+    def advance(self, rec: ShapeRecord) -> None:
+        self.kept += rec.status == "kept"
+        self.failed += rec.status == "failed"
+        if self._p is not None:
+            self._p.update(self._task, advance=1, kept=self.kept, failed=self.failed)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._p is not None:
+            self._p.__exit__(*exc)

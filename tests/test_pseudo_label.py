@@ -1,0 +1,176 @@
+"""Pseudo-labelling PartNet shapes into PartNet-Mobility folders (kinmo.pseudo_label)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from kinmo.data.model import FINE_INDEX, JointType, ShapeFormat
+from kinmo.data.readers import read_shape
+from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
+
+torch.set_num_threads(1)
+
+#: Small real PartNet shapes (2-4 meshes each).
+SHAPES = ("100664", "7304", "12249")
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> tuple[Path, Path]:
+    """An (untrained) motion-GNN run and axis-network run, saved by the projects' own savers."""
+    from kinmo.features import SemanticVocab
+    from kinmo.models.motion_gnn import MotionGNN
+    from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
+    from kinmo.refine.train import save_axis_model
+    from kinmo.train.config import preset
+    from kinmo.train.gnn import save_checkpoint
+
+    root = tmp_path_factory.mktemp("runs")
+    torch.manual_seed(0)
+    cfg = preset("quick")
+    save_checkpoint(root / "gnn" / "model.pt", MotionGNN(cfg.model), cfg, SemanticVocab(), None, 0)
+    net = AxisSelectionNet(AxisNetConfig(n_points=64, k=8, widths=[8, 8, 16], emb_dim=16,
+                                         head=[16], dropout=0.0))
+    save_axis_model(root / "axis" / "model.pt", net)
+    return root / "gnn", root / "axis"
+
+
+@pytest.fixture(scope="module")
+def data(partnet_root: Path, tmp_path_factory) -> Path:
+    """A dataset folder of links to a few real PartNet shapes (the data is never copied)."""
+    d = tmp_path_factory.mktemp("partnet")
+    for s in SHAPES:
+        (d / s).symlink_to(partnet_root / s)
+    return d
+
+
+def _hinge_on_largest_leaf(monkeypatch):
+    """Make the GNN predict: the first sibling edge of the deepest-first order is a hinge."""
+    import kinmo.predict
+    from kinmo.mobility_tree import EdgePrediction
+
+    def fake(run, graphs, batch_size=8):
+        out = []
+        for g in graphs:
+            e = len(g.sibling_edges)
+            p = np.zeros((e, 10))
+            p[:, FINE_INDEX["None"]] = 1.0
+            d = np.tile([0.0, 1.0, 0.0], (e, 1))
+            o = np.zeros((e, 3))
+            if e:
+                i = int(g.sibling_edges[0, 0])
+                p[0] = 0.0
+                p[0, FINE_INDEX["R_V_S"]] = 1.0
+                o[0] = g.obb_center[i] + g.obb_half_extents[i] @ np.abs(g.obb_axes[i])
+            out.append(EdgePrediction(p, d, o))
+        return out
+
+    monkeypatch.setattr(kinmo.predict, "infer_edges", fake)
+
+
+def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path, monkeypatch):
+    _hinge_on_largest_leaf(monkeypatch)
+    out = tmp_path / "out"
+    res = pseudo_label_dataset(data, *runs, out, PseudoLabelConfig(threshold=0.0),
+                               progress=False)
+    assert [r.status for r in res.records] == ["kept"] * len(SHAPES), res.records
+    for rec in res.records:
+        folder = out / rec.id
+        shape = read_shape(folder)
+        assert shape.format is ShapeFormat.PARTNET_MOBILITY
+        src = read_shape(data / rec.id)
+        assert shape.category == src.category
+        assert set(shape.hierarchy.nodes) == set(src.hierarchy.nodes)
+        moving = [lk for lk in shape.links if lk.joint.is_moving]
+        assert len(moving) == 1 and moving[0].joint.type is JointType.HINGE
+        assert abs(moving[0].joint.direction[1]) > 0.7  # a vertical hinge, as predicted
+        assert moving[0].joint.limit == (0.0, 90.0)
+        for name in src.hierarchy.mesh_names(src.hierarchy.root):
+            p = folder / "textured_objs" / f"{name}.obj"
+            assert p.is_symlink() and p.resolve() == src.mesh_path(name).resolve()
+        assert (folder / "result.json").read_bytes() == (data / rec.id / "result.json").read_bytes()
+        assert (folder / "semantics.txt").read_text().count("link_") == len(shape.links)
+        urdf = (folder / "mobility.urdf").read_text()
+        assert 'type="revolute"' in urdf and "textured_objs/" in urdf
+        scores = json.loads((folder / "scores.json").read_text())
+        assert scores["threshold"] == 0.0 and len(scores["joints"]) == 1
+        j = scores["joints"][0]
+        assert 0.0 <= j["score"] <= 1.0 and j["type"] == "R_V_S" and j["candidate"] == "edge"
+        assert j["score"] == pytest.approx(0.5 * j["feasibility"] + 0.3
+                                           * j["direction_agreement"]
+                                           + 0.2 * j["position_agreement"])
+    with open(out / "summary.csv") as fh:
+        summary = list(csv.DictReader(fh))
+    assert summary[-1]["category"] == "all" and int(summary[-1]["kept"]) == len(SHAPES)
+    assert not (out / ".staging").exists()
+    # resume: every record is current, nothing is recomputed
+    res2 = pseudo_label_dataset(data, *runs, out, PseudoLabelConfig(threshold=0.0),
+                                progress=False)
+    assert res2.n_skipped == len(SHAPES) and res2.count("kept") == len(SHAPES)
+
+
+def test_threshold_rejects_and_failures_are_reported(data, runs, tmp_path, monkeypatch):
+    _hinge_on_largest_leaf(monkeypatch)
+    out = tmp_path / "out"
+    # a broken shape: a mesh file is missing
+    broken = tmp_path / "data" / "broken"
+    shutil.copytree(data / SHAPES[0], broken, symlinks=False)
+    victim = min((broken / "objs").glob("*.obj"))
+    victim.unlink()
+    (tmp_path / "data" / SHAPES[1]).symlink_to((data / SHAPES[1]).resolve())
+    res = pseudo_label_dataset(tmp_path / "data", *runs, out, PseudoLabelConfig(threshold=1.0),
+                               progress=False)
+    by_id = {r.id: r for r in res.records}
+    assert by_id["broken"].status == "failed" and victim.name in by_id["broken"].reason
+    assert by_id[SHAPES[1]].status == "below_threshold"
+    assert "below 1" in by_id[SHAPES[1]].reason and by_id[SHAPES[1]].min_score < 1.0
+    assert not (out / SHAPES[1]).exists() and not (out / "broken").exists()
+    with open(out / "shapes.csv") as fh:
+        rows = {r["id"]: r for r in csv.DictReader(fh)}
+    assert rows["broken"]["status"] == "failed" and rows[SHAPES[1]]["status"] == "below_threshold"
+
+
+def test_end_to_end_with_the_real_predictor(data, runs, tmp_path):
+    """The untrained GNN and axis network through the real pipeline, two worker processes:
+    every shape gets a status; kept ones are valid objects."""
+    out = tmp_path / "out"
+    res = pseudo_label_dataset(data, *runs, out, PseudoLabelConfig(threshold=0.0), workers=2,
+                               progress=False)
+    assert len(res.records) == len(SHAPES)
+    for r in res.records:
+        assert r.status in ("kept", "no_moving_joint"), (r.id, r.reason)
+        if r.status == "kept":
+            assert read_shape(out / r.id).links
+        else:
+            assert r.n_moving == 0 and not (out / r.id).exists()
+    with open(out / "summary.csv") as fh:
+        counts = list(csv.DictReader(fh))[-1]
+    assert int(counts["shapes"]) == len(SHAPES)
+    assert int(counts["kept"]) + int(counts["no_moving_joint"]) == len(SHAPES)
+
+
+def test_cli(data, runs, tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from kinmo.cli import app
+
+    _hinge_on_largest_leaf(monkeypatch)
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, [
+        "pseudo-label", str(data), "--model", str(runs[0]), "--axis-model", str(runs[1]),
+        "--out", str(out), "--threshold", "0", "--quiet", "--sign", "feasibility",
+    ])
+    assert res.exit_code == 0, res.output
+    assert "kept" in res.output and f"{len(SHAPES)} kept" in res.output
+    assert len(list(out.glob("*/mobility_v2.json"))) == len(SHAPES)
+    bad = CliRunner().invoke(app, [
+        "pseudo-label", str(data), "--model", str(tmp_path / "missing"), "--axis-model",
+        str(runs[1]), "--out", str(out),
+    ])
+    assert bad.exit_code == 2 and "missing" in bad.output
