@@ -49,6 +49,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError, KinmoError
 
 __all__ = [
@@ -570,14 +571,14 @@ def prepare_dataset(
             if on_row is not None:
                 on_row(row)
             if bar is not None:
-                bar.advance(row)
+                bar.advance(failed=row.status == "failed")
             now = time.monotonic()
             if now - last_write >= MANIFEST_INTERVAL_S:
                 _write_manifest(out, root, config, list(rows.values()), len(jobs), False)
                 last_write = now
             return strict and row.status == "failed"
 
-        with _Bar(len(jobs), progress, root.name) as bar:
+        with CountingBar(len(jobs), progress, "prepare", root.name) as bar:
             try:
                 # Up-to-date shapes are settled here, so that a resumed run starts no worker
                 # for them (prepare_one checks again, for callers that use it alone).
@@ -661,48 +662,3 @@ def _run_pool(
     finally:
         ex.shutdown(wait=True, cancel_futures=True)
     return stopped
-
-
-class _Bar:
-    """A rich progress bar counting shapes and failures (a no-op when disabled)."""
-
-    def __init__(self, total: int, enabled: bool, label: str) -> None:
-        self.total, self.enabled, self.label = total, enabled, label
-        self.failed = 0
-        self._progress: Any = None
-
-    def __enter__(self) -> _Bar:
-        if self.enabled:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            self._progress = Progress(
-                TextColumn("[bold]prepare[/] {task.description}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("[red]{task.fields[failed]} failed"),
-                TimeElapsedColumn(),
-                TimeRemainingColumn(),
-                console=Console(stderr=True),
-                transient=False,
-            )
-            self._progress.__enter__()
-            self._task = self._progress.add_task(self.label, total=self.total, failed=0)
-        return self
-
-    def advance(self, row: ManifestRow) -> None:
-        if row.status == "failed":
-            self.failed += 1
-        if self._progress is not None:
-            self._progress.update(self._task, advance=1, failed=self.failed)
-
-    def __exit__(self, *exc: Any) -> None:
-        if self._progress is not None:
-            self._progress.__exit__(*exc)

@@ -63,6 +63,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.progress import CountingBar
 from kinmo.io import write_json, write_text
 from kinmo.refine.refine import RefineConfig
 
@@ -568,14 +569,14 @@ def pseudo_label_dataset(
         workers = max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                       else (os.cpu_count() or 1))
     workers = max(1, min(workers, len(todo))) if todo else 1
-    bar = _Bar(len(folders), progress)
+    bar = CountingBar(len(folders), progress, "pseudo-label", "shapes", {"kept": "green", "failed": "red"})
     with bar:
         for r in records.values():
-            bar.advance(r)
+            bar.advance(kept=r.status == "kept", failed=r.status == "failed")
 
         def record(folder: Path, rec: ShapeRecord) -> None:
             records[str(folder)] = rec
-            bar.advance(rec)
+            bar.advance(kept=rec.status == "kept", failed=rec.status == "failed")
             if on_record is not None:
                 on_record(rec)
             if len(records) % 10 == 0:
@@ -629,44 +630,3 @@ def _run_pool(todo: list[Path], out: Path, config: PseudoLabelConfig, cache, roo
             fill()
     finally:
         ex.shutdown(wait=True, cancel_futures=True)
-
-
-class _Bar:
-    """A rich progress bar counting kept and failed shapes (a no-op when disabled)."""
-
-    def __init__(self, total: int, enabled: bool) -> None:
-        self.total, self.enabled = total, enabled
-        self.kept = self.failed = 0
-        self._p: Any = None
-
-    def __enter__(self) -> _Bar:
-        if self.enabled:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            self._p = Progress(
-                TextColumn("[bold]pseudo-label[/]"), BarColumn(), MofNCompleteColumn(),
-                TextColumn("[green]{task.fields[kept]} kept[/] [red]{task.fields[failed]} "
-                           "failed[/]"),
-                TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True),
-            )
-            self._p.__enter__()
-            self._task = self._p.add_task("shapes", total=self.total, kept=0, failed=0)
-        return self
-
-    def advance(self, rec: ShapeRecord) -> None:
-        self.kept += rec.status == "kept"
-        self.failed += rec.status == "failed"
-        if self._p is not None:
-            self._p.update(self._task, advance=1, kept=self.kept, failed=self.failed)
-
-    def __exit__(self, *exc: Any) -> None:
-        if self._p is not None:
-            self._p.__exit__(*exc)

@@ -79,6 +79,7 @@ from typing import Any
 
 import numpy as np
 
+from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError, KinmoError
 
 __all__ = [
@@ -669,13 +670,13 @@ def render_dataset(
                 failed.append(obj_rows[0].id)
             if on_rows is not None:
                 on_rows(obj_rows)
-            bar.advance(obj_rows)
+            bar.advance(len(obj_rows), failed=sum(r.status == "failed" for r in obj_rows))
             now = time.monotonic()
             if now - last >= MANIFEST_INTERVAL_S:
                 _write_manifest(out, root, config, frames_per_object, rows, len(jobs), False)
                 last = now
 
-        with _Bar(len(jobs) * frames_per_object, progress, root.name) as bar:
+        with CountingBar(len(jobs) * frames_per_object, progress, "render", root.name) as bar:
             try:
                 if n_workers == 1:
                     for f, key in jobs:
@@ -722,42 +723,3 @@ def _run_pool(jobs: list[tuple[Path, str]], out: Path, config: RenderConfig, fra
             fill()
     finally:
         ex.shutdown(wait=True, cancel_futures=True)
-
-
-class _Bar:
-    """A rich progress bar counting frames and failures (a no-op when disabled)."""
-
-    def __init__(self, total: int, enabled: bool, label: str) -> None:
-        self.total, self.enabled, self.label = total, enabled, label
-        self.failed = 0
-        self._progress: Any = None
-
-    def __enter__(self) -> _Bar:
-        if self.enabled:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            self._progress = Progress(
-                TextColumn("[bold]render[/] {task.description}"), BarColumn(),
-                MofNCompleteColumn(), TextColumn("[red]{task.fields[failed]} failed"),
-                TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True),
-            )
-            self._progress.__enter__()
-            self._task = self._progress.add_task(self.label, total=self.total, failed=0)
-        return self
-
-    def advance(self, rows: list[FrameRow]) -> None:
-        self.failed += sum(r.status == "failed" for r in rows)
-        if self._progress is not None:
-            self._progress.update(self._task, advance=len(rows), failed=self.failed)
-
-    def __exit__(self, *exc: Any) -> None:
-        if self._progress is not None:
-            self._progress.__exit__(*exc)
