@@ -24,10 +24,9 @@ file, ``.lock``, enforces it).
 
 Parallelism: :func:`prepare_one` is a pure function of picklable arguments returning a
 :class:`ManifestRow`; it reads, builds, saves and reports one shape and never raises for bad
-input. :func:`prepare_dataset` maps it over the shapes with a
-:class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` start method, so Rust thread
-pools are never forked); the same function can be shipped unchanged to another executor
-(e.g. ``ray.remote(prepare_one)``) for cluster runs.
+input. :func:`prepare_dataset` maps it over the shapes with :func:`kinmo.parallel.map_unordered`
+(a ``spawn`` process pool, so Rust thread pools are never forked); the same function can be
+shipped unchanged to another executor (e.g. ``ray.remote(prepare_one)``) for cluster runs.
 
 Default cache folder (:func:`default_cache_dir`): ``./cache/<name of the dataset folder>``
 relative to the current directory.
@@ -42,15 +41,15 @@ import json
 import os
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields
-from multiprocessing import get_context
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.parallel import available_cpus, map_unordered, resolve_workers
 
 __all__ = [
     "MANIFEST_COLUMNS",
@@ -494,11 +493,19 @@ def _init_worker(threads: int) -> None:
     os.environ.setdefault("RAYON_NUM_THREADS", str(threads))
 
 
-def _cpus() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover
-        return os.cpu_count() or 1
+def _prepare_job(job: tuple[Path, str], out: Path, config: PrepareConfig, force: bool
+                 ) -> ManifestRow:
+    f, key = job
+    return prepare_one(f, out, config, key, force)
+
+
+def _worker_failed(job: tuple[Path, str], e: Exception) -> ManifestRow:
+    # the worker raised or died (e.g. killed for memory)
+    f, key = job
+    return ManifestRow(
+        id=key, source=str(f), status="failed",
+        error=_one_line(f"{f}: worker process failed: {type(e).__name__}: {e}"),
+    )
 
 
 def prepare_dataset(
@@ -556,8 +563,6 @@ def prepare_dataset(
     out = Path(out) if out is not None else default_cache_dir(root)
     out.mkdir(parents=True, exist_ok=True)
     jobs = [(f, cache_key(f, root)) for f in folders]
-    n_workers = workers if workers > 0 else _cpus()
-    n_workers = max(1, min(n_workers, len(jobs)))
 
     rows: dict[str, ManifestRow] = {}
     stopped = False
@@ -589,14 +594,15 @@ def prepare_dataset(
                         record(cached, bar)
                     else:
                         todo.append((f, key))
-                n_workers = max(1, min(n_workers, len(todo)))
-                if n_workers == 1:
-                    for f, key in todo:
-                        if record(prepare_one(f, out, config, key, force), bar):
-                            stopped = True
-                            break
-                else:
-                    stopped = _run_pool(todo, out, config, force, n_workers, record, bar)
+                n_workers = resolve_workers(workers, len(todo))
+                stopped = map_unordered(
+                    partial(_prepare_job, out=out, config=config, force=force),
+                    todo, n_workers,
+                    on_result=lambda job, row: record(row, bar),
+                    on_error=_worker_failed,
+                    initializer=_init_worker,
+                    initargs=(max(1, available_cpus() // n_workers),),
+                )
             finally:
                 _write_manifest(
                     out, root, config, list(rows.values()), len(jobs),
@@ -611,54 +617,3 @@ def prepare_dataset(
     )
     return result
 
-
-def _run_pool(
-    jobs: list[tuple[Path, str]],
-    out: Path,
-    config: PrepareConfig,
-    force: bool,
-    n_workers: int,
-    record: Callable[[ManifestRow, Any], bool],
-    bar: Any,
-) -> bool:
-    threads = max(1, _cpus() // n_workers)
-    ex = ProcessPoolExecutor(
-        max_workers=n_workers,
-        mp_context=get_context("spawn"),
-        initializer=_init_worker,
-        initargs=(threads,),
-    )
-    stopped = False
-    try:
-        pending: dict[Future, tuple[Path, str]] = {}
-        it = iter(jobs)
-        # Keep the queue short (2 per worker) so that a strict stop cancels little work.
-
-        def fill() -> None:
-            while len(pending) < 2 * n_workers:
-                try:
-                    f, key = next(it)
-                except StopIteration:
-                    return
-                pending[ex.submit(prepare_one, f, out, config, key, force)] = (f, key)
-
-        fill()
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                f, key = pending.pop(fut)
-                try:
-                    row = fut.result()
-                except Exception as e:  # the worker died (e.g. killed for memory)
-                    row = ManifestRow(
-                        id=key, source=str(f), status="failed",
-                        error=_one_line(f"{f}: worker process failed: {type(e).__name__}: {e}"),
-                    )
-                if record(row, bar):
-                    stopped = True
-            if stopped:
-                break
-            fill()
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)
-    return stopped

@@ -58,8 +58,8 @@ the new frames. One run at a time per output folder (``.lock``).
 
 Parallelism: :func:`render_one` is a pure function of picklable arguments (one object, all
 its frames: the URDF and meshes are loaded once) returning manifest rows and never raising
-for bad input; :func:`render_dataset` maps it with a ``spawn``
-:class:`~concurrent.futures.ProcessPoolExecutor`; it can be shipped to Ray unchanged.
+for bad input; :func:`render_dataset` maps it with :func:`kinmo.parallel.map_unordered` (a
+``spawn`` process pool); it can be shipped to Ray unchanged.
 """
 
 from __future__ import annotations
@@ -70,10 +70,9 @@ import json
 import time
 import zlib
 from collections.abc import Callable, Iterator
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
-from multiprocessing import get_context
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +80,7 @@ import numpy as np
 
 from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.parallel import map_unordered
 
 __all__ = [
     "FRAME_VERSION",
@@ -591,13 +591,18 @@ def _clean_tmp(out: Path) -> None:
             pass
 
 
-def _cpus() -> int:
-    import os
+def _render_job(job: tuple[Path, str], out: Path, config: RenderConfig, frames: int,
+                force: bool) -> list[FrameRow]:
+    f, key = job
+    return render_one(f, out, config, frames, key, force)
 
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover
-        return os.cpu_count() or 1
+
+def _worker_failed(job: tuple[Path, str], e: Exception, frames: int) -> list[FrameRow]:
+    # the worker raised or died (e.g. killed for memory): every frame of the object failed
+    f, key = job
+    msg = _one_line(f"{f}: worker process failed: {type(e).__name__}: {e}")
+    return [FrameRow(id=key, frame=i, source=str(f), status="failed", error=msg)
+            for i in range(frames)]
 
 
 def render_dataset(
@@ -658,7 +663,6 @@ def render_dataset(
     out.mkdir(parents=True, exist_ok=True)
     rows: list[FrameRow] = []
     failed: list[str] = []
-    n_workers = max(1, min(workers if workers > 0 else _cpus(), len(jobs) or 1))
     with _lock(out):
         _clean_tmp(out)
         last = 0.0
@@ -678,11 +682,13 @@ def render_dataset(
 
         with CountingBar(len(jobs) * frames_per_object, progress, "render", root.name) as bar:
             try:
-                if n_workers == 1:
-                    for f, key in jobs:
-                        record(render_one(f, out, config, frames_per_object, key, force), bar)
-                else:
-                    _run_pool(jobs, out, config, frames_per_object, force, n_workers, record, bar)
+                map_unordered(
+                    partial(_render_job, out=out, config=config, frames=frames_per_object,
+                            force=force),
+                    jobs, workers,
+                    on_result=lambda job, obj_rows: record(obj_rows, bar),
+                    on_error=partial(_worker_failed, frames=frames_per_object),
+                )
             finally:
                 done = {r.id for r in rows}
                 _write_manifest(out, root, config, frames_per_object, rows, len(jobs),
@@ -691,35 +697,3 @@ def render_dataset(
                         n_objects=len(jobs), seconds=time.perf_counter() - t0,
                         failed_objects=sorted(failed))
 
-
-def _run_pool(jobs: list[tuple[Path, str]], out: Path, config: RenderConfig, frames: int,
-              force: bool, n_workers: int, record: Callable[[list[FrameRow], Any], None],
-              bar: Any) -> None:
-    ex = ProcessPoolExecutor(max_workers=n_workers, mp_context=get_context("spawn"))
-    try:
-        pending: dict[Future, tuple[Path, str]] = {}
-        it = iter(jobs)
-
-        def fill() -> None:
-            while len(pending) < 2 * n_workers:
-                try:
-                    f, key = next(it)
-                except StopIteration:
-                    return
-                pending[ex.submit(render_one, f, out, config, frames, key, force)] = (f, key)
-
-        fill()
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                f, key = pending.pop(fut)
-                try:
-                    obj_rows = fut.result()
-                except Exception as e:  # the worker died (e.g. killed for memory)
-                    msg = _one_line(f"{f}: worker process failed: {type(e).__name__}: {e}")
-                    obj_rows = [FrameRow(id=key, frame=i, source=str(f), status="failed", error=msg)
-                                for i in range(frames)]
-                record(obj_rows, bar)
-            fill()
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)

@@ -15,7 +15,7 @@ import numpy as np
 import trimesh
 
 from kinmo.synth.assembly import LinkSpec, Motion, Node, SynthObject
-from kinmo.synth.components import Rect, door, drawer, feet, open_box, shell
+from kinmo.synth.components import Rect, door, drawer, feet, foot_base, open_box, shell
 from kinmo.synth.primitives import box, cylinder, lathe
 
 _UP = np.array([0.0, 1.0, 0.0])
@@ -44,13 +44,18 @@ def _knob(
     return meshes, Motion("hinge", (cx, cy, z_face), _OUT, None)
 
 
+def _walls(W: float, D: float, y0: float, y1: float, tw: float) -> list[trimesh.Trimesh]:
+    """The 5 walls of a body ``W`` wide, ``D`` deep, from ``y0`` to ``y1``, open at the front
+    ``z = D / 2`` (:func:`~kinmo.synth.components.shell`, all walls ``tw`` thick)."""
+    lo, hi = np.array([-W / 2, y0, -D / 2]), np.array([W / 2, y1, D / 2])
+    return list(shell(lo, hi, tw, tw).values())
+
+
 def _base(rng: np.random.Generator, parent: Node, W: float, D: float, hb: float, kind: str) -> None:
     """``base -> foot_base -> foot`` or ``base -> surface_base -> surface`` below a body."""
     b = parent.add(Node("base", "Base"))
     if kind == "feet":
-        fb = b.add(Node("foot_base", "Foot Base"))
-        for m in feet(rng, -W / 2, W / 2, -D / 2, D / 2, hb):
-            fb.leaf("foot", "Foot", [m])
+        b.add(foot_base(rng, -W / 2, W / 2, -D / 2, D / 2, hb))
     else:
         sb = b.add(Node("surface_base", "Surface Base"))
         inset = rng.uniform(0.0, 0.03)
@@ -99,7 +104,7 @@ def refrigerator(rng: np.random.Generator) -> SynthObject:
 
     root = Node("refrigerator", "Refrigerator")
     body = root.add(Node("body", "Body"))
-    walls = list(shell(np.array([-W / 2, y0, -D / 2]), np.array([W / 2, y1, zf]), tw, tw).values())
+    walls = _walls(W, D, y0, y1, tw)
     interior = Node("body_interior", "Body Interior")
     z_in = -D / 2 + tw
     compartments: list[Rect] = []  # inner openings
@@ -134,9 +139,7 @@ def refrigerator(rng: np.random.Generator) -> SynthObject:
         g = door(
             rng, rect, zf, td, hinge, True, round(float(rng.uniform(90.0, 180.0)), 2), handle_style
         )
-        dn = body.add(Node("door", "Door"))
-        dn.leaf("door_frame", "Door Frame", g.surface)
-        dn.leaf("handle", "Handle", g.handle)
+        dn = body.add(g.node())
         links.append(LinkSpec("door", "door", [dn], g.motion))
 
     if layout == "single":
@@ -223,8 +226,7 @@ def oven(rng: np.random.Generator) -> SynthObject:
     reveal = rng.uniform(0.003, 0.006)
 
     root = Node("Oven", "Oven")
-    lo, hi = np.array([-W / 2, y0, -D / 2]), np.array([W / 2, y1, zf])
-    walls = list(shell(lo, hi, tw, tw).values())
+    walls = _walls(W, D, y0, y1, tw)
     # control panel: a divider under it and a front plate between the sides
     y_cp = y1 - tw - h_cp  # bottom of the control zone
     walls.append(box((-W / 2 + tw, y_cp - tw, z_in), (W / 2 - tw, y_cp, zf)))
@@ -260,7 +262,7 @@ def oven(rng: np.random.Generator) -> SynthObject:
     g = door(
         rng, door_rect, zf, td, "bottom", outer, round(float(rng.uniform(80, 90)), 2), "bar", border
     )
-    door_node = Node("door", "door", [], g.surface + g.glass + g.handle)
+    door_node = Node("door", "door", [], g.meshes())
     links.insert(0, LinkSpec("door", "door", [door_node], g.motion))
     # knobs
     n_k = int(rng.integers(2, 7))
@@ -343,7 +345,7 @@ def microwave(rng: np.random.Generator) -> SynthObject:
 
     root = Node("microwave", "Microwave")
     body = root.add(Node("body", "Body"))
-    walls = list(shell(np.array([-W / 2, y0, -D / 2]), np.array([W / 2, y1, zf]), tw, tw).values())
+    walls = _walls(W, D, y0, y1, tw)
     walls.append(box((xp, y0 + tw, z_in), (xp + tw, y1 - tw, zf)))
     t_plate = rng.uniform(0.008, 0.02)
     walls.append(box((xp + tw, y0 + tw, zf - t_plate), (W / 2 - tw, y1 - tw, zf)))
@@ -359,11 +361,7 @@ def microwave(rng: np.random.Generator) -> SynthObject:
         else round(float(rng.uniform(80, 90)), 2)
     )
     g = door(rng, door_rect, zf, td, hinge, True, limit, handle_style, border)
-    dn = body.add(Node("door", "Door"))
-    dn.leaf("door_frame", "Door Frame", g.surface)
-    dn.leaf("glass", "Door Glass", g.glass)
-    if g.handle:
-        dn.leaf("handle", "Handle", g.handle)
+    dn = body.add(g.node())
     links.append(LinkSpec("door", "door", [dn], g.motion))
     sc = body.add(Node("side_controls", "Side Controls"))
     cp_x = (xp + tw + W / 2 - tw) / 2
@@ -442,7 +440,7 @@ def dishwasher(rng: np.random.Generator) -> SynthObject:
 
     root = Node("dishwasher", "Dish Washer")
     body = root.add(Node("body", "Body"))
-    walls = list(shell(np.array([-W / 2, y0, -D / 2]), np.array([W / 2, y1, zf]), tw, tw).values())
+    walls = _walls(W, D, y0, y1, tw)
     top_in = y1 - tw
     if strip:
         h_s = rng.uniform(0.06, 0.1)
@@ -462,9 +460,7 @@ def dishwasher(rng: np.random.Generator) -> SynthObject:
     links: list[LinkSpec] = []
     rect = Rect(-W / 2, W / 2, y0, door_top)
     g = door(rng, rect, zf, td, "bottom", True, round(float(rng.uniform(80, 90)), 2), "bar")
-    dn = body.add(Node("door", "Door"))
-    dn.leaf("door_frame", "Door Frame", g.surface)
-    dn.leaf("handle", "Handle", g.handle)
+    dn = body.add(g.node())
     links.append(LinkSpec("door", "rotation_door", [dn], g.motion))
     cav = Rect(-W / 2 + tw, W / 2 - tw, y0 + tw, cav_top)
     n_r = int(rng.integers(1, 3))
@@ -524,7 +520,7 @@ def safe(rng: np.random.Generator) -> SynthObject:
     hb = rng.uniform(0.01, 0.03) if has_feet else 0.0
     y0, y1 = hb, hb + H
     zf = D / 2
-    walls = list(shell(np.array([-W / 2, y0, -D / 2]), np.array([W / 2, y1, zf]), tw, tw).values())
+    walls = _walls(W, D, y0, y1, tw)
     if H > 0.45 and rng.random() < 0.6:
         ys = rng.uniform(0.4, 0.6) * (H - 2 * tw) + y0 + tw
         walls.append(
@@ -623,7 +619,7 @@ def washing_machine(rng: np.random.Generator) -> SynthObject:
     y0, y1 = hb, hb + H
     zf, z_in = D / 2, -D / 2 + tw
     h_cs = rng.uniform(0.1, 0.16)
-    walls = list(shell(np.array([-W / 2, y0, -D / 2]), np.array([W / 2, y1, zf]), tw, tw).values())
+    walls = _walls(W, D, y0, y1, tw)
     xi0, xi1 = -W / 2 + tw, W / 2 - tw
     y_cs = y1 - tw - h_cs  # bottom of the control strip
     walls.append(box((xi0, y_cs, zf - tp), (xi1, y1 - tw, zf)))  # control strip plate

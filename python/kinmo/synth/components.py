@@ -1,4 +1,4 @@
-"""Reusable articulated components: handles, hinged doors, drawers and open boxes.
+"""Reusable components: handles, hinged doors, drawers, box shells, open boxes, cups, feet.
 
 All components are built in the object frame (y-up, front +z, metres) against a *front
 plane* ``z = z_front``: the front face of the carcass they belong to. Overlay doors and drawer
@@ -17,7 +17,7 @@ import numpy as np
 import trimesh
 
 from kinmo.synth.assembly import Motion, Node
-from kinmo.synth.primitives import box, cylinder
+from kinmo.synth.primitives import box, cylinder, lathe
 
 #: Unit outward normal of every front plane.
 FRONT = np.array([0.0, 0.0, 1.0])
@@ -208,6 +208,39 @@ class DoorGeometry:
     handle: list[trimesh.Trimesh]
     motion: Motion
     params: dict = field(default_factory=dict)
+
+    def node(
+        self,
+        name: str = "door",
+        text: str = "Door",
+        surface: tuple[str, str] = ("door_frame", "Door Frame"),
+        glass: tuple[str, str] = ("glass", "Door Glass"),
+    ) -> Node:
+        """The PartNet subtree ``door -> {door_frame, glass, handle}``.
+
+        The glass leaf is there only for a glass door, the handle leaf only for a door with a
+        handle.
+
+        Parameters
+        ----------
+        name, text : str
+            Semantic name and label of the door node (``"cabinet_door"``, ``"Cabinet door"``).
+        surface : (str, str)
+            Name and label of the leaf of the door panel (or glass door frame).
+        glass : (str, str)
+            Name and label of the glass leaf.
+        """
+        d = Node(name, text)
+        d.leaf(*surface, self.surface)
+        if self.glass:
+            d.leaf(*glass, self.glass)
+        if self.handle:
+            d.leaf("handle", "Handle", self.handle)
+        return d
+
+    def meshes(self) -> list[trimesh.Trimesh]:
+        """All meshes (surface, glass, handle)."""
+        return [*self.surface, *self.glass, *self.handle]
 
 
 def door(
@@ -445,6 +478,43 @@ def shell(lo: np.ndarray, hi: np.ndarray, t: float, t_back: float) -> dict[str, 
     }
 
 
+def cup(
+    r_bottom: float, r_top: float, height: float, wall: float, bottom: float, sections: int = 64
+) -> trimesh.Trimesh:
+    """A solid of revolution about +y open at the top: a (possibly tapered) pot, bucket or bin.
+
+    Parameters
+    ----------
+    r_bottom, r_top : float
+        Outer radius at the bottom (``y = 0``) and at the rim (``y = height``), metres.
+    height : float
+    wall : float
+        Wall thickness, measured horizontally (the inner wall is the outer one moved inwards
+        by ``wall``).
+    bottom : float
+        Bottom thickness.
+    sections : int
+        Segments around the axis.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Closed, one piece.
+    """
+    slope = (r_top - r_bottom) / height
+    return lathe(
+        [
+            (0.0, 0.0),
+            (r_bottom, 0.0),
+            (r_top, height),
+            (r_top - wall, height),
+            (r_bottom - wall + slope * bottom, bottom),
+            (0.0, bottom),
+        ],
+        sections=sections,
+    )
+
+
 def feet(
     rng: np.random.Generator, x0: float, x1: float, z0: float, z1: float, height: float
 ) -> list[trimesh.Trimesh]:
@@ -474,6 +544,16 @@ def feet(
             else:
                 out.append(box((fx - s / 2, 0.0, fz - s / 2), (fx + s / 2, height, fz + s / 2)))
     return out
+
+
+def foot_base(
+    rng: np.random.Generator, x0: float, x1: float, z0: float, z1: float, height: float
+) -> Node:
+    """The PartNet subtree ``foot_base -> foot x 4`` of :func:`feet` (same arguments)."""
+    fb = Node("foot_base", "Foot Base")
+    for m in feet(rng, x0, x1, z0, z1, height):
+        fb.leaf("foot", "Foot", [m])
+    return fb
 
 
 def open_box(

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinmo.synth.assembly import LinkSpec, Motion, Node, SynthObject
+from kinmo.synth.components import cup, open_box, top_handle
 from kinmo.synth.primitives import box, cylinder, lathe, tube
 
 _UP = np.array([0.0, 1.0, 0.0])
@@ -49,10 +50,7 @@ def bucket(rng: np.random.Generator) -> SynthObject:
     tw = rng.uniform(0.003, 0.008)
     tbot = rng.uniform(0.005, 0.012)
     slope = (Rt - Rb) / H
-    body = lathe(
-        [(0.0, 0.0), (Rb, 0.0), (Rt, H), (Rt - tw, H), (Rb - tw + slope * tbot, tbot), (0.0, tbot)],
-        sections=64,
-    )
+    body = cup(Rb, Rt, H, tw, tbot, 64)
     r_t = rng.uniform(0.003, 0.006)
     yp = H - rng.uniform(0.015, 0.04)
     R_at = Rb + slope * (yp + r_t)  # wall radius at the top of the pin
@@ -109,7 +107,7 @@ def kitchen_pot(rng: np.random.Generator) -> SynthObject:
     H = rng.uniform(0.07, 0.18)
     tw = rng.uniform(0.003, 0.007)
     tb = rng.uniform(0.004, 0.01)
-    body = lathe([(0.0, 0.0), (R, 0.0), (R, H), (R - tw, H), (R - tw, tb), (0.0, tb)], sections=64)
+    body = cup(R, R, H, tw, tb, 64)
     Lh = rng.uniform(0.03, 0.06)
     wh = rng.uniform(0.02, 0.04)
     hh = rng.uniform(0.01, 0.02)
@@ -254,8 +252,6 @@ def trash_can(rng: np.random.Generator) -> SynthObject:
     SynthObject
         In metres.
     """
-    from kinmo.synth.components import open_box, top_handle
-
     round_ = bool(rng.random() < 0.5)
     H = rng.uniform(0.3, 0.7)
     tw = rng.uniform(0.004, 0.012)
@@ -263,7 +259,7 @@ def trash_can(rng: np.random.Generator) -> SynthObject:
     root = Node("Trashcan", "Trashcan")
     if round_:
         R = rng.uniform(0.1, 0.2)
-        body = [lathe([(0.0, 0.0), (R, 0.0), (R, H), (R - tw, H), (R - tw, tw), (0.0, tw)], 64)]
+        body = [cup(R, R, H, tw, tw, 64)]
         Rl = R + rng.uniform(0.0, 0.01)
         lid = [lathe([(0.0, H), (Rl, H), (Rl, H + tl), (0.0, H + tl)], 64)]
         half_x, zf = R, R

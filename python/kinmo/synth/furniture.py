@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinmo.synth.assembly import LinkSpec, Node, SynthObject
-from kinmo.synth.components import Rect, door, drawer, feet
+from kinmo.synth.components import DoorGeometry, Rect, door, drawer, foot_base, shell
 from kinmo.synth.primitives import box
 
 #: Gap between neighbouring overlay fronts (metres).
@@ -27,6 +27,14 @@ def _split(rng: np.random.Generator, total: float, k: int, jitter: float) -> np.
 def _outer_limit(rng: np.random.Generator) -> float:
     """Opening angle of a side door hinged on an outer edge (degrees, 90-180)."""
     return round(float(rng.uniform(90.0, 180.0)), 2)
+
+
+def _cabinet_door(cab: Node, links: list[LinkSpec], g: DoorGeometry) -> None:
+    """Add a door (or flap) of a cabinet: its subtree under ``cab`` and its link."""
+    dn = cab.add(
+        g.node("cabinet_door", "Cabinet door", ("cabinet_door_surface", "Cabinet door surface"))
+    )
+    links.append(LinkSpec("cabinet_door", "rotation_door", [dn], g.motion))
 
 
 def storage_furniture(rng: np.random.Generator) -> SynthObject:
@@ -62,17 +70,12 @@ def storage_furniture(rng: np.random.Generator) -> SynthObject:
     root = Node("storage_furniture", "Storage Furniture")
     cab = root.add(Node("cabinet", "Cabinet"))
     frame = cab.add(Node("cabinet_frame", "Cabinet frame"))
-    frame.leaf(
-        "vertical_side_panel", "Vertical side panel", [box((-W / 2, y0, zb), (-W / 2 + t, y1, zf))]
-    )
-    frame.leaf(
-        "vertical_side_panel", "Vertical side panel", [box((W / 2 - t, y0, zb), (W / 2, y1, zf))]
-    )
-    frame.leaf("top_panel", "Top panel", [box((-W / 2 + t, y1 - t, zb), (W / 2 - t, y1, zf))])
-    frame.leaf("bottom_panel", "Bottom panel", [box((-W / 2 + t, y0, zb), (W / 2 - t, y0 + t, zf))])
-    frame.leaf(
-        "back_panel", "Back panel", [box((-W / 2 + t, y0 + t, zb), (W / 2 - t, y1 - t, zb + tb))]
-    )
+    walls = shell(np.array([-W / 2, y0, zb]), np.array([W / 2, y1, zf]), t, tb)
+    frame.leaf("vertical_side_panel", "Vertical side panel", [walls["left"]])
+    frame.leaf("vertical_side_panel", "Vertical side panel", [walls["right"]])
+    frame.leaf("top_panel", "Top panel", [walls["top"]])
+    frame.leaf("bottom_panel", "Bottom panel", [walls["bottom"]])
+    frame.leaf("back_panel", "Back panel", [walls["back"]])
     z_in = zb + tb  # front face of the back panel
     depth = zf - z_in
 
@@ -167,11 +170,7 @@ def storage_furniture(rng: np.random.Generator) -> SynthObject:
                 for rect, side, outer in halves:
                     lim = _outer_limit(rng) if outer else 90.0
                     g = door(rng, rect, zf, t_door, side, outer, lim, handle_style)
-                    dn = cab.add(Node("cabinet_door", "Cabinet door"))
-                    dn.leaf("cabinet_door_surface", "Cabinet door surface", g.surface)
-                    if g.handle:
-                        dn.leaf("handle", "Handle", g.handle)
-                    links.append(LinkSpec("cabinet_door", "rotation_door", [dn], g.motion))
+                    _cabinet_door(cab, links, g)
             elif kind == "flap":
                 side = str(rng.choice(["bottom", "top"]))
                 outer = bottom_outer if side == "bottom" else top_outer
@@ -185,28 +184,18 @@ def storage_furniture(rng: np.random.Generator) -> SynthObject:
                     round(float(rng.uniform(75, 90)), 2),
                     handle_style,
                 )
-                dn = cab.add(Node("cabinet_door", "Cabinet door"))
-                dn.leaf("cabinet_door_surface", "Cabinet door surface", g.surface)
-                if g.handle:
-                    dn.leaf("handle", "Handle", g.handle)
-                links.append(LinkSpec("cabinet_door", "rotation_door", [dn], g.motion))
+                _cabinet_door(cab, links, g)
             y = yb + t
 
     if not links:  # guarantee one moving part: a door on the first column
         xa, xb, fx0, fx1, out_l, _ = cols[0]
         g = door(rng, Rect(fx0, fx1, y0, y1), zf, t_door, "left", out_l, 90.0, handle_style)
-        dn = cab.add(Node("cabinet_door", "Cabinet door"))
-        dn.leaf("cabinet_door_surface", "Cabinet door surface", g.surface)
-        if g.handle:
-            dn.leaf("handle", "Handle", g.handle)
-        links.append(LinkSpec("cabinet_door", "rotation_door", [dn], g.motion))
+        _cabinet_door(cab, links, g)
 
     if base != "none":
         cb = cab.add(Node("cabinet_base", "Cabinet Base"))
         if base == "feet":
-            fb = cb.add(Node("foot_base", "Foot Base"))
-            for m in feet(rng, -W / 2, W / 2, zb, zf, hb):
-                fb.leaf("foot", "Foot", [m])
+            cb.add(foot_base(rng, -W / 2, W / 2, zb, zf, hb))
         else:
             pb = cb.add(Node("panel_base", "Panel Base"))
             sb = rng.uniform(0.0, 0.05)  # front setback

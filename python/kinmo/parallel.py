@@ -1,0 +1,206 @@
+"""The process pool of kinmo's per-shape stages (prepare, render, pseudo-label).
+
+Each of these stages applies one function to every shape folder of a dataset, and every
+shape is independent. :func:`map_unordered` is the loop they share:
+
+- **worker count**: ``workers`` as the command line takes it, 0 = one process per available
+  CPU (:func:`available_cpus`, the CPUs this process may run on), never more processes than
+  items (:func:`resolve_workers`); one worker means no pool at all: the items run in this
+  process, in order, which is what tests and debuggers want;
+- **spawn**: the pool starts its workers with the ``spawn`` method, never ``fork``: the
+  parent has Rust (rayon) and torch thread pools running, and a forked child would inherit
+  their locks in whatever state they were in;
+- **bounded submission**: at most ``in_flight_per_worker * workers`` items are submitted at
+  a time (2 per worker by default: one running, one queued so that no worker waits), and
+  more are submitted as results arrive, so memory stays flat however many items there are,
+  and stopping early (``on_result`` returning True, or Ctrl-C) cancels little work;
+- **unordered results**: results are handed to ``on_result`` in this process as they
+  complete (input order in the serial case); the stages record rows and sort them at the
+  end, so completion order is all they need;
+- **per-item failures**: an exception of one item in a worker (or the death of a worker,
+  e.g. killed for memory) is turned into that item's result by ``on_error`` and the other
+  items go on; in the serial case the per-item function's exceptions propagate (the stages'
+  functions never raise for bad input, so an exception there is a bug, shown with its
+  traceback);
+- **clean shutdown**: whether the loop ends, stops early or is interrupted (Ctrl-C raises
+  KeyboardInterrupt in this process; on a terminal the workers, in the same process group,
+  are interrupted too), the pool is shut down before the call returns or raises: items not
+  started are cancelled and the running ones are waited for, so no worker process outlives
+  the call.
+
+What stays in the stages: which items to run (resume / skip logic), how a result is recorded
+(manifests, progress bar, counters), what a failed item's row looks like (``on_error``), and
+per-worker set-up (``initializer``: thread counts, loading models once per worker).
+
+Scaling out: the unit of work is a plain picklable function of one item (a module-level
+function, or a :func:`functools.partial` of one with picklable arguments) returning a
+picklable result, with no shared state but what ``initializer`` sets up. The same ``fn``
+can therefore be shipped unchanged to a cluster, e.g. ``ray.util.multiprocessing.Pool(
+initializer=..., initargs=...).imap_unordered(fn, items)`` (a drop-in for
+:mod:`multiprocessing`'s pool), or as ray tasks (``ray.remote(fn)`` submitted in bounded
+batches with ``ray.wait``), feeding the same ``on_result`` callback. kinmo does not depend on
+Ray; nothing here needs changing for that but the executor.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from multiprocessing import get_context
+from typing import Any, TypeVar
+
+__all__ = ["IN_FLIGHT_PER_WORKER", "available_cpus", "map_unordered", "resolve_workers"]
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+IN_FLIGHT_PER_WORKER = 2
+"""Items submitted per worker at a time by :func:`map_unordered`."""
+
+
+def available_cpus() -> int:
+    """The number of CPUs this process may run on.
+
+    Returns
+    -------
+    int
+        The size of the CPU affinity mask where the platform has one (it honours
+        ``taskset`` and container CPU sets), else :func:`os.cpu_count`; at least 1.
+    """
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - no affinity on this platform
+        return os.cpu_count() or 1
+
+
+def resolve_workers(workers: int, n_items: int) -> int:
+    """The number of processes to use for ``n_items`` items.
+
+    Parameters
+    ----------
+    workers : int
+        The requested count; 0 (or less) = one per available CPU (:func:`available_cpus`).
+    n_items : int
+        Number of items to process.
+
+    Returns
+    -------
+    int
+        ``workers`` (or the CPU count), at most ``n_items``, at least 1. 1 means: run in
+        this process. Resolving a resolved count again gives it back.
+    """
+    n = workers if workers > 0 else available_cpus()
+    return max(1, min(n, n_items))
+
+
+def map_unordered(
+    fn: Callable[[T], R],
+    items: Sequence[T],
+    workers: int,
+    on_result: Callable[[T, R], bool | None],
+    on_error: Callable[[T, Exception], R],
+    *,
+    initializer: Callable[..., Any] | None = None,
+    initargs: tuple[Any, ...] = (),
+    in_flight_per_worker: int = IN_FLIGHT_PER_WORKER,
+) -> bool:
+    """Apply ``fn`` to every item, in worker processes, handing results over as they come.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(item) -> result``. With more than one worker it runs in ``spawn`` worker
+        processes, so it and every item and result must be picklable (a module-level
+        function, or a :func:`functools.partial` of one).
+    items : sequence
+        The items, submitted in this order.
+    workers : int
+        Worker processes (:func:`resolve_workers`: 0 = one per available CPU, capped at
+        ``len(items)``). 1: no pool, ``fn`` runs in this process, in order.
+    on_result : callable
+        ``on_result(item, result)``, called in this process for every item as it completes
+        (completion order). Return True to stop: no further item is submitted, the results
+        already completed in the same round are still handed over (in the serial case,
+        nothing more runs), pending items are cancelled and running ones waited for.
+    on_error : callable
+        ``on_error(item, exception) -> result``: the result to record for an item whose
+        ``fn`` raised in a worker (the exception is re-raised from the worker, with the
+        worker's traceback as its ``__cause__``) or whose worker died
+        (:class:`~concurrent.futures.process.BrokenProcessPool`). Its return value goes to
+        ``on_result`` like any result. Not used in the serial case: there ``fn``'s
+        exceptions propagate.
+    initializer : callable, optional
+        Called once in each worker process, with ``initargs``, before its first item (e.g.
+        to set thread counts or load models once per process). Not called in the serial
+        case: set up what ``fn`` needs in this process yourself.
+    initargs : tuple
+        Picklable arguments of ``initializer``.
+    in_flight_per_worker : int
+        Items submitted at a time per worker (bounded submission; >= 1).
+
+    Returns
+    -------
+    bool
+        True if ``on_result`` asked to stop, else False (every item was handed over).
+
+    Raises
+    ------
+    KeyboardInterrupt
+        On Ctrl-C, after the pool is shut down (pending items cancelled, running ones
+        waited for).
+    BrokenProcessPool
+        When a worker died: the items in flight are first handed to ``on_error``, then
+        submitting the next item raises (the pool cannot be used any more).
+    Exception
+        Whatever ``fn`` raises in the serial case, or ``on_result`` / ``on_error`` raise.
+
+    Notes
+    -----
+    The pool is shut down (``cancel_futures=True``, waiting for running items) on every
+    way out, so no worker outlives the call.
+    """
+    n_workers = resolve_workers(workers, len(items))
+    if n_workers == 1:
+        for item in items:
+            if on_result(item, fn(item)):
+                return True
+        return False
+
+    max_in_flight = max(1, in_flight_per_worker) * n_workers
+    ex = ProcessPoolExecutor(
+        max_workers=n_workers,
+        mp_context=get_context("spawn"),
+        initializer=initializer,
+        initargs=initargs,
+    )
+    stopped = False
+    try:
+        pending: dict[Future[R], T] = {}
+        it = iter(items)
+
+        def fill() -> None:
+            while len(pending) < max_in_flight:
+                try:
+                    item = next(it)
+                except StopIteration:
+                    return
+                pending[ex.submit(fn, item)] = item
+
+        fill()
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                item = pending.pop(fut)
+                try:
+                    result = fut.result()
+                except Exception as e:  # raised by fn in the worker, or the worker died
+                    result = on_error(item, e)
+                if on_result(item, result):
+                    stopped = True
+            if stopped:
+                break
+            fill()
+    finally:
+        ex.shutdown(wait=True, cancel_futures=True)
+    return stopped
