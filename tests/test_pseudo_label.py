@@ -174,3 +174,42 @@ def test_cli(data, runs, tmp_path, monkeypatch):
         str(runs[1]), "--out", str(out),
     ])
     assert bad.exit_code == 2 and "missing" in bad.output
+
+
+def test_cli_refinement_options_reach_the_scores(data, runs, tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from kinmo.cli import app
+
+    _hinge_on_largest_leaf(monkeypatch)
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, [
+        "pseudo-label", str(data), "--model", str(runs[0]), "--axis-model", str(runs[1]),
+        "--out", str(out), "--threshold", "0", "--quiet", "--keep-gnn", "--snap-angle", "10",
+    ])
+    assert res.exit_code == 0, res.output
+    scores = [json.loads(p.read_text()) for p in sorted(out.glob("*/scores.json"))]
+    assert scores
+    for s in scores:
+        assert s["options"]["refine"]["keep_gnn"] is True
+        assert s["options"]["refine"]["snap_angle_deg"] == 10.0
+        # the fake GNN's vertical hinge: the vertical OBB edges within 10 deg plus its own line
+        for j in s["joints"]:
+            assert j["n_candidates"] >= 2 and j["candidate"] in ("edge", "gnn")
+            assert 0.0 <= j["score"] <= 1.0
+    with open(out / "shapes.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(SHAPES)
+    for r in rows:  # even at threshold 0: a joint whose only candidate is the GNN's own line
+        # (no OBB axis within 10 deg of vertical) has no geometric confidence
+        assert r["status"] == "kept" or (r["status"] == "below_threshold"
+                                         and (out / ".records" / f"{r['id']}.json").is_file())
+    rejected = [r for r in rows if r["status"] != "kept"]
+    for r in rejected:
+        rec = json.loads((out / ".records" / f"{r['id']}.json").read_text())
+        assert any(j["candidate"] == "gnn" and j["n_candidates"] == 1 for j in rec["joints"])
+    bad = CliRunner().invoke(app, [
+        "pseudo-label", str(data), "--model", str(runs[0]), "--axis-model", str(runs[1]),
+        "--out", str(out), "--snap-angle", "120",
+    ])
+    assert bad.exit_code == 2

@@ -297,6 +297,7 @@ def predict_dataset(
     progress: bool = True,
     render: bool = False,
     axis_model: str | Path | None = None,
+    refine_config=None,
 ) -> list[PredictRow]:
     """Predict every shape folder below ``data`` and write ``out/<id>/`` (module docstring).
 
@@ -320,6 +321,8 @@ def predict_dataset(
         Run folder of ``kinmo train axis``: refine every moving edge's axis with the
         axis-selection network (Liu et al. 2023, Sec. 3.3;
         :func:`kinmo.refine.refine.refine_shape_prediction`) before writing.
+    refine_config : kinmo.refine.refine.RefineConfig, optional
+        Options of that refinement (default: the paper's scoring).
 
     Returns
     -------
@@ -359,7 +362,7 @@ def predict_dataset(
                 if axis_net is not None:
                     from kinmo.refine.refine import refine_shape_prediction
 
-                    pred = refine_shape_prediction(pred, axis_net, options=options)[0]
+                    pred = refine_shape_prediction(pred, axis_net, refine_config, options)[0]
                 paths = write_prediction(pred, out / sid, shape)
                 if render:
                     from kinmo.viz import render_prediction

@@ -178,3 +178,52 @@ def test_abstention_keeps_the_gnn_axis_when_no_candidate_agrees(model):
     assert abs(paper.axis_direction[drawer][1]) < 1e-9 and paper.kind[drawer] == "axis"
     door = edge_index(g, 2, 1)
     assert out.kind[door] == "edge" and not out.details[door].abstained
+
+
+def test_snap_angle_restricts_candidates_to_the_gnn_orientation(model):
+    g = box_cabinet(128)
+    p = _gnn_like(g, coarse=True)  # coarse R: every orientation and pivot kind competes
+    door, drawer = edge_index(g, 2, 1), edge_index(g, 3, 1)
+    free = refine_predictions(g, p, model)
+    snap = refine_predictions(g, p, model, RefineConfig(snap_angle_deg=10.0))
+    # the door's GNN axis is vertical: 4 vertical edges + centre + interaction line remain
+    assert free.n_candidates[door] == 18 and snap.n_candidates[door] == 6
+    assert abs(snap.axis_direction[door] @ [0.0, 1.0, 0.0]) == pytest.approx(1.0)
+    # a P_H drawer whose GNN axis is vertical has no horizontal candidate within 10 deg:
+    # the refinement abstains, keeps the GNN's axis and gives no confidence
+    f = _gnn_like(g)
+    f["direction"][drawer] = [0.0, 1.0, 0.0]
+    out = refine_predictions(g, f, model, RefineConfig(snap_angle_deg=10.0))
+    assert out.kind[drawer] == "gnn" and out.details[drawer].abstained
+    assert out.n_candidates[drawer] == 0 and np.isnan(out.confidence[drawer])
+    np.testing.assert_allclose(out.axis_direction[drawer], [0, 1, 0])
+    np.testing.assert_allclose(out.axis_origin[drawer], f["origin"][drawer])
+    assert out.to_json()["edges"]  # serialisable with an empty candidate set
+    with pytest.raises(ValueError):
+        RefineConfig(snap_angle_deg=0.0)
+
+
+def test_keep_gnn_adds_the_gnn_line_as_a_candidate(model):
+    g = box_cabinet(128)
+    p = _gnn_like(g, noise=0.03)
+    door = edge_index(g, 2, 1)
+    base = refine_predictions(g, p, model)
+    kept = refine_predictions(g, p, model, RefineConfig(keep_gnn=True))
+    assert kept.n_candidates[door] == base.n_candidates[door] + 1
+    r = kept.details[door]
+    assert r.candidates.kinds[-1] == "gnn"
+    # the GNN's line agrees with itself exactly; the other candidates keep their scores
+    assert r.scores.direction[-1] == pytest.approx(1.0) and r.scores.position[-1] == pytest.approx(1.0)
+    np.testing.assert_allclose(r.scores.direction[:-1], base.details[door].scores.direction)
+    # without the network's vote the noisy GNN line beats every snapped candidate
+    agree = refine_predictions(g, p, model, RefineConfig(keep_gnn=True,
+                                                         scoring=ScoringConfig(w_feasibility=0.0)))
+    assert agree.kind[door] == "gnn" and not agree.details[door].abstained
+    # its confidence stays that of the best geometric candidate (self-agreement is no evidence)
+    sc = agree.details[door].scores
+    assert sc.total[-1] == pytest.approx(1.0) and sc.best == len(sc.total) - 1
+    assert agree.confidence[door] == pytest.approx(sc.total[:-1].max())
+    assert agree.confidence[door] < 1.0
+    d = p["direction"][door] / np.linalg.norm(p["direction"][door])
+    assert abs(agree.axis_direction[door] @ d) == pytest.approx(1.0)
+    assert np.linalg.norm(np.cross(agree.axis_origin[door] - p["origin"][door], d)) < 1e-9

@@ -20,6 +20,9 @@ def pseudo_label_cmd(
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="A `kinmo prepare` cache of DIR (graphs are built when missing)."),  # noqa: UP007
     feasibility_only: bool = typer.Option(False, "--feasibility-only", help="Score candidates by the network alone (the paper's released code)."),
+    keep_gnn: bool = typer.Option(False, "--keep-gnn", help="The GNN's own axis competes as a candidate (kinmo extension)."),
+    snap_angle: Optional[float] = typer.Option(None, "--snap-angle", min=0.0, max=90.0, help="Only candidates within this angle (deg) of the GNN's axis compete; none: the joint gets no score (kinmo extension)."),  # noqa: UP007
+    consistent: bool = typer.Option(False, "--consistent/--raw-types", help="Make the fine types agree with the GNN's axes before refining (as `kinmo eval` does; the threshold then rejects far fewer, and fewer wrong, shapes). Default: the paper's arg-max types."),
     sign: str = typer.Option("tree", "--sign", help="Direction of motion: tree (away from the reference part) or feasibility (the network's)."),
     copy: bool = typer.Option(False, "--copy", help="Copy meshes instead of linking them."),
     device: str = typer.Option("cpu", "--device", help="Torch device of both networks."),
@@ -52,8 +55,9 @@ def pseudo_label_cmd(
     try:
         config = PseudoLabelConfig(
             threshold=threshold,
-            refine=RefineConfig(scoring=ScoringConfig(feasibility_only=feasibility_only)),
-            sign=sign, link="copy" if copy else "symlink", device=device,
+            refine=RefineConfig(scoring=ScoringConfig(feasibility_only=feasibility_only),
+                                keep_gnn=keep_gnn, snap_angle_deg=snap_angle or None),
+            sign=sign, consistent=consistent, link="copy" if copy else "symlink", device=device,
         )
     except ValueError as e:
         err.print(f"[red]error:[/] {e}", highlight=False)

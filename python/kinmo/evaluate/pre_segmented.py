@@ -481,6 +481,7 @@ def run_evaluation(
     progress: bool = True,
     console=None,
     axis_model: str | Path | None = None,
+    refine_config=None,
 ) -> tuple[EvalReport, dict[str, Path]]:
     """Evaluate trained motion GNNs on the test shapes of ``data`` (``kinmo eval pre-segmented``).
 
@@ -506,6 +507,9 @@ def run_evaluation(
         Run folder of ``kinmo train axis``: adds, for every ``GNN_<types>`` column, an
         ``OBB_<types>`` column with the axes refined by the axis-selection network (the
         paper's Table 1 "OBB" rows; :func:`kinmo.refine.refine.refine_shape_prediction`).
+    refine_config : kinmo.refine.refine.RefineConfig, optional
+        Options of that refinement (default: the paper's weights 0.5 / 0.3 / 0.2;
+        ``scoring.feasibility_only`` for the paper code's network-only selection).
 
     Returns
     -------
@@ -541,7 +545,8 @@ def run_evaluation(
 
         net = load_axis_model(axis_model, "cpu" if runs[0].device.type == "cpu" else str(runs[0].device))
         for n in list(preds):
-            preds[n.replace("GNN_", "OBB_", 1)] = [refine_shape_prediction(p, net)[0] for p in preds[n]]
+            preds[n.replace("GNN_", "OBB_", 1)] = [refine_shape_prediction(p, net, refine_config)[0]
+                                                  for p in preds[n]]
     report = evaluate_graphs(graphs, preds)
     out = Path(out) if out is not None else runs[0].path / "eval"
     paths = write_report(report, out)

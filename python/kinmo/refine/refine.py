@@ -41,7 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES
-from kinmo.refine.candidates import Candidates, candidate_axes
+from kinmo.refine.candidates import Candidates, candidate_axes, canonical_direction
 from kinmo.refine.motions import (
     MotionAmounts,
     candidate_motions,
@@ -93,6 +93,17 @@ class RefineConfig(BaseModel):
         abstains and keeps the GNN's axis (kind ``"gnn"``; the confidence stays the
         candidate's low score). A wrong orientation in the predicted type (a door predicted
         ``P_H`` whose regressed axis is vertical) then costs the GNN's error, not 90°.
+    snap_angle_deg : float or None
+        kinmo extension (None: off, the paper's behaviour): only candidates whose line is
+        within this angle (degrees) of the GNN's axis direction compete, so the refinement
+        fixes the axis position and the sign of motion but keeps the GNN's orientation. When
+        no candidate is that close the refinement abstains (kind ``"gnn"``, the GNN's axis,
+        confidence NaN, which no pseudo-label threshold accepts).
+    keep_gnn : bool
+        kinmo extension (False: off, the paper's behaviour): the GNN's own axis line joins the
+        candidates (kind ``"gnn"``), judged by the network like the others; its agreement
+        terms are 1 by construction, so a geometric candidate replaces it only when it scores
+        better overall.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -105,6 +116,8 @@ class RefineConfig(BaseModel):
     seed: int = 0
     chunk: int = Field(16, ge=1)
     min_agreement: float | None = Field(None, ge=0, le=1)
+    snap_angle_deg: float | None = Field(None, gt=0, le=90)
+    keep_gnn: bool = False
 
     @property
     def amounts(self) -> MotionAmounts:
@@ -241,13 +254,25 @@ class EdgeRefinement:
 
     @property
     def confidence(self) -> float:
-        """Score of the chosen candidate."""
-        return self.scores.confidence
+        """Score of the chosen candidate (NaN without candidates).
+
+        When the GNN's own line won (:attr:`RefineConfig.keep_gnn`), the best score of the
+        geometric candidates instead: the line's agreement with itself is 1 by construction
+        and says nothing, so the confidence keeps the paper's meaning (a feasible geometric
+        axis agrees with the GNN) and keeping the GNN's axis never changes which joints pass
+        a pseudo-label threshold.
+        """
+        b = self.scores.best
+        if b < 0 or self.candidates.kinds[b] != "gnn":
+            return self.scores.confidence
+        geo = [k for k, kind in enumerate(self.candidates.kinds) if kind != "gnn"]
+        return float(np.max(self.scores.total[geo])) if geo else float("nan")
 
     @property
     def kind(self) -> str:
         """Kind of the chosen candidate (``"edge"``, ``"center"``, ``"interaction"``,
-        ``"axis"``), ``"gnn"`` when the refinement abstained."""
+        ``"axis"``), ``"gnn"`` when the refinement abstained or the GNN's own line won
+        (:attr:`RefineConfig.keep_gnn`)."""
         return "gnn" if self.abstained else self.candidates.kinds[self.scores.best]
 
 
@@ -290,6 +315,20 @@ def refine_edge(
     diag = max(2.0 * float(np.linalg.norm(graph.obb_half_extents[moving])), 1e-12)
     cands = candidate_axes(obb, motion_type, graph.points[moving], graph.points[reference],
                            interaction_radius=cfg.interaction_radius)
+    g = np.asarray(gnn_direction, dtype=np.float64)
+    g = g / np.linalg.norm(g)
+    if cfg.snap_angle_deg is not None:
+        close = np.abs(cands.directions @ g) >= np.cos(np.radians(cfg.snap_angle_deg)) - 1e-12
+        cands = cands.subset(close)
+    if cfg.keep_gnn:
+        cands = Candidates(np.vstack([cands.origins, np.asarray(gnn_origin, float)[None]]),
+                           np.vstack([cands.directions, canonical_direction(g)[None]]),
+                           (*cands.kinds, "gnn"), cands.motion_type)
+    if len(cands) == 0:  # snap_angle_deg left nothing: keep the GNN's axis, no confidence
+        z = np.zeros(0)
+        empty = CandidateScores(z, z, z, z, np.zeros(0, dtype=np.int64), -1)
+        return EdgeRefinement(cands, empty, np.asarray(gnn_origin, dtype=np.float64).copy(), g,
+                              abstained=True)
     mot = candidate_motions(cands, obb, cfg.amounts)
     n = cfg.n_points or axis_model.config.n_points
     frac = axis_model.config.context_fraction
@@ -305,9 +344,8 @@ def refine_edge(
                               diag, cands.motion != "P", cfg.scoring, sign)
     b = scores.best
     if cfg.min_agreement is not None and scores.direction[b] < cfg.min_agreement:
-        g = np.asarray(gnn_direction, dtype=np.float64)
         return EdgeRefinement(cands, scores, np.asarray(gnn_origin, dtype=np.float64).copy(),
-                              g / np.linalg.norm(g), abstained=True)
+                              g, abstained=True)
     d = cands.directions[b] * scores.sign[b]
     c = graph.obb_center[moving]
     o = cands.origins[b] + float(np.dot(c - cands.origins[b], d)) * d
@@ -373,8 +411,10 @@ class RefinedPredictions:
                 "direction": [float(x) for x in self.axis_direction[e]],
                 "confidence": float(self.confidence[e]),
                 "feasibility": float(self.feasibility[e]),
-                "direction_agreement": float(r.scores.direction[r.scores.best]),
-                "position_agreement": float(r.scores.position[r.scores.best]),
+                "direction_agreement": (float(r.scores.direction[r.scores.best])
+                                        if r.scores.best >= 0 else float("nan")),
+                "position_agreement": (float(r.scores.position[r.scores.best])
+                                       if r.scores.best >= 0 else float("nan")),
                 "kind": self.kind[e],
                 "n_candidates": int(self.n_candidates[e]),
             })
@@ -436,7 +476,7 @@ def refine_predictions(
                         axis_model, cfg, rng=np.random.default_rng([cfg.seed, int(k)]))
         origin[k], direction[k] = r.origin, r.direction
         conf[k] = r.confidence
-        feas[k] = r.scores.feasibility[r.scores.best]
+        feas[k] = r.scores.feasibility[r.scores.best] if r.scores.best >= 0 else np.nan
         kind[k] = r.kind
         n_c[k] = len(r.candidates)
         details[int(k)] = r
