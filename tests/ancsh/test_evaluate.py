@@ -142,6 +142,14 @@ def test_train_and_eval_commands_end_to_end(mobility_root, tmp_path, monkeypatch
     assert 0 <= float(rows[0]["iou_mean"]) <= 1 and float(rows[0]["angle_deg_mean"]) <= 90
     assert "| supervised |" in (out / "table2.md").read_text()
     assert "Table 2" in res.output
+    info = json.loads((out / "eval.json").read_text())
+    assert info["symmetry_aware"] is True and info["symmetric_parts"] == {"10040": [None, None]}
+    # --no-symmetry: recorded, and identical numbers for a category without symmetric parts
+    res = runner.invoke(app, ["eval", "--category", "Laptop", "--frames", "2", "-q", "--no-symmetry",
+                              "--out", str(tmp_path / "plain"), "--scans", str(out / "scans")])
+    assert res.exit_code == 0, res.output
+    assert json.loads((tmp_path / "plain" / "eval.json").read_text())["symmetry_aware"] is False
+    assert list(csv.DictReader((tmp_path / "plain" / "table2.csv").open())) == rows
     # the subcommand of the other evaluation is not shadowed; a bad category is a clear error
     res = runner.invoke(app, ["eval", "--category", "spaceship", "--runs", str(run), "-q"])
     assert res.exit_code == 1 and "no ANCSH run of category 'spaceship'" in res.output

@@ -15,7 +15,17 @@ from kinmo.ancsh.dataset import ANCSHFrames, load_samples, scan_category
 from kinmo.ancsh.evaluate import ground_truth_predictions
 from kinmo.ancsh.postprocess import estimate
 from kinmo.ancsh.semi import pseudo_sample, scan_confidence, unlabeled_object
-from kinmo.ancsh.train import _build_model, _torch_threads, fit, load_run, predict_scans, render_objects, save_checkpoint, train_ancsh
+from kinmo.ancsh.train import (
+    _build_model,
+    _labeled_subset,
+    _torch_threads,
+    fit,
+    load_run,
+    predict_scans,
+    render_objects,
+    save_checkpoint,
+    train_ancsh,
+)
 from kinmo.errors import KinmoDataError, KinmoError
 
 LAPTOPS = ["10306", "9968"]
@@ -164,3 +174,45 @@ def test_settings_use_only_training_objects(mobility_root, partnet_root, tmp_pat
     assert res.data["pseudo_labeled_ignored"] == {test_id: "is a test object"}
     assert res.data["pseudo_labeled_scans"] == 1 and res.data["labeled_scans"] == len(res.data["labeled_objects"])
     assert (tmp_path / "sw" / "model.pt").is_file() and (tmp_path / "sw" / "metrics.csv").is_file()
+
+
+def test_labeled_fraction_picks_nested_seeded_subsets():
+    ids = ["10306", "10697", "11405", "9968"]
+    subsets = {f: _labeled_subset(ids, f, seed=0) for f in (0.3, 0.5, 0.8, 1.0)}
+    assert [len(subsets[f]) for f in (0.3, 0.5, 0.8, 1.0)] == [1, 2, 3, 4]  # rounded object counts
+    assert set(subsets[0.3]) < set(subsets[0.5]) < set(subsets[0.8]) < set(ids)  # nested
+    assert subsets[1.0] == ids and _labeled_subset(ids, 0.01, 0) and len(_labeled_subset(ids, 0.01, 0)) == 1
+    assert _labeled_subset(ids, 0.5, seed=0) == subsets[0.5]  # deterministic
+    many = [f"{i:03d}" for i in range(20)]
+    picks = {tuple(_labeled_subset(many, 0.3, seed=s)) for s in range(5)}
+    assert len(picks) > 1 and all(len(p) == 6 and set(p) <= set(many) for p in picks)  # the seed matters
+
+
+def test_cli_labeled_fraction_reduces_the_labeled_training_objects(mobility_root, tmp_path):
+    """`kinmo train ancsh --labeled-fraction 0.5` renders and trains on half of the fitting
+    training laptops (rounded), the same ones for the same seed."""
+    from typer.testing import CliRunner
+
+    from kinmo.cli import app
+
+    data = tmp_path / "mobility"
+    data.mkdir()
+    for oid in ["10040", "10306", "9968", "11405", "10697"]:
+        (data / oid).symlink_to(mobility_root / oid, target_is_directory=True)
+    runner = CliRunner()
+    common = ["train", "ancsh", "-c", "laptop", "--data", str(data), "--epochs", "1", "--steps-per-epoch", "1",
+              "--frames-per-object", "1", "--batch-size", "2", "-j", "1", "-q", "--scans", str(tmp_path / "scans")]
+    used = {}
+    for name, extra in (("full", []), ("half", ["--labeled-fraction", "0.5"]),
+                        ("half2", ["--labeled-fraction", "0.5"])):
+        res = runner.invoke(app, common + ["-o", str(tmp_path / name)] + extra)
+        assert res.exit_code == 0, res.output
+        d = json.loads((tmp_path / name / "data.json").read_text())
+        used[name] = d["labeled_objects"]
+        assert d["labeled_scans"] == len(d["labeled_objects"])  # one frame per object
+        assert sorted(p.name for p in (tmp_path / name / "objects" / "labeled").iterdir()) == sorted(used[name])
+    split = json.loads((tmp_path / "full" / "split.json").read_text())
+    assert set(used["full"]).isdisjoint(split["test"])
+    assert len(used["half"]) == round(len(used["full"]) * 0.5) < len(used["full"])
+    assert set(used["half"]) < set(used["full"]) and used["half2"] == used["half"]
+    assert json.loads((tmp_path / "half" / "config.json").read_text())["labeled_fraction"] == 0.5

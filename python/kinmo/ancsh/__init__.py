@@ -1,3 +1,25 @@
-"""ANCSH (Li et al. CVPR 2020) on single-view partial scans: a pure-PyTorch PointNet++
-backbone with per-point heads (:mod:`kinmo.ancsh.model`) and the pose fitting of its
-post-processing (:mod:`kinmo.ancsh.pose_fitting`)."""
+"""ANCSH (Li et al. CVPR 2020) on single-view partial scans, the part-level model of Liu et al.
+CVPR 2023 (Sec. 3.4, 4.3, Table 2): ``kinmo train ancsh`` and ``kinmo eval --category C``.
+
+Modules:
+
+- :mod:`kinmo.ancsh.structure`: a category's kinematic structure (parts, parents, joint
+  types), the canonical part order of an object and the most common structure of a category;
+- :mod:`kinmo.ancsh.dataset`: a category's objects mapped onto that structure, training
+  samples (NPCS, NAOCS, joint targets) from rendered scans, and the point-sampling dataset;
+- :mod:`kinmo.ancsh.targets`: per-point joint targets (association, heatmap, unit vectors);
+- :mod:`kinmo.ancsh.pointnet2`: a pure-PyTorch PointNet++ backbone;
+- :mod:`kinmo.ancsh.model`: the ANCSH heads and loss;
+- :mod:`kinmo.ancsh.pose_fitting`: RANSAC + Umeyama similarity fitting;
+- :mod:`kinmo.ancsh.postprocess`: from per-point predictions to part poses, joints and
+  joint states in the camera frame;
+- :mod:`kinmo.ancsh.config`: training configuration, the three settings and the presets;
+- :mod:`kinmo.ancsh.semi`: the semi-supervised baseline (self-training on unlabelled
+  PartNet scans);
+- :mod:`kinmo.ancsh.train`: rendering, training of one setting (with ``labeled_fraction``
+  for the ratio study), checkpoints and prediction;
+- :mod:`kinmo.ancsh.symmetry`: continuous rotational symmetry of parts, for symmetry-aware
+  pose errors;
+- :mod:`kinmo.ancsh.evaluate`: Table 2 (part pose, 3D IoU, joint state and axis errors on
+  held-out objects).
+"""

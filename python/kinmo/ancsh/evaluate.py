@@ -18,6 +18,11 @@ the runs' split (:mod:`kinmo.ancsh.train`), runs every trained model (one row pe
   **axis distance** (revolute joints: distance between the axis lines,
   :func:`kinmo.metrics.axis.line_distance`, mesh units; prismatic axes have no position).
 
+Parts with a continuous rotational symmetry (a bucket's body, a safe's dial) are evaluated up
+to it, as in NOCS and ANCSH (:mod:`kinmo.ancsh.symmetry`): the predicted pose is replaced by
+its symmetric equivalent closest to the truth before the part errors are computed
+(``symmetric=False`` turns this off).
+
 Table entries are means over frames; the "mean" columns average the parts (or joints).
 Outputs in the evaluation folder: ``table2.csv`` (one row per run), ``table2.md``,
 ``frames.csv`` (every frame's errors) and ``eval.json`` (test objects, frames, runs).
@@ -210,19 +215,37 @@ def _center(p: PartPose) -> np.ndarray:
     return p.scale * p.rotation @ np.full(3, 0.5) + p.translation
 
 
-def frame_errors(est: ANCSHEstimate, truth: FrameTruth) -> FrameErrors:
+def frame_errors(est: ANCSHEstimate, truth: FrameTruth,
+                 symmetry: Sequence[np.ndarray | None] | None = None) -> FrameErrors:
     """Per-part and per-joint errors of an estimate (module docstring).
+
+    Parameters
+    ----------
+    est : ANCSHEstimate
+    truth : FrameTruth
+    symmetry : sequence of (3,) float or None, optional
+        Per part: its continuous symmetry axis in NPCS
+        (:func:`kinmo.ancsh.symmetry.part_symmetry_axes`) or None. The pose of a symmetric
+        part is first replaced by its symmetric equivalent closest to the truth
+        (:func:`kinmo.ancsh.symmetry.align_about_axis`), so its rotation error is the angle
+        between the predicted and true axis. Default: no part is symmetric.
 
     Raises
     ------
     ValueError
-        Different numbers of parts or joints.
+        Different numbers of parts or joints (or of symmetry entries).
     """
     if len(est.parts) != len(truth.parts) or len(est.joints) != len(truth.joints):
         raise ValueError(f"estimate has {len(est.parts)} parts / {len(est.joints)} joints, truth "
                          f"{len(truth.parts)} / {len(truth.joints)}")
+    if symmetry is not None and len(symmetry) != len(truth.parts):
+        raise ValueError(f"{len(symmetry)} symmetry entries for {len(truth.parts)} parts")
     rot, tra, iou = [], [], []
-    for p, t in zip(est.parts, truth.parts):
+    for k, (p, t) in enumerate(zip(est.parts, truth.parts)):
+        if symmetry is not None and symmetry[k] is not None:
+            from kinmo.ancsh.symmetry import align_about_axis
+
+            p = align_about_axis(p, t, symmetry[k])
         rot.append(rotation_error_deg(p.rotation, t.rotation))
         tra.append(float(np.linalg.norm(_center(p) - _center(t))))
         iou.append(box_iou_3d(*p.box(), *t.box()))
@@ -422,6 +445,7 @@ def evaluate_category(
     workers: int = 0,
     progress: bool = True,
     console: Any = None,
+    symmetric: bool = True,
 ) -> tuple[list[Table2Row], dict[str, Path]]:
     """Table 2 for one category (module docstring).
 
@@ -447,6 +471,10 @@ def evaluate_category(
     progress : bool
     console : rich.console.Console, optional
         When given, the table is printed on it.
+    symmetric : bool
+        Evaluate parts with a continuous rotational symmetry up to that symmetry
+        (:mod:`kinmo.ancsh.symmetry`; which parts are symmetric is listed in ``eval.json``
+        and the Markdown notes).
 
     Returns
     -------
@@ -509,6 +537,14 @@ def evaluate_category(
     rcfg = cfg0.model_copy(update={"seed": seed, "render_workers": workers})
     files, failed = render_objects({i: cat.folders[i] for i in test_ids}, out / "objects" / "test",
                                    scans_dir / "test", frames, rcfg, progress)
+    sym: dict[str, list[np.ndarray | None]] = {}
+    if symmetric:
+        from kinmo.ancsh.dataset import object_parts_of
+        from kinmo.ancsh.symmetry import part_symmetry_axes
+
+        for i in test_ids:
+            shape, parts_i = object_parts_of(cat.folders[i])
+            sym[i] = part_symmetry_axes(shape, parts_i, seed=seed) if parts_i is not None else []
     if not files:
         raise KinmoError(f"no test scan could be rendered: {failed}")
     frames_data = []
@@ -529,7 +565,7 @@ def evaluate_category(
         errs: list[FrameErrors] = []
         for (f, fr, truth), (pts, pred) in zip(frames_data, preds):
             est = quiet_estimate(pts, pred, structure, theta=r.config.theta, seed=seed)
-            e = frame_errors(est, truth)
+            e = frame_errors(est, truth, sym.get(str(fr["meta"]["key"])) or None)
             errs.append(e)
             line: dict[str, Any] = {"setting": r.setting, "run": str(r.path), "id": fr["meta"]["key"],
                                     "frame": int(fr["meta"]["frame"])}
@@ -545,6 +581,15 @@ def evaluate_category(
     notes = [f"test objects: {', '.join(test_ids)}; {len(frames_data)} scans "
              f"({frames} per object, render seed {seed})",
              f"runs: {', '.join(f'{r.setting} = {r.path}' for r in loaded)}"]
+    sym_parts = {i: [k for k, a in enumerate(v) if a is not None] for i, v in sym.items()}
+    if not symmetric:
+        notes.append("symmetry-aware errors off: every part's rotation is compared as is")
+    elif any(sym_parts.values()):
+        notes.append("rotationally symmetric parts, evaluated up to their symmetry axis (NPCS axis): "
+                     + "; ".join(f"{i}: " + ", ".join(f"part {k} about {np.round(sym[i][k], 3).tolist()}"
+                                                      for k in ks) for i, ks in sym_parts.items() if ks))
+    else:
+        notes.append("no test part is rotationally symmetric (symmetry-aware errors change nothing)")
     paths = {"csv": out / "table2.csv", "markdown": out / "table2.md", "frames": out / "frames.csv",
              "json": out / "eval.json"}
     write_text(paths["csv"], _table2_csv(rows, structure.n_parts, structure.n_joints))
@@ -559,7 +604,8 @@ def evaluate_category(
     write_json(paths["json"], {
         "category": cat.category, "structure": structure.signature(), "data": str(data),
         "test_objects": test_ids, "scans": len(frames_data), "frames_per_object": frames, "seed": seed,
-        "render_failed": failed, "runs": [str(r.path) for r in loaded],
+        "render_failed": failed, "runs": [str(r.path) for r in loaded], "symmetry_aware": symmetric,
+        "symmetric_parts": {i: [None if a is None else [float(x) for x in a] for a in v] for i, v in sym.items()},
         "seconds": round(time.perf_counter() - t0, 2),
     })
     if console is not None:

@@ -10,9 +10,10 @@ settings of :data:`kinmo.ancsh.config.SETTINGS` for a category:
    over every object under ``data`` with :func:`kinmo.train.split.make_split` (the GNN's
    default fraction and the run's seed give the GNN's split), and written to
    ``RUN/split.json``: test objects are never rendered for training;
-3. ``labeled_fraction`` of the fitting training objects are rendered (``kinmo render``
-   pipeline, :func:`kinmo.render.dataset.render_dataset`, random joint states and
-   viewpoints) into ``SCANS/labeled``;
+3. ``labeled_fraction`` of the fitting training objects (``round(fraction * n)``, at least
+   one; a seeded subset, nested across fractions for one seed: :func:`_labeled_subset`) are
+   rendered (``kinmo render`` pipeline, :func:`kinmo.render.dataset.render_dataset`, random
+   joint states and viewpoints) into ``SCANS/labeled``;
 4. ``semi-weakly``: the pseudo-labelled PartNet shapes of the category (``kinmo
    pseudo-label`` output, PartNet-Mobility format) that fit the structure are rendered at
    random articulations of their predicted joints into ``SCANS/pseudo-labeled`` and join the
@@ -548,11 +549,31 @@ def _category_folders(root: Path, category: str) -> dict[str, Path]:
 
 
 def _labeled_subset(ids: list[str], fraction: float, seed: int) -> list[str]:
+    """The labelled training objects of a run with ``labeled_fraction`` (paper's ratio study).
+
+    Parameters
+    ----------
+    ids : list of str
+        The category's training objects that fit its structure.
+    fraction : float
+        In (0, 1].
+    seed : int
+
+    Returns
+    -------
+    list of str
+        ``max(1, round(fraction * len(ids)))`` objects (Python rounding: 30 % of 4 is 1, 80 %
+        of 4 is 3), sorted: the first ones of a permutation of the sorted ids seeded by
+        ``(seed, 7)``, so that for one seed the subsets of smaller fractions are contained in
+        those of larger ones (the ratio study adds objects, it does not swap them). All of
+        ``ids`` for ``fraction >= 1``.
+    """
     if fraction >= 1.0 or not ids:
         return list(ids)
     k = max(1, int(round(len(ids) * fraction)))
-    rng = np.random.default_rng([seed, 7])
-    return sorted(str(x) for x in rng.choice(sorted(ids), size=k, replace=False))
+    ordered = sorted(ids)
+    order = np.random.default_rng([seed, 7]).permutation(len(ordered))
+    return sorted(str(ordered[i]) for i in order[:k])
 
 
 def _say(console: Any, text: str) -> None:

@@ -119,6 +119,7 @@ def eval_ancsh_cmd(
     seed: int = typer.Option(0, "--seed", help="Seed of the test renders and point sampling."),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
     workers: int = typer.Option(0, "--workers", "-j", min=0, help="Rendering processes (0: one per CPU, 1: none)."),
+    symmetric: bool = typer.Option(True, "--symmetry/--no-symmetry", help="Evaluate rotationally symmetric parts (bucket bodies, dials) up to their symmetry axis, as NOCS / ANCSH do."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Evaluate models. With --category: ANCSH on partial scans of the held-out objects, one
@@ -142,7 +143,7 @@ def eval_ancsh_cmd(
     try:
         rows, paths = evaluate_category(category, run_paths, data=data, out=out, scans=scans, frames=frames,
                                         seed=seed, device=device, workers=workers, progress=not quiet,
-                                        console=console)
+                                        console=console, symmetric=symmetric)
     except KinmoError as e:
         err.print(f"[red]error:[/] {e}", highlight=False)
         raise typer.Exit(1) from None
