@@ -18,6 +18,7 @@ JSON), so an interrupted run resumes where it stopped. Layout::
     out/pseudo/                      kinmo pseudo-label
     out/ancsh/<Category>/<setting>/  kinmo train ancsh
     out/eval/<Category>/             kinmo eval --category (Table 2)
+    out/synth-extra-<as>-<N>/        --synth-extra N: the same with generated shapes added
     out/report/                      kinmo report
 
 The per-shape stages (prepare, render, pseudo-label) run in worker processes through pure
@@ -34,12 +35,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json, write_text
 
-__all__ = ["PipelineConfig", "PipelineResult", "default_categories", "run_pipeline", "run_demo"]
+__all__ = ["PipelineConfig", "PipelineResult", "StageTiming", "default_categories", "run_pipeline", "run_demo"]
 
 SETTINGS = ("supervised", "semi", "semi-weakly")
 
@@ -75,6 +76,29 @@ class PipelineConfig(BaseModel):
     ancsh_steps_per_epoch : int or None
     threshold : float
         Pseudo-label score threshold (paper: 0.6).
+    render : bool
+        Render the Table 1 predictions of the test shapes (moving parts coloured, predicted
+        and true axes) for the report's gallery.
+    refine : bool
+        Train the axis-selection network and add the refined (``OBB_*``) rows to Table 1;
+        without it, no pseudo-labels (they need it), so ``unlabeled`` must be None and
+        ``synth_as`` ``labeled``.
+    skip_ancsh : bool
+        Stop after the pseudo-labels: no ANCSH, no Table 2.
+    synth_extra : int
+        Generate this many objects (:func:`kinmo.synth.generate_dataset`, of the labelled
+        data's categories that it supports) and train and evaluate everything again with
+        them added, into ``out/synth-extra-<synth_as>-<N>/``; the baseline's stages are
+        shared with a run without generated shapes in the same folder, so several such runs
+        can be added to one. The report compares them on the real test objects (the paper's
+        study with generated DSG-Net shapes, Sec. 4.3).
+    synth_as : {"labeled", "unlabeled"}
+        ``labeled``: the generated objects join the labelled training objects (motion GNN,
+        axis network, ANCSH); ``unlabeled``: they join the PartNet shapes to pseudo-label
+        (the GNN and axis network of the baseline label them; ANCSH ``semi`` and
+        ``semi-weakly`` are trained again).
+    synth_seed : int or None
+        Seed of the generated objects (default ``seed + 500``).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -95,27 +119,107 @@ class PipelineConfig(BaseModel):
     ancsh_steps_per_epoch: int | None = Field(None, ge=1)
     frames_per_object: int | None = Field(None, ge=1)
     threshold: float = Field(0.6, ge=0, le=1)
+    render: bool = True
+    refine: bool = True
+    skip_ancsh: bool = False
+    synth_extra: int = Field(0, ge=0, le=100000)
+    synth_as: Literal["labeled", "unlabeled"] = "labeled"
+    synth_seed: int | None = Field(None, ge=0, le=99999)
+
+    @model_validator(mode="after")
+    def _check(self) -> PipelineConfig:
+        if not self.refine and self.unlabeled is not None:
+            raise ValueError("pseudo-labels need the axis network: without refine, give no unlabelled data")
+        if not self.refine and self.synth_extra and self.synth_as == "unlabeled":
+            raise ValueError("generated unlabelled shapes are pseudo-labelled with the axis network: keep refine")
+        return self
+
+
+class StageTiming(BaseModel):
+    """Time one stage took.
+
+    Attributes
+    ----------
+    wall_s : float
+        Wall-clock seconds.
+    cpu_s : float
+        CPU seconds (user + system) of this process and of the worker processes that ended
+        during the stage.
+    ran : bool
+        False when the stage was up to date (skipped).
+    """
+
+    wall_s: float
+    cpu_s: float
+    ran: bool = True
 
 
 class PipelineResult(BaseModel):
-    """Where the stages wrote their results."""
+    """Where the stages wrote their results, and how long each took."""
 
     out: Path
     stages: dict[str, list[str]] = Field(default_factory=dict)
     categories: list[str] = Field(default_factory=list)
     skipped_categories: dict[str, str] = Field(default_factory=dict)
     report: Path | None = None
+    timings: dict[str, StageTiming] = Field(default_factory=dict)
+    synth_extra: Path | None = None
+
+    def total(self) -> StageTiming:
+        """The sum over the stages."""
+        return StageTiming(wall_s=sum(t.wall_s for t in self.timings.values()),
+                           cpu_s=sum(t.cpu_s for t in self.timings.values()),
+                           ran=any(t.ran for t in self.timings.values()))
 
 
-def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Callable[[str], None], name: str) -> bool:
-    """Run ``run`` unless ``folder/.done`` holds ``key``; returns True if it ran."""
+def _cpu_seconds() -> float:
+    """User + system CPU seconds of this process and its finished children."""
+    import resource
+
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+class _Clock:
+    """Times the stages of a run into ``timings`` and prints one line per stage."""
+
+    def __init__(self, timings: dict[str, StageTiming], log: Callable[[str], None]) -> None:
+        self.timings, self.log = timings, log
+
+    def run(self, name: str, fn: Callable[[], Any]) -> Any:
+        """Call ``fn``, record its wall and CPU time as stage ``name``, print them."""
+        import time
+
+        w0, c0 = time.perf_counter(), _cpu_seconds()
+        value = fn()
+        t = StageTiming(wall_s=round(time.perf_counter() - w0, 2), cpu_s=round(_cpu_seconds() - c0, 2))
+        self.timings[name] = t
+        self.log(f"[green]{name}[/]: {t.wall_s:.1f} s wall, {t.cpu_s:.1f} s CPU")
+        return value
+
+    def skipped(self, name: str) -> None:
+        """Record stage ``name`` as up to date (not run)."""
+        self.timings[name] = StageTiming(wall_s=0.0, cpu_s=0.0, ran=False)
+
+
+def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Callable[[str], None], name: str,
+           clock: _Clock | None = None) -> bool:
+    """Run ``run`` unless ``folder/.done`` holds ``key``; returns True if it ran.
+
+    With a ``clock``, the stage's time is recorded under ``name``.
+    """
     marker = folder / ".done"
     text = json.dumps(key, sort_keys=True, default=str)
     if marker.is_file() and marker.read_text() == text:
         log(f"[dim]{name}: up to date ({folder})[/]")
+        if clock is not None:
+            clock.skipped(name)
         return False
     log(f"[bold cyan]{name}[/] -> {folder}")
-    run()
+    if clock is not None:
+        clock.run(name, run)
+    else:
+        run()
     folder.mkdir(parents=True, exist_ok=True)
     write_text(marker, text)
     return True
@@ -163,16 +267,20 @@ def default_categories(labeled: Path, split_file: Path | None = None, min_train:
     return keep, skipped
 
 
-def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True) -> PipelineResult:
+def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True,
+                 timings: dict[str, StageTiming] | None = None) -> PipelineResult:
     """Run every stage of the pipeline (module docstring), resuming finished stages.
 
     Parameters
     ----------
     cfg : PipelineConfig
     console : rich.console.Console, optional
-        Where stage headers go.
+        Where stage headers and the time of every stage go.
     progress : bool
         Show each stage's progress bar.
+    timings : dict of str to StageTiming, optional
+        Times of stages run before (``kinmo demo``'s data generation), put first in the
+        result's ``timings``.
 
     Returns
     -------
@@ -182,6 +290,8 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     ------
     KinmoDataError
         A dataset folder is missing.
+    KinmoError
+        ``synth_extra`` with labelled data of which no category can be generated.
     """
     from rich.console import Console
 
@@ -194,130 +304,324 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     out = cfg.out
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "pipeline.json", json.loads(cfg.model_dump_json()))
-    res = PipelineResult(out=out)
-    base = {"seed": cfg.seed, "preset": cfg.preset}
+    res = PipelineResult(out=out, timings=dict(timings or {}))
+    ctx = _Context(cfg, res, _Clock(res.timings, log), console, progress)
 
     # 1. prepare
-    from kinmo.prepare import PrepareConfig, prepare_dataset
+    from kinmo.prepare import PrepareConfig
 
     cache_l, cache_u = out / "cache" / "labeled", out / "cache" / "unlabeled"
     prep = PrepareConfig(seed=cfg.seed)
-    _stage(cache_l, {"src": str(cfg.labeled), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
-        cfg.labeled, cache_l, prep, workers=cfg.workers, progress=progress), log, "prepare labelled")
+    ctx.prepare(cfg.labeled, cache_l, prep, "prepare labelled")
     if cfg.unlabeled is not None:
-        _stage(cache_u, {"src": str(cfg.unlabeled), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
-            cfg.unlabeled, cache_u, prep, workers=cfg.workers, progress=progress), log, "prepare unlabelled")
+        ctx.prepare(cfg.unlabeled, cache_u, prep, "prepare unlabelled")
     res.stages["prepare"] = [str(cache_l)] + ([str(cache_u)] if cfg.unlabeled else [])
+    synth_cats = _synth_categories(cache_l) if cfg.synth_extra > 0 else []  # fails before training
 
-    # 2. motion GNN, fine and coarse types (Sec. 3.1-3.2)
-    from kinmo.train.config import preset as gnn_preset
-    from kinmo.train.gnn import train_gnn
+    # 2.-6. models and tables on the labelled (and unlabelled) data
+    baseline = _Variant(
+        out=out, graphs=cache_l, split=None, labeled=cfg.labeled, unlabeled=cfg.unlabeled,
+        unlabeled_cache=cache_u if cfg.unlabeled is not None else None, key={}, prefix="")
+    ctx.models_and_tables(baseline, cache_l)
 
-    gnn_runs = {}
-    split_file = out / "gnn_fine" / "split.json"
-    for types in ("fine", "coarse"):
-        run_dir = out / f"gnn_{types}"
-        gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs)
-        split = split_file if types == "coarse" else None
-        _stage(run_dir, {**base, "gnn": gcfg.model_dump()}, lambda gcfg=gcfg, run_dir=run_dir, split=split: train_gnn(
-            cache_l, run_dir, gcfg, split=split, progress=progress), log, f"train gnn ({types})")
-        gnn_runs[types] = run_dir
-    res.stages["gnn"] = [str(p) for p in gnn_runs.values()]
+    # 7. the same with generated shapes added (the paper's DSG-Net study, Sec. 4.3)
+    if cfg.synth_extra > 0:
+        ctx.synth_extra(baseline, cache_l, prep, synth_cats)
 
-    # 3. axis-selection network (Sec. 3.3)
-    from kinmo.refine.train import preset_config as axis_preset
-    from kinmo.refine.train import train_axis_model
-
-    axis_dir = out / "axis"
-    acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}), seed=cfg.seed)
-    _stage(axis_dir, {**base, "axis": acfg.model_dump()}, lambda: train_axis_model(
-        cache_l, axis_dir, acfg, split=split_file, progress=progress), log, "train axis")
-    res.stages["axis"] = [str(axis_dir)]
-
-    # 4. Table 1 on the held-out pre-segmented shapes
-    from kinmo.evaluate.pre_segmented import run_evaluation
-
-    t1 = out / "eval" / "pre-segmented"
-    _stage(t1, {**base, "models": [str(p) for p in gnn_runs.values()], "axis": str(axis_dir)},
-           lambda: run_evaluation([gnn_runs["fine"], gnn_runs["coarse"]], cfg.labeled, out=t1, split=split_file,
-                                  progress=progress, **_refine_kwargs(axis_dir)),
-           log, "eval pre-segmented (Table 1)")
-    res.stages["table1"] = [str(t1)]
-
-    # 5. pseudo-labels on the unlabelled shapes (Sec. 3.3)
-    pseudo = out / "pseudo"
-    if cfg.unlabeled is not None:
-        from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
-
-        pcfg = PseudoLabelConfig(threshold=cfg.threshold)
-        _stage(pseudo, {**base, "pseudo": pcfg.model_dump()}, lambda: pseudo_label_dataset(
-            cfg.unlabeled, gnn_runs["fine"], axis_dir, pseudo, pcfg, workers=cfg.workers, cache=cache_u,
-            progress=progress), log, "pseudo-label")
-        res.stages["pseudo"] = [str(pseudo)]
-
-    # 6. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
-    from kinmo.ancsh.config import preset as ancsh_preset
-    from kinmo.ancsh.evaluate import evaluate_category
-    from kinmo.ancsh.train import train_ancsh
-
-    if cfg.categories:
-        cats, skipped = list(cfg.categories), {}
-    else:
-        cats, skipped = default_categories(cfg.labeled, split_file)
-    res.categories, res.skipped_categories = cats, skipped
-    for cat, why in skipped.items():
-        log(f"[dim]ANCSH: {cat} left out: {why}[/]")
-    settings = [s for s in cfg.settings if s == "supervised" or cfg.unlabeled is not None]
-    scans = out / "scans"
-    for cat in cats:
-        runs = []
-        for setting in settings:
-            run_dir = out / "ancsh" / cat / setting
-            overrides = {
-                "epochs": cfg.ancsh_epochs, "semi_epochs": cfg.semi_epochs,
-                "steps_per_epoch": cfg.ancsh_steps_per_epoch, "frames_per_object": cfg.frames_per_object,
-                "unlabeled_frames_per_object": cfg.frames_per_object,
-                "test_frames_per_object": cfg.frames_per_object,
-                "labeled_fraction": cfg.labeled_fraction, "seed": cfg.seed,
-            }
-            ac = ancsh_preset(cfg.preset, **{k: v for k, v in overrides.items() if v is not None})
-            _stage(run_dir, {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting},
-                   lambda ac=ac, run_dir=run_dir, setting=setting, cat=cat: train_ancsh(
-                       cat, setting, run_dir, ac, data=cfg.labeled, partnet=cfg.unlabeled,
-                       pseudo=pseudo if cfg.unlabeled is not None else None, split=split_file, scans=scans,
-                       progress=progress, console=console),
-                   log, f"train ancsh {cat} ({setting})")
-            runs.append(run_dir)
-        ev = out / "eval" / cat
-        _stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
-               lambda runs=runs, ev=ev, cat=cat: evaluate_category(
-                   cat, runs, data=cfg.labeled, out=ev, scans=scans, frames=cfg.frames_per_object, seed=cfg.seed,
-                   progress=progress, console=console),
-               log, f"eval {cat} (Table 2)")
-        res.stages.setdefault("ancsh", []).extend(str(r) for r in runs)
-        res.stages.setdefault("table2", []).append(str(ev))
-
-    # 7. report
+    # 8. report
     from kinmo.report import write_report
 
-    rep = write_report(out, out / "report")
+    write_json(out / "pipeline_result.json", json.loads(res.model_dump_json()))  # the report shows the times
+    rep = ctx.clock.run("report", lambda: write_report(out, out / "report"))
     res.report = rep.html
     write_json(out / "pipeline_result.json", json.loads(res.model_dump_json()))
+    tot = res.total()
+    log(f"[bold]total[/]: {tot.wall_s:.1f} s wall, {tot.cpu_s:.1f} s CPU")
     return res
 
 
-def _refine_kwargs(axis_dir: Path) -> dict[str, Any]:
-    """Options of :func:`kinmo.evaluate.pre_segmented.run_evaluation` that add the OBB
-    (refined) settings of Table 1, where that function supports them."""
-    import inspect
+#: File of a generated-shapes run (``out/synth-extra-*/``) describing it (read by the report).
+SYNTH_EXTRA_FILE = "synth_extra.json"
 
-    from kinmo.evaluate.pre_segmented import run_evaluation
 
-    params = inspect.signature(run_evaluation).parameters
-    for name in ("axis_model", "refine"):
-        if name in params:
-            return {name: axis_dir}
-    return {}
+@dataclasses.dataclass
+class _Variant:
+    """What one set of models is trained and evaluated on.
+
+    Attributes
+    ----------
+    out : Path
+        Its folder (``gnn_fine/``, ``axis/``, ``eval/``... below it).
+    graphs : Path or list
+        Labelled part graphs for the motion GNN and the axis network (a cache or graphs).
+    split : Path or None
+        Split file; None: the fine GNN makes one (``out/gnn_fine/split.json``).
+    labeled : Path
+        PartNet-Mobility folder ANCSH renders its labelled objects from.
+    unlabeled, unlabeled_cache : Path or None
+        PartNet folder to pseudo-label and its cache.
+    key : dict
+        Added to every stage's key.
+    prefix : str
+        Prefix of the stage names.
+    reuse : dict of str to Path
+        Finished runs of the baseline to use instead of training (``gnn_fine``,
+        ``gnn_coarse``, ``axis``, ``ancsh/<Category>/supervised``).
+    """
+
+    out: Path
+    graphs: Any
+    split: Path | None
+    labeled: Path
+    unlabeled: Path | None
+    unlabeled_cache: Path | None
+    key: dict[str, Any]
+    prefix: str
+    reuse: dict[str, Path] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class _Context:
+    """The state one :func:`run_pipeline` call shares between its stages."""
+
+    cfg: PipelineConfig
+    res: PipelineResult
+    clock: _Clock
+    console: Any
+    progress: bool
+
+    def stage(self, folder: Path, key: dict[str, Any], run: Callable[[], Any], name: str) -> bool:
+        return _stage(folder, key, run, self.console.print, name, self.clock)
+
+    def prepare(self, src: Path, cache: Path, prep: Any, name: str) -> None:
+        from kinmo.prepare import prepare_dataset
+
+        self.stage(cache, {"src": str(src), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
+            src, cache, prep, workers=self.cfg.workers, progress=self.progress), name)
+
+    def models_and_tables(self, v: _Variant, eval_cache: Path) -> None:
+        """Motion GNNs, axis network, Table 1, pseudo-labels, ANCSH and Table 2 of ``v``."""
+        cfg, res, progress, console = self.cfg, self.res, self.progress, self.console
+        log = console.print
+        out = v.out
+        base = {"seed": cfg.seed, "preset": cfg.preset, **v.key}
+        graphs = v.graphs
+
+        # 2. motion GNN, fine and coarse types (Sec. 3.1-3.2)
+        from kinmo.train.config import preset as gnn_preset
+        from kinmo.train.gnn import train_gnn
+
+        gnn_runs: dict[str, Path] = {}
+        split_file = v.split or out / "gnn_fine" / "split.json"
+        for types in ("fine", "coarse"):
+            if f"gnn_{types}" in v.reuse:
+                gnn_runs[types] = v.reuse[f"gnn_{types}"]
+                continue
+            run_dir = out / f"gnn_{types}"
+            gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs)
+            split = split_file if (types == "coarse" or v.split is not None) else None
+            self.stage(run_dir, {**base, "gnn": gcfg.model_dump()},
+                       lambda gcfg=gcfg, run_dir=run_dir, split=split: train_gnn(
+                           _graphs(graphs), run_dir, gcfg, split=split, progress=progress),
+                       f"{v.prefix}train gnn ({types})")
+            gnn_runs[types] = run_dir
+        res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
+
+        # 3. axis-selection network (Sec. 3.3)
+        from kinmo.refine.train import preset_config as axis_preset
+        from kinmo.refine.train import train_axis_model
+
+        axis_dir = v.reuse.get("axis", out / "axis")
+        if "axis" not in v.reuse and cfg.refine:
+            acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
+                               seed=cfg.seed)
+            self.stage(axis_dir, {**base, "axis": acfg.model_dump()}, lambda: train_axis_model(
+                _graphs(graphs), axis_dir, acfg, split=split_file, progress=progress), f"{v.prefix}train axis")
+        if cfg.refine:
+            res.stages[f"{v.prefix}axis"] = [str(axis_dir)]
+
+        # 4. Table 1 on the held-out pre-segmented shapes (always the real labelled ones),
+        # with renders of the predictions for the report's gallery
+        from kinmo.evaluate.pre_segmented import run_evaluation
+
+        t1 = out / "eval" / "pre-segmented"
+        render = cfg.render and not v.prefix  # the gallery shows the main run
+        if not ("gnn_fine" in v.reuse and "axis" in v.reuse):
+            self.stage(t1, {**base, "models": [str(p) for p in gnn_runs.values()],
+                            "axis": str(axis_dir) if cfg.refine else None,
+                            "data": str(eval_cache), "render": render},
+                       lambda: run_evaluation([gnn_runs["fine"], gnn_runs["coarse"]], eval_cache, out=t1,
+                                              split=split_file, render=render, progress=progress,
+                                              axis_model=axis_dir if cfg.refine else None),
+                       f"{v.prefix}eval pre-segmented (Table 1)")
+            res.stages[f"{v.prefix}table1"] = [str(t1)]
+
+        # 5. pseudo-labels on the unlabelled shapes (Sec. 3.3)
+        pseudo = out / "pseudo"
+        if v.unlabeled is not None:
+            from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
+
+            pcfg = PseudoLabelConfig(threshold=cfg.threshold)
+            self.stage(pseudo, {**base, "pseudo": pcfg.model_dump()},
+                       lambda: pseudo_label_dataset(
+                           v.unlabeled, gnn_runs["fine"], axis_dir, pseudo, pcfg, workers=cfg.workers,
+                           cache=v.unlabeled_cache, progress=progress), f"{v.prefix}pseudo-label")
+            res.stages[f"{v.prefix}pseudo"] = [str(pseudo)]
+
+        # 6. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
+        if cfg.skip_ancsh:
+            return
+        from kinmo.ancsh.config import preset as ancsh_preset
+        from kinmo.ancsh.evaluate import evaluate_category
+        from kinmo.ancsh.train import train_ancsh
+
+        if not v.prefix:
+            if cfg.categories:
+                res.categories, res.skipped_categories = list(cfg.categories), {}
+            else:
+                res.categories, res.skipped_categories = default_categories(cfg.labeled, split_file)
+            for cat, why in res.skipped_categories.items():
+                log(f"[dim]ANCSH: {cat} left out: {why}[/]")
+        settings = [s for s in cfg.settings if s == "supervised" or v.unlabeled is not None]
+        scans = cfg.out / "scans"  # one render cache for every variant: scans of the same objects
+        overrides = {
+            "epochs": cfg.ancsh_epochs, "semi_epochs": cfg.semi_epochs,
+            "steps_per_epoch": cfg.ancsh_steps_per_epoch, "frames_per_object": cfg.frames_per_object,
+            "unlabeled_frames_per_object": cfg.frames_per_object,
+            "test_frames_per_object": cfg.frames_per_object,
+            "labeled_fraction": cfg.labeled_fraction, "seed": cfg.seed,
+        }
+        ac = ancsh_preset(cfg.preset, **{k: val for k, val in overrides.items() if val is not None})
+        for cat in res.categories:
+            runs: list[Path] = []
+            for setting in settings:
+                reused = v.reuse.get(f"ancsh/{cat}/{setting}")
+                if reused is not None:
+                    runs.append(reused)
+                    continue
+                run_dir = out / "ancsh" / cat / setting
+                # semi starts from the supervised run's weights: its supervised stage would
+                # reproduce them
+                init = runs[0] if setting == "semi" and runs and settings[0] == "supervised" else None
+                self.stage(run_dir, {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
+                                     **({"init": str(init)} if init is not None else {})},
+                           lambda run_dir=run_dir, setting=setting, cat=cat, init=init: train_ancsh(
+                               cat, setting, run_dir, ac, data=v.labeled, partnet=v.unlabeled,
+                               pseudo=pseudo if v.unlabeled is not None else None, split=split_file,
+                               scans=scans, init=init, progress=progress, console=console),
+                           f"{v.prefix}train ancsh {cat} ({setting})")
+                runs.append(run_dir)
+            ev = out / "eval" / cat
+            self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
+                       lambda runs=runs, ev=ev, cat=cat: evaluate_category(
+                           cat, runs, data=cfg.labeled, out=ev, scans=scans, frames=cfg.frames_per_object,
+                           seed=cfg.seed, progress=progress, console=console),
+                       f"{v.prefix}eval {cat} (Table 2)")
+            res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
+            res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
+
+    def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
+        """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
+        ``out/synth-extra-<labeled|unlabeled>-<N>/`` (:data:`SYNTH_EXTRA_FILE` says how)."""
+        from kinmo.synth import SYNTH_VERSION, generate_dataset
+        from kinmo.train.gnn import load_cache
+        from kinmo.train.split import Split
+
+        cfg, res = self.cfg, self.res
+        vout = cfg.out / f"synth-extra-{cfg.synth_as}-{cfg.synth_extra}"
+        seed = cfg.synth_seed if cfg.synth_seed is not None else cfg.seed + 500
+        labeled = cfg.synth_as == "labeled"
+        info = {"n": cfg.synth_extra, "as": cfg.synth_as, "seed": seed, "categories": cats,
+                "synth_version": SYNTH_VERSION}
+        gen = vout / "data" / ("partnet-mobility" if labeled else "partnet")
+        self.stage(gen, info, lambda: generate_dataset(gen, cfg.synth_extra, seed, categories=cats,
+                                                       partnet=not labeled, progress=self.progress),
+                   "synth-extra: generate")
+        key = {"synth_extra": info}
+        base_split = Split.load(cfg.out / "gnn_fine" / "split.json")
+        if labeled:
+            gcache = vout / "cache" / "generated"
+            self.prepare(gen, gcache, prep, "synth-extra: prepare generated")
+            gen_graphs = load_cache(gcache)
+            # the baseline's split with every generated object added to training: the test
+            # objects stay the real held-out ones
+            split = Split(sorted(base_split.train + [g.shape_id for g in gen_graphs]), base_split.test,
+                          {**base_split.categories, **{g.shape_id: g.category for g in gen_graphs}},
+                          base_split.seed, base_split.test_fraction)
+            split_file = vout / "split.json"
+            split.save(split_file)
+            merged = _link_folder(vout / "data" / "labeled", [cfg.labeled, gen])
+            v = _Variant(out=vout, graphs=[cache_l, gcache], split=split_file, labeled=merged,
+                         unlabeled=cfg.unlabeled, unlabeled_cache=baseline.unlabeled_cache, key=key,
+                         prefix="synth-extra: ")
+        else:
+            merged = _link_folder(vout / "data" / "unlabeled", [p for p in (cfg.unlabeled, gen) if p is not None])
+            ucache = vout / "cache" / "unlabeled"
+            self.prepare(merged, ucache, prep, "synth-extra: prepare unlabelled")
+            reuse = {"gnn_fine": cfg.out / "gnn_fine", "gnn_coarse": cfg.out / "gnn_coarse", "axis": cfg.out / "axis"}
+            reuse.update({f"ancsh/{c}/supervised": cfg.out / "ancsh" / c / "supervised" for c in res.categories})
+            v = _Variant(out=vout, graphs=cache_l, split=cfg.out / "gnn_fine" / "split.json", labeled=cfg.labeled,
+                         unlabeled=merged, unlabeled_cache=ucache, key=key, prefix="synth-extra: ", reuse=reuse)
+        used_by = (["motion GNN"] + (["axis network"] if cfg.refine else [])
+                   + ([] if cfg.skip_ancsh else ["ANCSH"])) if labeled else ["pseudo-labels", "ANCSH"]
+        write_json(vout / SYNTH_EXTRA_FILE, {**info, "baseline": "..", "generated": str(gen),
+                                             "used_by": used_by, "test": base_split.test})
+        self.models_and_tables(v, cache_l)
+        res.synth_extra = vout
+
+
+def _synth_categories(cache: Path) -> list[str]:
+    """The categories of a labelled cache that :mod:`kinmo.synth` generates (sorted).
+
+    Raises
+    ------
+    KinmoError
+        None of them.
+    """
+    from kinmo.errors import KinmoError
+    from kinmo.synth import CATEGORIES
+    from kinmo.train.gnn import load_cache
+
+    real = sorted({g.category for g in load_cache(cache)})
+    cats = [c for c in real if c in CATEGORIES]
+    if not cats:
+        raise KinmoError(f"--synth-extra: none of the labelled categories ({', '.join(real)}) can be "
+                         f"generated (kinmo synth makes {', '.join(CATEGORIES)})")
+    return cats
+
+
+def _graphs(source: Any) -> Any:
+    """A cache folder as is, or the graphs of several caches concatenated."""
+    if isinstance(source, (str, Path)):
+        return source
+    from kinmo.train.gnn import load_cache
+
+    return [g for c in source for g in load_cache(c)]
+
+
+def _link_folder(folder: Path, sources: list[Path]) -> Path:
+    """``folder`` holding a symbolic link to every shape folder of ``sources`` (a dataset made
+    of several); links are replaced, nothing else is touched."""
+    from kinmo.data.readers import find_shapes
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for src in sources:
+        for shape in find_shapes(src):
+            link = folder / shape.name
+            if link.is_symlink():
+                if link.resolve() == shape.resolve():
+                    continue
+                link.unlink()
+            elif link.exists():
+                raise KinmoDataError(link, "exists and is not a link made by kinmo")
+            link.symlink_to(shape.resolve(), target_is_directory=True)
+    return folder
+
+
+#: Categories of the objects ``kinmo demo`` generates.
+DEMO_CATEGORIES = ("Refrigerator", "Laptop", "StorageFurniture", "Microwave")
+#: ``kinmo demo --tiny``: simple objects (few parts, so few edges to refine in Table 1).
+TINY_CATEGORIES = ("Laptop", "Refrigerator")
 
 
 def run_demo(
@@ -334,9 +638,11 @@ def run_demo(
     """``kinmo demo``: the whole pipeline on objects kinmo generates itself (or on ``data``).
 
     Generates ``n_labeled`` PartNet-Mobility objects and ``n_unlabeled`` PartNet shapes
-    (:func:`kinmo.synth.generate_dataset`, different seeds), then :func:`run_pipeline` with
-    the ``quick`` preset, shortened so that it finishes in minutes on 2 CPU cores, and the
-    report.
+    (:func:`kinmo.synth.generate_dataset`, different seeds, :data:`DEMO_CATEGORIES`), then
+    :func:`run_pipeline` with the ``quick`` preset shortened for 2 CPU cores: motion GNNs 25
+    epochs, axis network 8, ANCSH 16 epochs of 15 steps (+4 semi-supervised) on 3 scans per
+    object, Table 1 renders for the gallery, and the report. With the defaults this is about
+    600 CPU-seconds (10 CPU-minutes; the axis network and the Table 1 refinement take 60 %).
 
     Parameters
     ----------
@@ -349,21 +655,30 @@ def run_demo(
     tiny : bool
         A minimal configuration (a few epochs, one frame per object) for tests.
     """
-    from kinmo.synth import CATEGORIES, generate_dataset
+    from rich.console import Console
 
+    from kinmo.synth import CATEGORIES, SYNTH_VERSION, generate_dataset
+
+    console = console or Console(stderr=True)
     out = Path(out)
+    timings: dict[str, StageTiming] = {}
     if data is None:
-        cats = [c for c in ("Refrigerator", "Laptop", "StorageFurniture", "Microwave") if c in CATEGORIES]
+        cats = [c for c in (TINY_CATEGORIES if tiny else DEMO_CATEGORIES) if c in CATEGORIES]
         lab = out / "data" / "partnet-mobility"
         unl = out / "data" / "partnet"
-        generate_dataset(lab, n_labeled, seed, categories=cats, progress=progress)
-        generate_dataset(unl, n_unlabeled, seed + 1, categories=cats, partnet=True, progress=progress)
+        key = {"labeled": n_labeled, "unlabeled": n_unlabeled, "seed": seed, "categories": cats,
+               "synth_version": SYNTH_VERSION}
+        _stage(out / "data", key, lambda: (
+            generate_dataset(lab, n_labeled, seed, categories=cats, progress=progress),
+            generate_dataset(unl, n_unlabeled, seed + 1, categories=cats, partnet=True, progress=progress)),
+            console.print, f"generate {n_labeled} labelled + {n_unlabeled} unlabelled objects",
+            _Clock(timings, console.print))
         data, unlabeled = lab, unl
     cfg = PipelineConfig(
         labeled=data, unlabeled=unlabeled, out=out / "run", preset="quick", seed=seed,
-        gnn_epochs=3 if tiny else 25, axis_epochs=2 if tiny else 8,
-        ancsh_epochs=1 if tiny else 4, semi_epochs=1 if tiny else 2,
+        gnn_epochs=25, axis_epochs=2 if tiny else 8,
+        ancsh_epochs=1 if tiny else 16, semi_epochs=1 if tiny else 4,
         ancsh_steps_per_epoch=2 if tiny else 15, frames_per_object=1 if tiny else 3,
         categories=(["Laptop"] if tiny else None),
     )
-    return run_pipeline(cfg, console=console, progress=progress)
+    return run_pipeline(cfg, console=console, progress=progress, timings=timings)

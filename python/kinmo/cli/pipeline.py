@@ -19,9 +19,25 @@ def train_all(
     labeled_fraction: float = typer.Option(1.0, help="Share of labelled training objects for ANCSH."),
     seed: int = typer.Option(0),
     workers: int = typer.Option(0, "--workers", "-j", help="Processes for per-shape stages (0: all cores)."),
+    skip_ancsh: bool = typer.Option(False, "--skip-ancsh", help="Stop after the pseudo-labels (Table 1 only)."),
+    render: bool = typer.Option(True, "--render/--no-render", help="Render Table 1 predictions for the gallery."),
+    refine: bool = typer.Option(True, "--refine/--no-refine",
+                                help="Train the axis network (OBB rows of Table 1, pseudo-labels)."),
+    synth_extra: int = typer.Option(0, "--synth-extra", min=0,
+                                    help="Also train with N generated objects added; the report compares."),
+    synth_as: str = typer.Option("labeled", "--synth-as",
+                                 help="labeled or unlabeled: how the generated objects are used."),
+    synth_seed: int | None = typer.Option(None, "--synth-seed",
+                                          help="Seed of the generated objects (default seed+500)."),
 ) -> None:
     """Prepare, train the motion GNN and the axis network, pseudo-label, render and train
-    ANCSH in three settings, evaluate (Tables 1 and 2) and write the report."""
+    ANCSH in three settings, evaluate (Tables 1 and 2) and write the report.
+
+    With --synth-extra N, everything is trained and evaluated a second time, into
+    OUT/synth-extra-<as>-<N>, with N procedurally generated objects (kinmo synth, of the labelled
+    categories it supports) added as labelled training objects or as unlabelled shapes to
+    pseudo-label; the test objects stay the real ones and the report's section "Generated
+    shapes" says whether they helped."""
     from rich.console import Console
 
     from kinmo.errors import KinmoError
@@ -31,7 +47,8 @@ def train_all(
     try:
         cfg = PipelineConfig(
             labeled=labeled, unlabeled=unlabeled, out=out, preset=preset, categories=category or None,
-            labeled_fraction=labeled_fraction, seed=seed, workers=workers,
+            labeled_fraction=labeled_fraction, seed=seed, workers=workers, skip_ancsh=skip_ancsh,
+            render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
         )
         res = run_pipeline(cfg, console=console)
     except (KinmoError, ValueError) as e:

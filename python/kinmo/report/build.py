@@ -6,10 +6,16 @@ Sections, always present (a section whose artefacts are missing says so):
 2. **Table 1** (pre-segmented shapes): per evaluation CSV, the means next to the paper's
    (:data:`~kinmo.report.collect.PAPER_TABLE1`), per-model tables and bar charts per category;
 3. **Table 2** (partial scans): the same against :data:`~kinmo.report.collect.PAPER_TABLE2`;
-4. **Training**: curves of every ``metrics.csv`` and a table of the final values;
-5. **Pseudo-labels**: the summary of ``kinmo pseudo-label`` and its chart;
-6. **Predictions**: status counts of ``kinmo predict``;
-7. **Gallery**: the PNGs of the run.
+4. **Generated shapes: with vs without**: for a run of ``kinmo train all --synth-extra N``,
+   Table 1 and Table 2 means on the real test objects without and with the generated shapes
+   (the paper's study with generated DSG-Net shapes, Sec. 4.3);
+5. **Training**: curves of every ``metrics.csv`` and a table of the final values;
+6. **Pseudo-labels**: the summary of ``kinmo pseudo-label`` and its chart;
+7. **Predictions**: status counts of ``kinmo predict``;
+8. **Gallery**: the PNGs of the run (the Table 1 renders: moving parts coloured, predicted
+   axes solid, true axes dashed).
+
+The overview also lists the time of every pipeline stage (``pipeline_result.json``).
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from kinmo.report.collect import (
     PAPER_TABLE2,
     Curves,
     RunArtefacts,
+    SynthExtra,
     Table1,
     Table2,
     paper_setting,
@@ -452,6 +459,120 @@ def _overview(art: RunArtefacts) -> list[Block]:
                                          "anywhere under the run folder.")]
     for rel, problem in art.problems:
         blocks.append(Note(f"{rel}: {problem}", "problem"))
+    if art.timings:
+        blocks.append(_timings_table(art.timings))
+    return blocks
+
+
+def _timings_table(timings: dict[str, dict]) -> Table:
+    rows, wall, cpu = [], 0.0, 0.0
+    for name, t in timings.items():
+        w, c = to_float(str(t.get("wall_s", ""))), to_float(str(t.get("cpu_s", "")))
+        ran = bool(t.get("ran", True))
+        rows.append([name, f"{w:.1f}" if ran else "–", f"{c:.1f}" if ran else "–",
+                     "ran" if ran else "up to date"])
+        if ran and not math.isnan(w):
+            wall += w
+        if ran and not math.isnan(c):
+            cpu += c
+    bold = {len(rows)}
+    rows.append(["total", f"{wall:.1f}", f"{cpu:.1f}", ""])
+    return Table(["stage", "wall (s)", "CPU (s)", ""], rows, align="lrrl", bold_rows=bold, caption=(
+        "Time of each stage of the last `kinmo train all` / `kinmo demo` call (CPU: user + system "
+        "seconds of the process and its workers; stages up to date were skipped)."))
+
+
+# --- Generated shapes: with vs without ----------------------------------------------------
+
+
+def _compare_rows(rows: list[list[str]], marks: dict[tuple[int, int], str], name: str,
+                  metric: str, without: float, with_: float, higher: bool,
+                  fmt: Callable[[str, float], str], tally: list[int]) -> None:
+    d = with_ - without
+    better = None
+    if not (math.isnan(d) or d == 0):
+        better = (d > 0) == higher
+        tally[0 if better else 1] += 1
+    i = len(rows)
+    if better is not None:
+        marks[(i, 4)] = "better" if better else "worse"
+    rows.append([name, metric, fmt(metric, without), fmt(metric, with_),
+                 "–" if math.isnan(d) else ("+" if d >= 0 else "−") + fmt(metric, abs(d))])
+
+
+def _verdict(tally: list[int], what: str) -> str:
+    b, w = tally
+    if b + w == 0:
+        return f"{what}: no difference."
+    word = ("helped" if b > w else "hurt" if w > b else "neither helped nor hurt (as many metrics "
+            "better as worse)")
+    return (f"{what}: the generated shapes {word}: {b} of {b + w} changed metrics better, "
+            f"{w} worse.")
+
+
+def _synth_extra_blocks(art: RunArtefacts, v: SynthExtra) -> list[Block]:
+    info = v.info
+    n, how = info.get("n", "?"), info.get("as", "?")
+    cats = ", ".join(info.get("categories", []))
+    n_test = len(info.get("test", []))
+    used_by = info.get("used_by") or ["motion GNN", "axis network", "ANCSH"]
+    used = ", ".join(used_by[:-1]) + (" and " if len(used_by) > 1 else "") + used_by[-1]
+    use = (f"as labelled training objects of the {used}"
+           if how == "labeled" else
+           "as unlabelled shapes: pseudo-labelled by the baseline's GNN and axis network, then "
+           "used by ANCSH semi and semi-weakly")
+    blocks: list[Block] = [Text(
+        f"`{v.rel}`: {n} generated objects ({cats}; seed {info.get('seed', '?')}) added {use}. "
+        f"Everything else is the same as the run above (seed, presets, split); both are evaluated "
+        f"on the same {n_test} real test objects. Green: the generated shapes lowered an error "
+        f"or raised a score. With few test objects, small differences are noise.")]
+    # Table 1
+    sub = v.artefacts
+    base_t1 = {t.rel: t for t in art.table1}
+    pairs = [(base_t1[t.rel], t) for t in sub.table1 if t.rel in base_t1]
+    if not pairs:
+        blocks.append(Note("Table 1 is the same without and with the generated shapes: the motion "
+                           "GNN and the axis network never see unlabelled shapes." if how == "unlabeled"
+                           else f"No Table 1 evaluation in both the run and `{v.rel}`.", "info"))
+    for bt, vt in pairs:
+        rows: list[list[str]] = []
+        marks: dict[tuple[int, int], str] = {}
+        tally = [0, 0]
+        for m in [x for x in bt.models if x in vt.models]:
+            for key, header, higher in bt.metrics:
+                _compare_rows(rows, marks, m, header, bt.value(m, "mean", key),
+                              vt.value(m, "mean", key), higher, fmt_value, tally)
+        blocks.append(Heading(f"Table 1 ({bt.rel})", 4))
+        blocks.append(Text(_verdict(tally, "Table 1")))
+        blocks.append(Table(["model", "metric", "without", "with generated", "Δ"], rows, align="llrrr",
+                            marks=marks, caption="Means over categories on the real test objects."))
+        models = [x for x in bt.models if x in vt.models]
+        panels = [charts.BarPanel(h, models, {"without": [bt.value(m, "mean", k) for m in models],
+                                              "with generated": [vt.value(m, "mean", k) for m in models]})
+                  for k, h, _ in bt.metrics if k in ("angle_edge", "dist_edge", "edge_acc", "recall")]
+        if panels:
+            _safe_chart(lambda panels=panels: charts.bar_chart(panels, "Without vs with generated shapes"),
+                        f"synth_extra_{_slug(bt.rel)}.png", "Table 1 without vs with generated shapes",
+                        "Table 1 means on the real test objects, without and with the generated shapes.",
+                        blocks)
+    # Table 2
+    bt2, vt2 = art.table2, sub.table2
+    if bt2 is not None and vt2 is not None:
+        rows, marks, tally = [], {}, [0, 0]
+        for s in [x for x in bt2.settings if x in vt2.settings]:
+            for col in [c for c in bt2.metric_columns if c in vt2.metric_columns]:
+                higher = "iou" in col.lower()
+                _compare_rows(rows, marks, s, _t2_label(col), bt2.value(s, "mean", col),
+                              vt2.value(s, "mean", col), higher,
+                              lambda label, x, col=col: _t2_fmt(col, x), tally)
+        blocks.append(Heading("Table 2", 4))
+        blocks.append(Text(_verdict(tally, "Table 2")))
+        blocks.append(Table(["setting", "metric", "without", "with generated", "Δ"], rows, align="llrrr",
+                            marks=marks, caption="Means over categories ("
+                            + ", ".join(c for c in bt2.categories if c in vt2.categories)
+                            + ") on scans of the real test objects."))
+    elif bt2 is not None or vt2 is not None:
+        blocks.append(Note(f"Table 2 is in only one of the run and `{v.rel}`.", "info"))
     return blocks
 
 
@@ -492,6 +613,12 @@ def build_document(art: RunArtefacts, title: str | None = None) -> Document:
     else:
         t2 += _table2_blocks(art.table2)
     sections.append(Section("table2", "Table 2: partial scans", t2))
+    gen: list[Block] = []
+    for v in art.synth_extra:
+        gen += _synth_extra_blocks(art, v)
+    sections.append(Section("synth-extra", "Generated shapes: with vs without", gen or [Note(
+        "No run with generated shapes added (made by `kinmo train all --synth-extra N "
+        "--synth-as labeled|unlabeled`).", "info")]))
     sections.append(Section("training", "Training",
                             _training_blocks(art.curves) if art.curves else [_missing("curves")]))
     sections.append(Section("pseudo", "Pseudo-labels",
@@ -501,6 +628,7 @@ def build_document(art: RunArtefacts, title: str | None = None) -> Document:
                             else [_missing("predictions")]))
     sections.append(Section("gallery", "Gallery",
                             _gallery_blocks(art) if art.images else [_missing("gallery")]))
+
     used: set[str] = set()
     for s in sections:  # unique image file names (slugs of different paths may clash)
         for b in s.blocks:

@@ -61,6 +61,7 @@ __all__ = [
     "PredictionSummary",
     "PseudoSummary",
     "RunArtefacts",
+    "SynthExtra",
     "Table1",
     "Table2",
     "Table2File",
@@ -470,12 +471,59 @@ class RunArtefacts:
     images: list[GalleryImage] = field(default_factory=list)
     n_images_found: int = 0
     problems: list[tuple[str, str]] = field(default_factory=list)
+    synth_extra: list[SynthExtra] = field(default_factory=list)
+    timings: dict[str, dict] = field(default_factory=dict)
 
     def counts(self) -> dict[str, int]:
         """Number of artefacts per kind of :data:`ARTEFACTS`."""
         return {"table1": len(self.table1), "table2": len(self.table2_files),
                 "curves": len(self.curves), "pseudo": len(self.pseudo),
                 "predictions": len(self.predictions), "gallery": len(self.images)}
+
+
+@dataclass
+class SynthExtra:
+    """A run of ``kinmo train all --synth-extra N`` inside the run: the same models trained
+    again with generated shapes added (a folder holding :data:`SYNTH_EXTRA_FILE`).
+
+    Attributes
+    ----------
+    path : Path
+    rel : str
+        Folder relative to the run.
+    info : dict
+        The file's content: ``n``, ``as`` (``labeled``/``unlabeled``), ``seed``,
+        ``categories``, ``test`` (the real test ids)...
+    artefacts : RunArtefacts
+        What the folder holds (its own Table 1 / Table 2 evaluations).
+    """
+
+    path: Path
+    rel: str
+    info: dict
+    artefacts: RunArtefacts
+
+
+from kinmo.pipeline import SYNTH_EXTRA_FILE  # noqa: E402 - the file kinmo.pipeline writes
+
+
+def _synth_extra_dirs(run: Path) -> list[Path]:
+    """Generated-shapes runs one or two levels below ``run``."""
+    return sorted({p.parent for pat in ("*/" + SYNTH_EXTRA_FILE, "*/*/" + SYNTH_EXTRA_FILE)
+                   for p in run.glob(pat) if not any(q.startswith(".") for q in p.relative_to(run).parts)})
+
+
+def _timings(run: Path, problems: list[tuple[str, str]]) -> dict[str, dict]:
+    """The stage timings of ``run/pipeline_result.json`` (``kinmo train all``), if any."""
+    p = run / "pipeline_result.json"
+    if not p.is_file():
+        return {}
+    try:
+        t = json.loads(p.read_text(encoding="utf-8")).get("timings", {})
+    except (OSError, ValueError, AttributeError) as e:
+        problems.append(("pipeline_result.json", f"cannot read: {e}"))
+        return {}
+    return {str(k): v for k, v in t.items() if isinstance(v, dict)} if isinstance(t, dict) else {}
 
 
 def _is_report_dir(names: Sequence[str]) -> bool:
@@ -697,7 +745,8 @@ def collect_run(run: str | Path, exclude: Sequence[str | Path] = (),
         raise KinmoDataError(run, "not a folder (give the run folder)")
     run = run.resolve()
     out = RunArtefacts(run)
-    csvs, pngs = _walk(run, [Path(e) for e in exclude])
+    variants = _synth_extra_dirs(run)
+    csvs, pngs = _walk(run, [Path(e) for e in exclude] + variants)
     for p in csvs:
         rel = _rel(p, run)
         try:
@@ -719,4 +768,17 @@ def collect_run(run: str | Path, exclude: Sequence[str | Path] = (),
             out.problems.append((rel, e.problem))
     out.table2 = combine_table2(out.table2_files)
     out.images, out.n_images_found = _gallery(pngs, run, max_images, out.problems)
+    out.timings = _timings(run, out.problems)
+    for v in variants:
+        rel = _rel(v, run)
+        try:
+            info = json.loads((v / SYNTH_EXTRA_FILE).read_text(encoding="utf-8"))
+            if not isinstance(info, dict):
+                raise ValueError("not a JSON object")
+        except (OSError, ValueError) as e:
+            out.problems.append((f"{rel}/{SYNTH_EXTRA_FILE}", f"cannot read: {e}"))
+            continue
+        sub = collect_run(v, exclude=exclude, max_images=0)
+        out.problems += [(f"{rel}/{r}", p) for r, p in sub.problems]
+        out.synth_extra.append(SynthExtra(v, rel, info, sub))
     return out
