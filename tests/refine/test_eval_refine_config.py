@@ -35,18 +35,25 @@ def setup(tmp_path_factory):
     return root
 
 
-def test_refine_config_is_used_for_the_obb_columns(setup, monkeypatch):
+@pytest.fixture
+def seen(monkeypatch):
+    """The RefineConfig of every refine_shape_prediction call (the real function still runs)."""
     import kinmo.refine.refine as rr
-    from kinmo.evaluate.pre_segmented import run_evaluation
 
-    seen = []
+    configs = []
     real = rr.refine_shape_prediction
 
     def spy(prediction, axis_model, config=None, options=None):
-        seen.append(config)
+        configs.append(config)
         return real(prediction, axis_model, config, options)
 
     monkeypatch.setattr(rr, "refine_shape_prediction", spy)
+    return configs
+
+
+def test_refine_config_is_used_for_the_obb_columns(setup, seen):
+    from kinmo.evaluate.pre_segmented import run_evaluation
+
     # the GNN's own line always wins without the network's vote: OBB axes = GNN axes
     cfg = RefineConfig(keep_gnn=True, scoring=ScoringConfig(w_feasibility=0.0))
     rep, paths = run_evaluation([setup / "fine"], setup / "cache", out=setup / "eval",
@@ -64,21 +71,12 @@ def test_refine_config_is_used_for_the_obb_columns(setup, monkeypatch):
     assert seen == [None, None]  # default: the paper's scoring (RefineConfig())
 
 
-def test_cli_flags_reach_the_refinement(setup, monkeypatch):
+def test_cli_flags_reach_the_refinement(setup, seen):
     """``kinmo eval pre-segmented --feasibility-only --keep-gnn --snap-angle`` build the config."""
     from typer.testing import CliRunner
 
-    import kinmo.refine.refine as rr
     from kinmo.cli import app
 
-    seen = []
-    real = rr.refine_shape_prediction
-
-    def spy(prediction, axis_model, config=None, options=None):
-        seen.append(config)
-        return real(prediction, axis_model, config, options)
-
-    monkeypatch.setattr(rr, "refine_shape_prediction", spy)
     args = ["eval", "pre-segmented", "--model", str(setup / "fine"), "--data", str(setup / "cache"),
             "--all", "--device", "cpu", "-q", "--axis-model", str(setup / "axis")]
     r = CliRunner().invoke(app, [*args, "--out", str(setup / "eval_cli"), "--feasibility-only",
