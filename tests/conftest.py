@@ -120,3 +120,11 @@ def write_cabinet(folder: Path) -> Path:
 def cabinet(tmp_path: Path) -> Path:
     """A fresh synthetic cabinet folder (see :func:`write_cabinet`)."""
     return write_cabinet(tmp_path / "cabinet")
+
+
+@pytest.fixture(scope="session")
+def chromium() -> str:
+    """Path of a headless Chromium (`browser.find_chromium`); fails when none."""
+    from browser import find_chromium
+
+    return find_chromium()

@@ -7,8 +7,10 @@ from typer.testing import CliRunner
 
 from kinmo.cli import app
 
+from browser import headless, images_loaded
 
-def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path):
+
+def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     runner = CliRunner()
     out = tmp_path / "demo"
     res = runner.invoke(app, ["demo", "--out", str(out), "--n", "12", "--tiny"])
@@ -52,6 +54,11 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path):
     assert all(t["ran"] and t["cpu_s"] >= 0 and t["wall_s"] >= 0 for t in timings.values())
     assert timings["train gnn (fine)"]["cpu_s"] > 0
     assert "train ancsh Laptop (semi-weakly)" in html.split('id="table1"')[0]
+    # the demo's own report, opened in a real browser: every image decodes
+    dom = headless(chromium, tmp_path, "--dump-dom", (run / "report/index.html").as_uri())
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    ok, total = images_loaded(dom.stdout)
+    assert total >= 4 * len(test) and ok == total, f"{ok} of {total} images decoded"
 
     # a second run resumes: every stage but the report is up to date
     res2 = runner.invoke(app, ["demo", "--out", str(out), "--n", "12", "--tiny"])

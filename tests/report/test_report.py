@@ -4,17 +4,15 @@ from __future__ import annotations
 
 import base64
 import math
-import os
 import re
 import shutil
-import subprocess
 from html.parser import HTMLParser
-from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 from kinmo.cli import app
+from browser import headless, images_loaded
 from .report_fake_run import (
     TABLE2,
     make_run,
@@ -327,69 +325,26 @@ def test_missing_run_is_an_error(tmp_path):
 
 # --- A real browser ----------------------------------------------------------------------
 
-_BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
-
-
-def _find_browser() -> str | None:
-    for name in _BROWSERS:
-        exe = shutil.which(name)
-        if exe:
-            return exe
-    return None
-
-
-@pytest.fixture(scope="session")
-def chromium() -> str:
-    """A headless-capable Chromium: found on PATH, or installed with apt-get when root."""
-    exe = _find_browser()
-    if exe is None and hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("apt-get"):
-        env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
-        subprocess.run(["apt-get", "update", "-qq"], env=env, capture_output=True, timeout=900)
-        subprocess.run(["apt-get", "install", "-y", "-qq", "chromium"], env=env,
-                       capture_output=True, timeout=1800)
-        exe = _find_browser()
-    if exe is None:
-        pytest.fail("no Chromium found (looked for " + ", ".join(_BROWSERS) + "); install it, "
-                    "e.g. `apt-get install -y chromium` (Debian) as root")
-    return exe
-
-
-def _headless(exe: str, tmp: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [exe, "--headless", "--disable-gpu", "--no-sandbox", "--no-first-run",
-         f"--user-data-dir={tmp / 'profile'}", *args],
-        capture_output=True, text=True, timeout=180)
-
-
-def _loaded(dom: str) -> tuple[int, int]:
-    m = re.search(r"<body[^>]*>", dom)
-    assert m, f"no <body> in the DOM dump: {dom[:300]!r}"
-    tot = re.search(r'data-images-total="(\d+)"', m.group(0))
-    ok = re.search(r'data-images-loaded="(\d+)"', m.group(0))
-    assert tot and ok, f"the page's load script did not run: {m.group(0)}"
-    return int(ok.group(1)), int(tot.group(1))
-
-
 def test_browser_loads_every_image(full, chromium, tmp_path):
     index = full["out"] / "index.html"
     # mailed alone: copy the single file where no img/ folder exists
     alone = tmp_path / "mailed" / "index.html"
     alone.parent.mkdir()
     shutil.copy(index, alone)
-    res = _headless(chromium, tmp_path, "--dump-dom", alone.as_uri())
+    res = headless(chromium, tmp_path, "--dump-dom", alone.as_uri())
     assert res.returncode == 0, res.stderr[-2000:]
-    ok, total = _loaded(res.stdout)
+    ok, total = images_loaded(res.stdout)
     assert total == len(full["page"].images) > 0
     assert ok == total, f"only {ok} of {total} images decoded in Chromium"
     # the check can fail: a page with a broken image reports it
     broken = tmp_path / "broken.html"
     html = full["html"].replace("data:image/png;base64,iVBOR", "data:image/png;base64,AAAAA", 1)
     broken.write_text(html, encoding="utf-8")
-    ok, total = _loaded(_headless(chromium, tmp_path, "--dump-dom", broken.as_uri()).stdout)
+    ok, total = images_loaded(headless(chromium, tmp_path, "--dump-dom", broken.as_uri()).stdout)
     assert ok == total - 1
     # a screenshot of the top of the page is a real, non-blank image
     shot = tmp_path / "shot.png"
-    res = _headless(chromium, tmp_path, "--hide-scrollbars", "--window-size=1200,1600",
+    res = headless(chromium, tmp_path, "--hide-scrollbars", "--window-size=1200,1600",
                     f"--screenshot={shot}", alone.as_uri())
     assert shot.is_file(), res.stderr[-2000:]
     import matplotlib.image as mpimg
