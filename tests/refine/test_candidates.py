@@ -10,6 +10,8 @@ from kinmo.refine.candidates import (
     MOVING_TYPES,
     candidate_axes,
     canonical_direction,
+    frame_box,
+    merge_candidates,
     motion_of,
 )
 
@@ -132,3 +134,69 @@ def test_canonical_direction_and_errors():
         candidate_axes((np.zeros(2), np.eye(3), np.ones(3)), "P_H")
     with pytest.raises(ValueError, match="moving_points"):
         candidate_axes(obb, "R_V_C", np.zeros((0, 3)), np.zeros((5, 3)))
+
+
+def _rot_z(deg):
+    a = np.radians(deg)
+    return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+
+def test_frame_box_bounds_the_points_in_the_given_axes():
+    rng = np.random.default_rng(3)
+    rot = _rot_y(25)
+    pts = box_points((0, 0, 0), (0.6, 0.2, 0.4), 800, rng) @ rot.T + [0.3, 1.0, -0.5]
+    # in its own (rotated) frame: the exact box
+    c, ax, h = frame_box(pts, rot.T)
+    np.testing.assert_allclose(h, [0.3, 0.1, 0.2], atol=1e-9)
+    np.testing.assert_allclose(c, np.array([0.3, 0.1, 0.2]) @ rot.T + [0.3, 1.0, -0.5], atol=1e-9)
+    np.testing.assert_allclose(ax, rot.T)
+    # in the shape frame: the axis-aligned bounding box
+    c, ax, h = frame_box(pts, np.eye(3))
+    np.testing.assert_allclose(c, 0.5 * (pts.min(0) + pts.max(0)))
+    np.testing.assert_allclose(h, 0.5 * (pts.max(0) - pts.min(0)))
+    with pytest.raises(ValueError, match="orthonormal"):
+        frame_box(pts, 2 * np.eye(3))
+    with pytest.raises(ValueError):
+        frame_box(np.zeros((0, 3)), np.eye(3))
+
+
+def test_reference_frame_box_recovers_a_hinge_the_tilted_obb_misses():
+    # A lid 0.6 wide, yawed 35 deg about y (an irregular mesh whose OBB is not aligned with
+    # its hinge), hinged to its base along x at its lowest, backmost edge: no axis of its own
+    # OBB is within 30 deg of x; its box in the base's (here the shape's) frame has that edge.
+    rng = np.random.default_rng(4)
+    pts = box_points((0, 0, 0), (0.6, 0.05, 0.4), 1500, rng) @ _rot_y(35).T
+    own = candidate_axes(fit_obb(pts), "R_H_S")
+    assert np.max(np.abs(own.directions @ [1.0, 0.0, 0.0])) < np.cos(np.radians(30))
+    ref = candidate_axes(frame_box(pts, np.eye(3)), "R_H_S")
+    hinge = [0.0, pts[:, 1].min(), pts[:, 2].min()]
+    d = _line_dist(ref.origins, ref.directions, hinge)
+    k = int(np.argmin(d))
+    assert d[k] < 1e-9 and abs(ref.directions[k] @ [1.0, 0.0, 0.0]) == pytest.approx(1.0)
+    # merged after the OBB's own candidates: all of those first, then the new lines
+    m = merge_candidates(own, ref, angle_deg=2.0, distance=0.01)
+    assert len(m) == len(own) + len(ref)
+    np.testing.assert_array_equal(m.origins[: len(own)], own.origins)
+
+
+def test_merge_candidates_drops_covered_lines_only():
+    box = (np.zeros(3), np.eye(3), np.array([0.5, 1.0, 0.025]))
+    a = candidate_axes(box, "R_V_S")
+    assert len(merge_candidates(a, a, angle_deg=0.0, distance=0.0)) == len(a)  # all covered
+    # the same box shifted by 0.05 along x: covered at distance 0.06, not at 0.04
+    b = candidate_axes((np.array([0.05, 0, 0]), np.eye(3), box[2]), "R_V_S")
+    assert len(merge_candidates(a, b, angle_deg=1.0, distance=0.06)) == len(a)
+    assert len(merge_candidates(a, b, angle_deg=1.0, distance=0.04)) == 2 * len(a)
+    # rotated by 5 deg: parallel within 6 deg, not within 4 deg
+    r = (np.zeros(3), _rot_z(5).T, box[2])
+    c = candidate_axes(r, "R_V_S")
+    assert len(merge_candidates(a, c, angle_deg=6.0, distance=0.01)) == len(a)
+    assert len(merge_candidates(a, c, angle_deg=4.0, distance=0.01)) == 2 * len(a)
+    # lines of ``extra`` also merge among themselves (its edges 0.05 apart, distance 0.1)
+    assert len(merge_candidates(a, c, angle_deg=4.0, distance=0.1)) == len(a) + 2
+    # prismatic axes have no position: a parallel axis elsewhere is covered
+    p1 = candidate_axes(box, "P_H")
+    p2 = candidate_axes((np.array([3.0, 2.0, 1.0]), np.eye(3), box[2]), "P_H")
+    assert len(merge_candidates(p1, p2, angle_deg=1.0, distance=0.0)) == len(p1)
+    with pytest.raises(ValueError, match="R_V_S vs P_H"):
+        merge_candidates(a, p1, angle_deg=1.0, distance=0.0)

@@ -80,10 +80,14 @@ def test_cli_flags_reach_the_refinement(setup, seen):
     args = ["eval", "pre-segmented", "--model", str(setup / "fine"), "--data", str(setup / "cache"),
             "--all", "--device", "cpu", "-q", "--axis-model", str(setup / "axis")]
     r = CliRunner().invoke(app, [*args, "--out", str(setup / "eval_cli"), "--feasibility-only",
-                                 "--keep-gnn", "--snap-angle", "10"])
+                                 "--keep-gnn", "--snap-angle", "10",
+                                 "--box-frames", "moving, reference"])
     assert r.exit_code == 0, r.output
     assert seen and all(c.scoring.feasibility_only and c.keep_gnn and c.snap_angle_deg == 10.0
-                        for c in seen)
+                        and c.box_frames == ("moving", "reference") for c in seen)
     assert (setup / "eval_cli" / "table1.csv").is_file()
     bad = CliRunner().invoke(app, [*args, "--out", str(setup / "eval_bad"), "--snap-angle", "120"])
     assert bad.exit_code == 2
+    bad = CliRunner().invoke(app, [*args, "--out", str(setup / "eval_bad"), "--box-frames", "world"])
+    assert bad.exit_code == 2 and "invalid refinement option" in bad.output
+    assert not (setup / "eval_bad").exists()

@@ -227,3 +227,30 @@ def test_keep_gnn_adds_the_gnn_line_as_a_candidate(model):
     d = p["direction"][door] / np.linalg.norm(p["direction"][door])
     assert abs(agree.axis_direction[door] @ d) == pytest.approx(1.0)
     assert np.linalg.norm(np.cross(agree.axis_origin[door] - p["origin"][door], d)) < 1e-9
+
+
+def test_box_frames_add_candidates_from_other_frames(model):
+    g = box_cabinet(128)
+    p = _gnn_like(g, noise=0.01)
+    door = edge_index(g, 2, 1)
+    base = refine_predictions(g, p, model)
+    # the cabinet is axis-aligned: the other frames' boxes repeat the OBB's lines (merged)
+    same = refine_predictions(g, p, model, RefineConfig(box_frames=("moving", "reference", "shape")))
+    assert same.n_candidates[door] == base.n_candidates[door]
+    np.testing.assert_allclose(same.axis_direction, base.axis_direction)
+    # rotate the door's OBB axes 40 deg about z: its own vertical edges are gone, the
+    # reference (body) frame brings the hinge back
+    r = np.radians(40)
+    rz = np.array([[np.cos(r), -np.sin(r), 0], [np.sin(r), np.cos(r), 0], [0, 0, 1]])
+    g.obb_axes[2] = (rz @ g.obb_axes[2].T).T
+    tilted = refine_predictions(g, p, model, RefineConfig(scoring=ScoringConfig(w_feasibility=0.0)))
+    both = refine_predictions(g, p, model, RefineConfig(box_frames=("moving", "reference"),
+                                                        scoring=ScoringConfig(w_feasibility=0.0)))
+    assert abs(tilted.axis_direction[door] @ [0.0, 1.0, 0.0]) < np.cos(np.radians(30))
+    assert abs(both.axis_direction[door] @ [0.0, 1.0, 0.0]) == pytest.approx(1.0)
+    hinge = np.array([-0.5, 0.0, 0.3])
+    assert np.linalg.norm(np.cross(both.axis_origin[door] - hinge, [0.0, 1.0, 0.0])) < 0.03
+    with pytest.raises(ValueError):
+        RefineConfig(box_frames=())
+    with pytest.raises(ValueError):
+        RefineConfig(box_frames=("world",))

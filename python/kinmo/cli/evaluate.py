@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import eval_app
+from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
 
 
 @eval_app.command("pre-segmented")
@@ -19,9 +20,10 @@ def pre_segmented_cmd(
     all_shapes: bool = typer.Option(False, "--all", help="Evaluate every labelled shape of DATA, ignoring the split."),
     render: bool = typer.Option(False, "--render", help="Write a PNG per shape and model (OUT/renders/<model>/<id>.png)."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: add OBB_fine / OBB_coarse columns with refined axes."),  # noqa: UP007
-    feasibility_only: bool = typer.Option(False, "--feasibility-only", help="OBB columns: select candidates by the network alone (the paper's released code) instead of the 0.5/0.3/0.2 score."),
-    keep_gnn: bool = typer.Option(False, "--keep-gnn", help="OBB columns: the GNN's own axis competes as a candidate (kinmo extension)."),
-    snap_angle: Optional[float] = typer.Option(None, "--snap-angle", min=0.0, max=90.0, help="OBB columns: only candidates within this angle (deg) of the GNN's axis compete (kinmo extension)."),  # noqa: UP007
+    feasibility_only: bool = FEASIBILITY_ONLY,
+    keep_gnn: bool = KEEP_GNN,
+    snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
+    box_frames: str = BOX_FRAMES,
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -30,24 +32,17 @@ def pre_segmented_cmd(
 
     from kinmo.errors import KinmoError
     from kinmo.evaluate.pre_segmented import run_evaluation
-    from kinmo.refine.refine import RefineConfig
-    from kinmo.refine.scoring import ScoringConfig
 
     console = Console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 11-column tables
         console = Console(width=max(console.width, 140))
     err = Console(stderr=True)
-    try:
-        refine_config = RefineConfig(scoring=ScoringConfig(feasibility_only=feasibility_only),
-                                     keep_gnn=keep_gnn, snap_angle_deg=snap_angle or None)
-    except ValueError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(2) from None
+    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
     try:
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,
                                        console=console, axis_model=axis_model,
-                                       refine_config=refine_config)
+                                       refine_config=rc)
     except KinmoError as e:
         err.print(f"[red]error:[/] {e}")
         raise typer.Exit(1) from None

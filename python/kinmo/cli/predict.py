@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
 
 
 @app.command("predict")
@@ -21,9 +22,10 @@ def predict_cmd(
     slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, help="Slider range as a fraction of the part's size."),
     render: bool = typer.Option(False, "--render", help="Also write OUT/<id>/prediction.png."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the predicted axes (paper Sec. 3.3)."),  # noqa: UP007
-    feasibility_only: bool = typer.Option(False, "--feasibility-only", help="With --axis-model: select candidates by the network alone (the paper's released code)."),
-    keep_gnn: bool = typer.Option(False, "--keep-gnn", help="With --axis-model: the GNN's own axis competes as a candidate (kinmo extension)."),
-    snap_angle: Optional[float] = typer.Option(None, "--snap-angle", min=0.0, max=90.0, help="With --axis-model: only candidates within this angle (deg) of the GNN's axis compete (kinmo extension)."),  # noqa: UP007
+    feasibility_only: bool = FEASIBILITY_ONLY,
+    keep_gnn: bool = KEEP_GNN,
+    snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
+    box_frames: str = BOX_FRAMES,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Predict the motion of every shape under DIR; write PartNet-Mobility files and URDFs.
@@ -35,22 +37,15 @@ def predict_cmd(
     from kinmo.errors import KinmoError
     from kinmo.mobility_tree import TreeOptions
     from kinmo.predict import predict_dataset
-    from kinmo.refine.refine import RefineConfig
-    from kinmo.refine.scoring import ScoringConfig
 
     console = Console()
     err = Console(stderr=True)
-    try:
-        refine_config = RefineConfig(scoring=ScoringConfig(feasibility_only=feasibility_only),
-                                     keep_gnn=keep_gnn, snap_angle_deg=snap_angle or None)
-    except ValueError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(2) from None
+    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
     try:
         rows = predict_dataset(data, model, out, cache=cache, device=device,
                                options=TreeOptions((0.0, hinge_max), slider_fraction),
                                progress=not quiet, render=render, axis_model=axis_model,
-                               refine_config=refine_config)
+                               refine_config=rc)
     except KinmoError as e:
         err.print(f"[red]error:[/] {e}")
         raise typer.Exit(1) from None

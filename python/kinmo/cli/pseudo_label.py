@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
 
 
 @app.command("pseudo-label")
@@ -19,9 +20,10 @@ def pseudo_label_cmd(
     threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, help="Minimum refinement score of every joint of a kept shape."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="A `kinmo prepare` cache of DIR (graphs are built when missing)."),  # noqa: UP007
-    feasibility_only: bool = typer.Option(False, "--feasibility-only", help="Score candidates by the network alone (the paper's released code)."),
-    keep_gnn: bool = typer.Option(False, "--keep-gnn", help="The GNN's own axis competes as a candidate (kinmo extension)."),
-    snap_angle: Optional[float] = typer.Option(None, "--snap-angle", min=0.0, max=90.0, help="Only candidates within this angle (deg) of the GNN's axis compete; none: the joint gets no score (kinmo extension)."),  # noqa: UP007
+    feasibility_only: bool = FEASIBILITY_ONLY,
+    keep_gnn: bool = KEEP_GNN,
+    snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
+    box_frames: str = BOX_FRAMES,
     consistent: bool = typer.Option(False, "--consistent/--raw-types", help="Make the fine types agree with the GNN's axes before refining (as `kinmo eval` does; the threshold then rejects far fewer, and fewer wrong, shapes). Default: the paper's arg-max types."),
     sign: str = typer.Option("tree", "--sign", help="Direction of motion: tree (away from the reference part) or feasibility (the network's)."),
     copy: bool = typer.Option(False, "--copy", help="Copy meshes instead of linking them."),
@@ -47,16 +49,14 @@ def pseudo_label_cmd(
         pseudo_label_dataset,
         summary_rows,
     )
-    from kinmo.refine.refine import RefineConfig
-    from kinmo.refine.scoring import ScoringConfig
 
     console = Console()
     err = Console(stderr=True)
+    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
     try:
         config = PseudoLabelConfig(
             threshold=threshold,
-            refine=RefineConfig(scoring=ScoringConfig(feasibility_only=feasibility_only),
-                                keep_gnn=keep_gnn, snap_angle_deg=snap_angle or None),
+            refine=rc,
             sign=sign, consistent=consistent, link="copy" if copy else "symlink", device=device,
         )
     except ValueError as e:

@@ -50,6 +50,8 @@ __all__ = [
     "Candidates",
     "candidate_axes",
     "canonical_direction",
+    "frame_box",
+    "merge_candidates",
     "motion_of",
     "obb_of",
 ]
@@ -313,3 +315,86 @@ def candidate_axes(
     o, d, kinds_t = _dedupe(origins, directions, kinds, dedupe_tol * max(diag, 1e-12))
     return Candidates(o, d, kinds_t, str(fine_type))
 
+
+
+def frame_box(points: np.ndarray, axes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bounding box of ``points`` whose axes are the rows of ``axes``.
+
+    kinmo extension of the candidates (Sec. 3.3 uses the moving part's own OBB only): the
+    moving part boxed in another frame, e.g. its reference part's OBB axes or the shape frame
+    (``np.eye(3)``), gives candidate lines along *that* frame's directions. A laptop lid
+    opened by 30° has an OBB tilted by 30° from its hinge; boxed in the base's frame, one of
+    its edges is the hinge.
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+        The moving part's surface samples (mesh frame), N >= 1.
+    axes : (3, 3) float64
+        Orthonormal rows (a rotation's transpose), e.g. ``graph.obb_axes[j]``.
+
+    Returns
+    -------
+    center : (3,) float64
+    axes : (3, 3) float64
+        ``axes``, unchanged.
+    half_extents : (3,) float64
+        Half the extent of ``points`` along each row of ``axes`` (>= 0).
+
+    Raises
+    ------
+    ValueError
+        ``points`` is not (N, 3) with N >= 1 or has non-finite values; ``axes`` is not an
+        orthonormal (3, 3) array.
+    """
+    p = _points(points, "points")
+    r = np.asarray(axes, dtype=np.float64)
+    if r.shape != (3, 3) or not np.all(np.isfinite(r)) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6):
+        raise ValueError(f"axes: expected orthonormal rows of shape (3, 3), got {r.shape}")
+    local = p @ r.T
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    return 0.5 * (lo + hi) @ r, r.copy(), 0.5 * (hi - lo)
+
+
+def merge_candidates(first: Candidates, extra: Candidates, *, angle_deg: float, distance: float
+                     ) -> Candidates:
+    """``first`` followed by the lines of ``extra`` that no line of ``first`` already covers.
+
+    A line of ``extra`` is covered when a line of ``first`` is within ``angle_deg`` of its
+    direction and, for revolute motions (``R``, ``PR``: the axis position matters), passes
+    within ``distance`` of its origin.
+
+    Parameters
+    ----------
+    first, extra : Candidates
+        For the same motion type.
+    angle_deg : float
+        Direction tolerance (degrees, >= 0).
+    distance : float
+        Position tolerance (mesh units, >= 0).
+
+    Returns
+    -------
+    Candidates
+
+    Raises
+    ------
+    ValueError
+        The motion types differ.
+    """
+    if first.motion_type != extra.motion_type:
+        raise ValueError(f"merge_candidates: {first.motion_type} vs {extra.motion_type}")
+    cos = float(np.cos(np.radians(angle_deg)))
+    positional = first.motion != "P"
+    o, d, k = [first.origins], [first.directions], list(first.kinds)
+    for i in range(len(extra)):
+        ko, kd = np.vstack(o), np.vstack(d)
+        para = np.abs(kd @ extra.directions[i]) >= cos - 1e-12
+        if positional:
+            off = np.linalg.norm(np.cross(extra.origins[i] - ko, kd), axis=1)
+            para &= off <= distance
+        if not para.any():
+            o.append(extra.origins[i][None])
+            d.append(extra.directions[i][None])
+            k.append(extra.kinds[i])
+    return Candidates(np.vstack(o), np.vstack(d), tuple(k), first.motion_type)

@@ -34,14 +34,20 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES
-from kinmo.refine.candidates import Candidates, candidate_axes, canonical_direction
+from kinmo.refine.candidates import (
+    Candidates,
+    candidate_axes,
+    canonical_direction,
+    frame_box,
+    merge_candidates,
+)
 from kinmo.refine.motions import (
     MotionAmounts,
     candidate_motions,
@@ -104,6 +110,16 @@ class RefineConfig(BaseModel):
         candidates (kind ``"gnn"``), judged by the network like the others; its agreement
         terms are 1 by construction, so a geometric candidate replaces it only when it scores
         better overall.
+    box_frames : tuple of {"moving", "reference", "shape"}
+        Boxes whose edges, centre lines and axes give the candidates. ``("moving",)`` (the
+        paper): the moving part's OBB. kinmo extension: ``"reference"`` adds the moving part's
+        bounding box in its reference part's OBB axes, ``"shape"`` its box in the shape frame
+        (:func:`kinmo.refine.candidates.frame_box`), so a part whose own OBB is tilted from
+        its hinge (an opened laptop lid, a faucet handle) still gets the hinge as a candidate;
+        lines within ``merge_angle_deg`` and ``merge_distance`` (fraction of the moving OBB's
+        diagonal) of an earlier box's line are merged into it.
+    merge_angle_deg, merge_distance : float
+        Tolerances of that merge.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -118,6 +134,9 @@ class RefineConfig(BaseModel):
     min_agreement: float | None = Field(None, ge=0, le=1)
     snap_angle_deg: float | None = Field(None, gt=0, le=90)
     keep_gnn: bool = False
+    box_frames: tuple[Literal["moving", "reference", "shape"], ...] = Field(("moving",), min_length=1)
+    merge_angle_deg: float = Field(2.0, ge=0, le=90)
+    merge_distance: float = Field(0.02, ge=0)
 
     @property
     def amounts(self) -> MotionAmounts:
@@ -313,8 +332,18 @@ def refine_edge(
     rng = np.random.default_rng(cfg.seed if rng is None else rng)
     obb = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
     diag = max(2.0 * float(np.linalg.norm(graph.obb_half_extents[moving])), 1e-12)
-    cands = candidate_axes(obb, motion_type, graph.points[moving], graph.points[reference],
+    cands = None
+    for frame in dict.fromkeys(cfg.box_frames):  # in order, once each
+        if frame == "moving":
+            box = obb
+        else:
+            axes = graph.obb_axes[reference] if frame == "reference" else np.eye(3)
+            box = frame_box(graph.points[moving], axes)
+        c = candidate_axes(box, motion_type, graph.points[moving], graph.points[reference],
                            interaction_radius=cfg.interaction_radius)
+        cands = c if cands is None else merge_candidates(
+            cands, c, angle_deg=cfg.merge_angle_deg, distance=cfg.merge_distance * diag)
+    assert cands is not None  # box_frames has at least one frame (RefineConfig)
     g = np.asarray(gnn_direction, dtype=np.float64)
     g = g / np.linalg.norm(g)
     if cfg.snap_angle_deg is not None:
