@@ -213,3 +213,19 @@ def test_cli_refinement_options_reach_the_scores(data, runs, tmp_path, monkeypat
         "--out", str(out), "--snap-angle", "120",
     ])
     assert bad.exit_code == 2
+
+
+def test_one_run_per_output_folder(data, runs, tmp_path):
+    """A second pseudo-label run on the same OUT fails at once and touches nothing."""
+    import fcntl
+
+    from kinmo.errors import KinmoError
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".staging").mkdir()  # the running one's work in progress
+    with open(out / ".lock", "a+") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(KinmoError, match="another kinmo pseudo-label is writing"):
+            pseudo_label_dataset(data / SHAPES[0], *runs, out, progress=False)
+    assert (out / ".staging").is_dir() and not (out / "shapes.csv").exists()

@@ -1,4 +1,5 @@
-"""Atomic file writes: an interrupted run never leaves a half-written file."""
+"""Atomic file writes (an interrupted run never leaves a half-written file) and the lock that
+keeps two runs from writing one output folder."""
 
 from __future__ import annotations
 
@@ -59,3 +60,41 @@ def write_text(path: str | Path, text: str) -> None:
 def write_json(path: str | Path, obj: Any, indent: int | None = 2) -> None:
     """Write a JSON file atomically."""
     write_text(path, json.dumps(obj, indent=indent) + "\n")
+
+
+@contextmanager
+def folder_lock(folder: str | Path, command: str) -> Iterator[None]:
+    """Hold an exclusive lock on ``folder/.lock`` while the block runs (POSIX ``flock``).
+
+    A second process that tries to lock the same folder fails at once instead of waiting.
+    The lock dies with the process, so an interrupted run never leaves a stale lock. Without
+    ``fcntl`` (not POSIX) the block runs unlocked.
+
+    Parameters
+    ----------
+    folder : str or Path
+        An existing output folder.
+    command : str
+        What holds the lock, for the error (``"kinmo prepare"``).
+
+    Raises
+    ------
+    KinmoError
+        Another process holds the lock: ``"<folder>: another <command> is writing this folder"``.
+    """
+    from kinmo.errors import KinmoError
+
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    fh = open(Path(folder) / ".lock", "a+")
+    try:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise KinmoError(f"{folder}: another {command} is writing this folder") from None
+        yield
+    finally:
+        fh.close()

@@ -40,15 +40,15 @@ import io
 import json
 import os
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 from kinmo.progress import CountingBar
-from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.errors import KinmoDataError
+from kinmo.io import folder_lock
 from kinmo.parallel import available_cpus, map_unordered, resolve_workers
 
 __all__ = [
@@ -459,24 +459,6 @@ def default_cache_dir(root: str | Path) -> Path:
     return Path("cache") / Path(root).resolve().name
 
 
-@contextmanager
-def _lock(out: Path) -> Iterator[None]:
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not POSIX: no lock
-        yield
-        return
-    fh = open(out / ".lock", "a+")
-    try:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise KinmoError(f"{out}: another kinmo prepare is writing this cache") from None
-        yield
-    finally:
-        fh.close()
-
-
 def _clean_tmp(out: Path) -> int:
     n = 0
     for p in out.glob(".*.tmp"):
@@ -566,7 +548,7 @@ def prepare_dataset(
 
     rows: dict[str, ManifestRow] = {}
     stopped = False
-    with _lock(out):
+    with folder_lock(out, "kinmo prepare"):
         _clean_tmp(out)
         last_write = 0.0
 

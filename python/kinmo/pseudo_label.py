@@ -66,7 +66,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.progress import CountingBar
-from kinmo.io import write_json, write_text
+from kinmo.io import folder_lock, write_json, write_text
 from kinmo.parallel import map_unordered, resolve_workers
 from kinmo.refine.refine import RefineConfig
 
@@ -565,6 +565,8 @@ def pseudo_label_dataset(
     ------
     KinmoDataError
         ``data`` holds no shape folder, or a checkpoint is missing or unreadable.
+    KinmoError
+        Another ``kinmo pseudo-label`` is writing ``out``.
     """
     from kinmo.data.readers import find_shapes
 
@@ -575,6 +577,16 @@ def pseudo_label_dataset(
     if not folders:
         raise KinmoDataError(data, "no shape folder found")
     out.mkdir(parents=True, exist_ok=True)
+    with folder_lock(out, "kinmo pseudo-label"):
+        return _label_all(data, out, gnn_run, axis_run, folders, config, workers, cache, force,
+                          progress, on_record, t0)
+
+
+def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: list[Path],
+               config: PseudoLabelConfig, workers: int, cache: str | Path | None, force: bool,
+               progress: bool, on_record: Callable[[ShapeRecord], None] | None, t0: float
+               ) -> PseudoLabelResult:
+    """The body of :func:`pseudo_label_dataset`, run while holding ``out``'s lock."""
     shutil.rmtree(out / ".staging", ignore_errors=True)  # leftovers of an interrupted run
     models_fp = _models_fingerprint(gnn_run, axis_run)
     records: dict[str, ShapeRecord] = {}

@@ -69,8 +69,7 @@ import io
 import json
 import time
 import zlib
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
@@ -79,7 +78,8 @@ from typing import Any
 import numpy as np
 
 from kinmo.progress import CountingBar
-from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.errors import KinmoDataError
+from kinmo.io import folder_lock
 from kinmo.parallel import map_unordered
 
 __all__ = [
@@ -565,24 +565,6 @@ def read_manifest(path: str | Path) -> list[FrameRow]:
 # ----------------------------------------------------------------------------- the run
 
 
-@contextmanager
-def _lock(out: Path) -> Iterator[None]:
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not POSIX: no lock
-        yield
-        return
-    fh = open(out / ".lock", "a+")
-    try:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise KinmoError(f"{out}: another kinmo render is writing this folder") from None
-        yield
-    finally:
-        fh.close()
-
-
 def _clean_tmp(out: Path) -> None:
     for p in [*out.glob(".*.tmp"), *out.glob("*/.*.tmp")]:
         try:
@@ -663,7 +645,7 @@ def render_dataset(
     out.mkdir(parents=True, exist_ok=True)
     rows: list[FrameRow] = []
     failed: list[str] = []
-    with _lock(out):
+    with folder_lock(out, "kinmo render"):
         _clean_tmp(out)
         last = 0.0
 

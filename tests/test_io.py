@@ -1,0 +1,55 @@
+"""Atomic writes and the output-folder lock (kinmo.io)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from kinmo.errors import KinmoError
+from kinmo.io import atomic_write, folder_lock, write_json, write_text
+
+
+def test_atomic_write_leaves_the_old_file_when_the_writer_fails(tmp_path):
+    p = tmp_path / "a.txt"
+    write_text(p, "old")
+
+    def boom(fh):
+        fh.write("half")
+        raise RuntimeError("interrupted")
+
+    with pytest.raises(RuntimeError):
+        atomic_write(p, boom)
+    assert p.read_text() == "old"
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["a.txt"]  # no temporary left
+    write_json(p, {"k": [1, 2]})
+    assert json.loads(p.read_text()) == {"k": [1, 2]}
+
+
+def test_folder_lock_excludes_a_second_process_and_is_released(tmp_path):
+    holder = (
+        "import sys, time\n"
+        "from kinmo.io import folder_lock\n"
+        "with folder_lock(sys.argv[1], 'kinmo test'):\n"
+        "    print('locked', flush=True)\n"
+        "    sys.stdin.readline()\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", holder, str(tmp_path)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "locked"
+        with pytest.raises(KinmoError, match=r"another kinmo test is writing this folder"):
+            with folder_lock(tmp_path, "kinmo test"):
+                pass
+    finally:
+        proc.communicate("\n", timeout=60)
+    assert proc.returncode == 0
+    # released with the other process: the lock is free again, and re-entrant across blocks
+    ran = []
+    with folder_lock(tmp_path, "kinmo test"):
+        ran.append(1)
+    with folder_lock(tmp_path, "kinmo test"):
+        ran.append(2)
+    assert ran == [1, 2]
