@@ -126,6 +126,10 @@ def test_training_run_writes_a_reproducible_loadable_model(tmp_path):
     assert not model.training and model.config.n_points == 64
     res2 = train_axis_model(gs, tmp_path / "run2", cfg, progress=False)
     assert res2.metrics[-1]["train_loss"] == pytest.approx(res.metrics[-1]["train_loss"])
+    # quick trains on one torch thread: the same seed gives bit-identical weights
+    assert conf["config"]["threads"] == 1
+    w1, w2 = load_axis_model(tmp_path / "run").state_dict(), load_axis_model(tmp_path / "run2").state_dict()
+    assert w1.keys() == w2.keys() and all(torch.equal(w1[k], w2[k]) for k in w1)
     from kinmo.errors import KinmoDataError
 
     with pytest.raises(KinmoDataError, match="does not exist"):

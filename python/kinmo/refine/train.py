@@ -195,6 +195,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "net": {"n_points": 512, "k": 16, "widths": [32, 32, 64], "emb_dim": 64,
                 "head": [64, 32], "dropout": 0.3, "norm": "batch"},
         "epochs": 12, "batch_size": 16, "lr": 1e-3, "lr_step": 8, "samples_per_shape": 4,
+        "threads": 1,  # as the other quick presets: the same weights on any machine
     },
     "paper": {
         "net": {"n_points": 4096, "k": 20, "widths": [64, 64, 128], "emb_dim": 128,
