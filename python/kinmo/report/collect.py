@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from kinmo.errors import KinmoDataError
+from kinmo.pipeline import SYNTH_EXTRA_FILE  # the file of a generated-shapes run
 
 __all__ = [
     "ARTEFACTS",
@@ -503,8 +504,6 @@ class SynthExtra:
     info: dict
     artefacts: RunArtefacts
 
-
-from kinmo.pipeline import SYNTH_EXTRA_FILE  # noqa: E402 - the file kinmo.pipeline writes
 
 
 def _synth_extra_dirs(run: Path) -> list[Path]:
