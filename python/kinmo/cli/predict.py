@@ -8,12 +8,13 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli.export import FORMAT_HELP, check_formats
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
 
 
 @app.command("predict")
 def predict_cmd(
-    data: Path = typer.Argument(..., metavar="DIR", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder."),
+    data: Path = typer.Argument(..., metavar="DIR|FILE", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder; or your own part-segmented asset: a GLB/glTF scene (a node per part), an OBJ with o/g groups, a folder of part meshes, or a URDF (a link per part)."),
     model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
@@ -27,8 +28,12 @@ def predict_cmd(
     snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
     box_frames: str = BOX_FRAMES,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
 ) -> None:
-    """Predict the motion of every shape under DIR; write PartNet-Mobility files and URDFs.
+    """Predict the motion of every shape under DIR (or of FILE); write PartNet-Mobility files and URDFs.
+
+    FILE (a GLB/glTF, OBJ with groups, folder of part meshes or URDF) becomes OUT/<name>/, a
+    complete PartNet-Mobility folder (see kinmo.user_input for the part hierarchy rule).
 
     Exit code 1 when any shape failed (listed at the end, and in OUT/predictions.csv).
     """
@@ -41,11 +46,11 @@ def predict_cmd(
     console = Console()
     err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
+    check_formats(fmt)
     try:
-        rows = predict_dataset(data, model, out, cache=cache, device=device,
-                               options=TreeOptions((0.0, hinge_max), slider_fraction),
-                               progress=not quiet, render=render, axis_model=axis_model,
-                               refine_config=rc)
+        kw = dict(device=device, options=TreeOptions((0.0, hinge_max), slider_fraction),
+                  progress=not quiet, render=render, axis_model=axis_model, refine_config=rc)
+        rows = predict_dataset(data, model, out, cache=cache, formats=fmt or None, **kw)
     except KinmoError as e:
         err.print(f"[red]error:[/] {e}")
         raise typer.Exit(1) from None

@@ -1,0 +1,61 @@
+"""``kinmo export``: a PartNet-Mobility folder as URDF, MJCF, USD, glTF (:mod:`kinmo.export`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from kinmo.cli._apps import app
+
+#: Help of the repeatable ``--format`` option (shared by predict and pseudo-label).
+FORMAT_HELP = ("Output format, repeatable: mobility_v2, semantics, urdf, mjcf, usd, gltf "
+               "(see kinmo.export).")
+
+
+def check_formats(fmt: list[str] | None) -> None:
+    """Reject unknown ``--format`` values before any work (exit code 2, the known ones named)."""
+    from kinmo.export import formats
+
+    known = formats()
+    bad = [f for f in fmt or [] if f not in known]
+    if bad:
+        raise typer.BadParameter(f"unknown format(s) {', '.join(bad)}; known: {', '.join(known)}",
+                                 param_hint="--format")
+
+
+@app.command("export")
+def export_cmd(
+    src: Path = typer.Argument(..., metavar="SRC", help="A PartNet-Mobility-format folder (real, generated or predicted), or a folder of them."),
+    fmt: list[str] = typer.Option(..., "--format", "-f", help=FORMAT_HELP),
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder (OUT/<id>/ per object when SRC holds several)."),
+) -> None:
+    """Write the articulated object(s) in SRC in each --format, loadable by its simulator.
+
+    urdf: PyBullet/SAPIEN/ROS (convex collision pieces); mjcf: MuJoCo; usd: Isaac Sim
+    (UsdPhysics joints); gltf: any 3D viewer, one animation per joint.
+    """
+    from rich.console import Console
+
+    from kinmo.data.readers import find_shapes
+    from kinmo.errors import KinmoError
+    from kinmo.export import export_folder
+
+    check_formats(fmt)
+    console, err = Console(), Console(stderr=True)
+    try:
+        folders = find_shapes(src)
+        if not folders:
+            from kinmo.errors import KinmoDataError
+
+            raise KinmoDataError(src, "no PartNet-Mobility folder found")
+        single = len(folders) == 1 and folders[0].resolve() == src.resolve()
+        n = 0
+        for folder in folders:
+            files = export_folder(folder, out if single else out / folder.name, fmt)
+            n += sum(len(v) for v in files.values())
+    except KinmoError as e:
+        err.print(f"[red]error:[/] {e}", highlight=False)
+        raise typer.Exit(1) from None
+    console.print(f"exported {len(folders)} object(s) as {', '.join(dict.fromkeys(fmt))}: "
+                  f"{n} file(s) -> {out}", highlight=False)
