@@ -48,9 +48,14 @@ def predict_cmd(
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
     check_formats(fmt)
     try:
+        from kinmo.user_input import is_user_input, predict_user_input
+
         kw = dict(device=device, options=TreeOptions((0.0, hinge_max), slider_fraction),
                   progress=not quiet, render=render, axis_model=axis_model, refine_config=rc)
-        rows = predict_dataset(data, model, out, cache=cache, formats=fmt or None, **kw)
+        if is_user_input(data):
+            rows = predict_user_input(data, model, out, formats=fmt or None, **kw)
+        else:
+            rows = predict_dataset(data, model, out, cache=cache, formats=fmt or None, **kw)
     except KinmoError as e:
         err.print(f"[red]error:[/] {e}")
         raise typer.Exit(1) from None
