@@ -29,8 +29,12 @@ import numpy as np
 from kinmo.data.model import Link, Shape
 from kinmo.errors import KinmoDataError
 
-__all__ = ["PLOT_HEIGHT", "PLOT_WIDTH", "view_folder", "viewer_data", "viewer_fragment",
-           "viewer_head", "write_viewer"]
+__all__ = ["PLOT_HEIGHT", "PLOT_WIDTH", "SOURCE_FILE", "gallery_page", "view_folder",
+           "viewer_data", "viewer_fragment", "viewer_head", "write_view_links", "write_viewer"]
+
+#: In a folder holding only ``mobility_v2.json`` (predicted links), the path of the shape
+#: folder with the hierarchy and meshes they refer to.
+SOURCE_FILE = "source.txt"
 
 #: Size of the 3D view in CSS pixels (the sliders sit below it).
 PLOT_WIDTH, PLOT_HEIGHT = 720, 540
@@ -164,7 +168,8 @@ def _leaves(shape: Shape, link: Link) -> set[int]:
 
 
 def viewer_data(shape: Shape, links: Sequence[Link] | None = None,
-                truth: Sequence[Link] | None = None, title: str | None = None) -> dict:
+                truth: Sequence[Link] | None = None, title: str | None = None,
+                max_faces: int = MAX_FACES) -> dict:
     """The JSON-ready data of one viewer (meshes, degrees of freedom, axes).
 
     Parameters
@@ -177,6 +182,8 @@ def viewer_data(shape: Shape, links: Sequence[Link] | None = None,
         True links: their axes are drawn dashed, carried by the shown link that holds most
         of their parts.
     title : str, optional
+    max_faces : int
+        Most triangles drawn (an even subset of each link's faces beyond).
 
     Returns
     -------
@@ -200,7 +207,7 @@ def viewer_data(shape: Shape, links: Sequence[Link] | None = None,
         raise KinmoDataError(shape.path, "nothing to view: no kinematic links")
     meshes = link_meshes(shape, links)
     total = sum(len(m.faces) for m in meshes.values())
-    keep = max(1, math.ceil(total / MAX_FACES))
+    keep = max(1, math.ceil(total / max(1, max_faces)))
     allv = np.concatenate([m.vertices for m in meshes.values() if len(m.vertices)])
     lo, hi = allv.min(axis=0), allv.max(axis=0)
     size = float(np.linalg.norm(hi - lo))
@@ -297,7 +304,8 @@ def view_folder(folder: str | Path, out: str | Path | None = None,
     ----------
     folder : str or Path
         A PartNet-Mobility folder, or a ``kinmo predict`` output folder (``mobility_v2.json``
-        without meshes: give ``source``).
+        without meshes: give ``source``, or have it in ``FOLDER/source.txt``,
+        :func:`write_view_links`).
     out : str or Path, optional
         The page; default ``FOLDER/view.html``.
     source : str or Path, optional
@@ -320,6 +328,8 @@ def view_folder(folder: str | Path, out: str | Path | None = None,
 
     folder = Path(folder)
     truth_links = None
+    if source is None and (folder / SOURCE_FILE).is_file():
+        source = (folder / SOURCE_FILE).read_text(encoding="utf-8").strip()
     if source is None:
         shape = read_shape(folder)
         links = shape.links
@@ -331,3 +341,78 @@ def view_folder(folder: str | Path, out: str | Path | None = None,
         truth_links = read_shape(truth).links
     data = viewer_data(shape, links, truth_links, title=f"{shape.id} ({shape.category})")
     return write_viewer(Path(out) if out else folder / "view.html", data)
+
+
+def write_view_links(folder: str | Path, links: Sequence[Link], source: str | Path) -> Path:
+    """Write predicted ``links`` of the shape folder ``source`` for :func:`view_folder`.
+
+    ``FOLDER/mobility_v2.json`` (part names from the source's hierarchy) and
+    ``FOLDER/source.txt`` (the absolute source path); small, so every test shape of an
+    evaluation can have one (the report's gallery viewer, :func:`gallery_page`).
+
+    Returns
+    -------
+    Path
+        ``folder``.
+
+    Raises
+    ------
+    KinmoDataError
+        ``source`` is not a readable shape folder, or the links are inconsistent.
+    """
+    from kinmo.data.readers import read_shape
+    from kinmo.data.writers import write_mobility_v2
+    from kinmo.io import write_text
+
+    folder = Path(folder)
+    shape = read_shape(source)
+    write_mobility_v2(links, folder / "mobility_v2.json", shape.hierarchy)
+    write_text(folder / SOURCE_FILE, str(Path(source).resolve()) + "\n")
+    return folder
+
+
+def gallery_page(folders: Sequence[str | Path], path: str | Path, title: str = "kinmo viewer",
+                 max_faces: int = 20_000) -> tuple[Path, list[str]]:
+    """One page with a viewer per folder (Plotly inlined once), for the report's gallery.
+
+    Parameters
+    ----------
+    folders : sequence of str or Path
+        Folders :func:`view_folder` can read (e.g. from :func:`write_view_links`).
+    path : str or Path
+        The page, written atomically.
+    title : str
+    max_faces : int
+        Triangles per object (keeps a page of tens of objects to a few tens of MB).
+
+    Returns
+    -------
+    (Path, list of str)
+        The page and, per folder that could not be shown, ``"<folder>: <reason>"``.
+    """
+    from kinmo.data.readers import read_links, read_shape
+    from kinmo.errors import KinmoError
+    from kinmo.io import write_text
+
+    parts, problems = [], []
+    for k, folder in enumerate(folders):
+        folder = Path(folder)
+        try:
+            src = (folder / SOURCE_FILE).read_text(encoding="utf-8").strip()
+            shape = read_shape(src)
+            links = read_links(folder / "mobility_v2.json", shape.hierarchy)
+            data = viewer_data(shape, links, shape.links,
+                               title=f"{shape.id} ({shape.category})", max_faces=max_faces)
+        except (KinmoError, OSError) as e:
+            problems.append(f"{folder}: {' '.join(str(e).split())}")
+            continue
+        parts.append(viewer_fragment(data, f"kinmo-view-{k}"))
+    page = ("<!doctype html>\n<html><head><meta charset=\"utf-8\">"
+            f"<title>{html.escape(title)}</title>\n<style>body{{margin:8px}} "
+            ".kinmo-viewer{display:inline-block;vertical-align:top;margin:6px}</style>\n"
+            + viewer_head() + f"</head><body>\n<h2 class=\"kinmo-viewer\">{html.escape(title)}</h2>"
+            "<p class=\"kinmo-viewer\">coloured: moving parts; solid lines: predicted axes; "
+            "dashed: true axes; a slider per joint.</p>\n" + "".join(parts) + "</body></html>\n")
+    path = Path(path)
+    write_text(path, page)
+    return path, problems
