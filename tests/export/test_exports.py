@@ -283,3 +283,15 @@ def test_cli_export_writes_formats_and_rejects_unknown(mobility_root: Path, tmp_
                                  "--out", str(tmp_path / "p")])
     assert r.exit_code == 2 and "unknown format" in r.output
     assert not (tmp_path / "p").exists()
+
+
+def test_cli_export_of_a_predicted_folder_needs_its_source(mobility_root: Path, tmp_path: Path):
+    pred = tmp_path / "pred"  # what `kinmo predict` writes: links, no meshes
+    pred.mkdir()
+    (pred / "mobility_v2.json").write_bytes((mobility_root / "11700" / "mobility_v2.json").read_bytes())
+    r = CliRunner().invoke(app, ["export", str(pred), "-f", "usd", "-o", str(tmp_path / "a")])
+    assert r.exit_code == 1 and "--source" in " ".join(r.output.split())
+    r = CliRunner().invoke(app, ["export", str(pred), "-f", "usd", "-o", str(tmp_path / "b"),
+                                 "--source", str(mobility_root / "11700")])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "b" / "mobility.usd").is_file()

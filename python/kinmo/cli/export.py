@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -29,6 +30,7 @@ def export_cmd(
     src: Path = typer.Argument(..., metavar="SRC", help="A PartNet-Mobility-format folder (real, generated or predicted), or a folder of them."),
     fmt: list[str] = typer.Option(..., "--format", "-f", help=FORMAT_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (OUT/<id>/ per object when SRC holds several)."),
+    source: Optional[Path] = typer.Option(None, "--source", "-s", help="For a `kinmo predict` output SRC (mobility_v2.json only): the shape folder it was predicted for (meshes)."),  # noqa: UP007
 ) -> None:
     """Write the articulated object(s) in SRC in each --format, loadable by its simulator.
 
@@ -44,6 +46,13 @@ def export_cmd(
     check_formats(fmt)
     console, err = Console(), Console(stderr=True)
     try:
+        if source is not None or not find_shapes(src):
+            if (src / "mobility_v2.json").is_file():  # one predicted folder
+                files = export_folder(src, out, fmt, source=source)
+                console.print(f"exported 1 object as {', '.join(dict.fromkeys(fmt))}: "
+                              f"{sum(len(v) for v in files.values())} file(s) -> {out}",
+                              highlight=False)
+                return
         folders = find_shapes(src)
         if not folders:
             from kinmo.errors import KinmoDataError

@@ -174,19 +174,43 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
     return {f: EXPORTERS[f].write(ctx) for f in fmts}
 
 
-def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str]) -> dict[str, list[Path]]:
+def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
+                  source: str | Path | None = None) -> dict[str, list[Path]]:
     """Export a PartNet-Mobility-format folder (real, generated or predicted) to ``out``.
 
-    Mesh references point back into ``src`` (relative paths) where a format allows it.
+    Mesh references point back into the mesh folder (relative paths) where a format allows it.
+
+    Parameters
+    ----------
+    src : str or Path
+        A PartNet-Mobility folder; or a folder with only ``mobility_v2.json`` (a ``kinmo
+        predict`` output) whose shape folder (hierarchy, meshes) is ``source`` or named in
+        ``src/source.txt`` (:func:`kinmo.view.write_view_links`).
+    out : str or Path
+    fmts : iterable of str
+    source : str or Path, optional
 
     Raises
     ------
     KinmoDataError
-        ``src`` is not a readable PartNet-Mobility folder (no ``mobility_v2.json``) or as
-        :func:`export`.
+        ``src`` is not a readable PartNet-Mobility folder (no ``mobility_v2.json``), or
+        without meshes and no ``source``, or as :func:`export`.
     """
-    from kinmo.data.readers import read_shape
+    from kinmo.data.readers import read_links, read_shape
 
+    src = Path(src)
+    if source is None and (src / "source.txt").is_file():
+        source = (src / "source.txt").read_text(encoding="utf-8").strip()
+    if source is not None:
+        shape = read_shape(source)
+        if not (src / "mobility_v2.json").is_file():
+            raise KinmoDataError(src / "mobility_v2.json", "file is missing")
+        return export(shape, out, fmts, links=read_links(src / "mobility_v2.json",
+                                                         shape.hierarchy))
+    if not any((src / n).is_file() for n in ("result.json", "result_after_merging.json")) \
+            and (src / "mobility_v2.json").is_file():
+        raise KinmoDataError(src, "links without meshes (a `kinmo predict` output?): give the "
+                                  "shape folder they were predicted for with --source")
     shape = read_shape(src)
     if not shape.links:
         raise KinmoDataError(src, "not a PartNet-Mobility folder: mobility_v2.json is missing")
