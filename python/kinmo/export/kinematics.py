@@ -161,6 +161,8 @@ class LinkMesh:
 def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, LinkMesh]:
     """Every link's leaf meshes (``textured_objs/*.obj``) merged into one mesh per link.
 
+    The meshes are read by :func:`kinmo.render.ancsh_gt.link_meshes` (parallel Rust loading).
+
     Parameters
     ----------
     shape : Shape
@@ -177,28 +179,23 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
     KinmoDataError
         A link names a part missing from the hierarchy, or a mesh file cannot be read.
     """
-    from kinmo.geometry import load_objs
+    from kinmo.render.ancsh_gt import link_meshes as leaf_meshes
 
-    links = shape.links if links is None else links
+    links = list(shape.links or [] if links is None else links)
+    for link in links:
+        bad = [pid for pid in link.parts if pid not in shape.hierarchy.nodes]
+        if bad:
+            raise KinmoDataError(shape.path, f"link {link.id}: part {bad[0]} is not a node of "
+                                             "the part hierarchy")
     out: dict[int, LinkMesh] = {}
-    for link in links or []:
-        names: list[str] = []
-        for pid in link.parts:
-            if pid not in shape.hierarchy.nodes:
-                raise KinmoDataError(shape.path, f"link {link.id}: part {pid} is not a node of "
-                                                 "the part hierarchy")
-            names.extend(shape.hierarchy.mesh_names(pid))
-        try:
-            meshes = load_objs([shape.mesh_path(n) for n in names])
-        except (OSError, ValueError) as e:
-            raise KinmoDataError(shape.path, " ".join(str(e).split())) from None
+    for lid, meshes in leaf_meshes(shape, links).items():
         vs, fs, n = [], [], 0
         for v, f in meshes:
             vs.append(v)
             fs.append(f + n)
             n += len(v)
-        out[link.id] = LinkMesh(
-            link.id,
+        out[lid] = LinkMesh(
+            lid,
             np.concatenate(vs) if vs else np.zeros((0, 3)),
             np.concatenate(fs).astype(np.int64) if fs else np.zeros((0, 3), dtype=np.int64),
         )
