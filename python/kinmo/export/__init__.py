@@ -12,7 +12,8 @@ format                    files               loaded back by (tests)
 ``mobility_v2``           mobility_v2.json    :func:`kinmo.data.readers.read_links`
 ``semantics``             semantics.txt       (text)
 ``urdf``                  mobility.urdf,      PyBullet; :func:`kinmo.export.urdf.read_urdf`
-                          collision/*.obj     gives the links back losslessly
+                          collision/          gives the links back losslessly
+                          link_<id>_<k>.obj
 ``mjcf``                  mobility.xml,       MuJoCo (``mujoco.MjModel.from_xml_path``)
                           meshes/*.stl
 ``usd``                   mobility.usd        ``pxr`` (UsdPhysics joints)

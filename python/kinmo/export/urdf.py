@@ -21,7 +21,6 @@ read from the standard tags alone).
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import math
 import os
@@ -40,9 +39,14 @@ from kinmo.io import atomic_path, write_text
 
 __all__ = ["UrdfLink", "convex_pieces", "read_urdf", "read_urdf_tree", "write_urdf_convex"]
 
-#: V-HACD voxel resolution (PyBullet's default is 100000; 50000 halves the time on PartNet
-#: parts with no visible loss for collision).
-VHACD_RESOLUTION = 50_000
+#: V-HACD voxel resolution. PyBullet's default is 100000; V-HACD's time grows steeply with it
+#: on some PartNet parts (a laptop screen link: 1.4 s at 10000, 260 s at 50000), and 10000
+#: (the smallest it accepts) gives collision pieces that follow PartNet parts closely enough.
+VHACD_RESOLUTION = 10_000
+#: V-HACD's most clipping stages (its default 20): bounds the number of pieces and the time.
+VHACD_DEPTH = 10
+#: Seconds V-HACD may run on one link before its convex hull is used instead.
+VHACD_TIMEOUT = 60.0
 
 
 def _cache_dir() -> Path:
@@ -58,19 +62,37 @@ def _write_obj(path: Path, v: np.ndarray, f: np.ndarray) -> None:
         fh.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f.tolist()))
 
 
-@contextlib.contextmanager
-def _quiet_stdout():
+_VHACD_SCRIPT = (
+    "import sys, pybullet\n"
+    "a = sys.argv[1:]\n"
+    "pybullet.vhacd(a[0], a[1], a[2], resolution=int(a[3]), depth=int(a[4]))\n"
+)
+
+
+def _vhacd(src: Path, out: Path, resolution: int, timeout: float) -> bool:
+    """Run V-HACD in a child process (its C code prints to stdout and can run for minutes on
+    some parts); False when it failed or ran past ``timeout`` seconds."""
+    import subprocess
     import sys
 
-    sys.stdout.flush()
-    saved = os.dup(1)
     try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
+        r = subprocess.run([sys.executable, "-c", _VHACD_SCRIPT, str(src), str(out),
+                            str(out.with_suffix(".log")), str(resolution), str(VHACD_DEPTH)],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return False
+    return r.returncode == 0 and out.is_file() and "\nf " in out.read_text()
+
+
+def _hull_or_mesh(mesh: LinkMesh, src: Path, out: Path) -> None:
+    """The convex hull of a link as its one piece; a flat part's own triangles."""
+    import trimesh
+
+    try:
+        hull = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).convex_hull
+        _write_obj(out, np.asarray(hull.vertices), np.asarray(hull.faces))
+    except Exception:  # qhull: no volume (a flat or degenerate part)
+        shutil.copyfile(src, out)
 
 
 def _split_objects(text: str) -> list[str]:
@@ -101,7 +123,8 @@ def _split_objects(text: str) -> list[str]:
     return out
 
 
-def convex_pieces(mesh: LinkMesh, dest: Path, resolution: int = VHACD_RESOLUTION) -> list[Path]:
+def convex_pieces(mesh: LinkMesh, dest: Path, resolution: int = VHACD_RESOLUTION,
+                  timeout: float = VHACD_TIMEOUT) -> list[Path]:
     """Convex decomposition of a link mesh by V-HACD, one OBJ file per convex piece.
 
     Parameters
@@ -113,33 +136,30 @@ def convex_pieces(mesh: LinkMesh, dest: Path, resolution: int = VHACD_RESOLUTION
         same frame as the mesh.
     resolution : int
         V-HACD voxel resolution.
+    timeout : float
+        Seconds V-HACD may take (it runs in a child process).
 
     Returns
     -------
     list of Path
-        The pieces; empty for a mesh without faces (no collision geometry). A flat part in
-        which V-HACD finds no volume keeps its own triangles as its one piece.
+        The pieces; empty for a mesh without faces (no collision geometry). When V-HACD
+        fails or times out, the link's convex hull is its one piece; a flat part without a
+        hull keeps its own triangles.
     """
-    import pybullet
-
     if len(mesh.faces) == 0:
         return []
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
-    h.update(str(resolution).encode())
+    h.update(f"{resolution}/{VHACD_DEPTH}".encode())
     cached = _cache_dir() / f"{h.hexdigest()[:32]}.obj"
     if not cached.is_file():
         cached.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory() as tmp:
             src, out = Path(tmp) / "in.obj", Path(tmp) / "out.obj"
             _write_obj(src, mesh.vertices, mesh.faces)
-            with _quiet_stdout():  # V-HACD prints its progress on the C-level stdout
-                pybullet.vhacd(str(src), str(out), str(Path(tmp) / "log.txt"),
-                               resolution=resolution)
-            if not out.is_file() or "\nf " not in out.read_text():
-                # V-HACD finds no volume in flat parts: their own triangles collide
-                shutil.copyfile(src, out)
+            if not _vhacd(src, out, resolution, timeout):
+                _hull_or_mesh(mesh, src, out)
             with atomic_path(cached) as tmp_cached:
                 shutil.copyfile(out, tmp_cached)
     files = []
