@@ -165,6 +165,10 @@ def test_mjcf_loads_in_mujoco_and_qpos_moves_bodies_about_the_axes(exported):
                 np.testing.assert_allclose(d.xmat[b].reshape(3, 3), want[l.id][0], atol=1e-6,
                                            err_msg=case)
         assert m.njnt == sum(1 + l.joint.rotates for l in moving_links(links))
+        # collision: the convex pieces (group 3), visuals (group 1) do not collide
+        colliding = [g for g in range(m.ngeom) if m.geom_contype[g]]
+        assert colliding and all(m.geom_group[g] == 3 for g in colliding)
+        assert len(colliding) == len(list((out / "meshes").glob("link_*_collision_*.obj")))
 
 
 def test_usd_stage_has_physics_joints_axes_limits_and_meshes(exported):

@@ -1,6 +1,9 @@
 """MJCF exporter (MuJoCo): nested bodies, hinge/slide joints, per-link meshes.
 
-``mobility.xml`` plus ``meshes/link_<id>.obj`` (each link's leaf meshes merged, mesh frame),
+``mobility.xml`` plus ``meshes/link_<id>.obj`` (each link's leaf meshes merged, mesh frame:
+the visual geom, group 1, no contacts) and ``meshes/link_<id>_collision_<k>.obj`` (its V-HACD
+convex pieces, :func:`kinmo.export.urdf.convex_pieces`: the collision geoms, group 3; MuJoCo
+collides convex shapes only, and the hull of a whole cabinet would fill its drawers' space),
 written for and loaded by ``mujoco.MjModel.from_xml_path``.
 
 Mapping (the frames of :mod:`kinmo.urdf`: world = mesh frame, y-up, mesh units; MuJoCo's
@@ -36,8 +39,13 @@ def _xyz(v) -> str:
     return " ".join(repr(float(c) + 0.0) for c in v)
 
 
-def mjcf_string(ctx: ExportContext, meshes: dict[int, str]) -> str:
-    """The MJCF XML of ``ctx`` (module docs); ``meshes``: link id -> mesh file name."""
+def mjcf_string(ctx: ExportContext, meshes: dict[int, str],
+                collision: dict[int, list[str]] | None = None) -> str:
+    """The MJCF XML of ``ctx`` (module docs).
+
+    ``meshes``: link id -> visual mesh file name; ``collision``: link id -> convex piece file
+    names (all relative to ``meshes/``, in the mesh frame).
+    """
     from kinmo.urdf import link_frame_origins, urdf_joints
 
     joints = urdf_joints(ctx.links, ctx.shape.path)
@@ -45,8 +53,12 @@ def mjcf_string(ctx: ExportContext, meshes: dict[int, str]) -> str:
     root = ET.Element("mujoco", model=ctx.name)
     ET.SubElement(root, "compiler", angle="radian", meshdir="meshes", inertiafromgeom="false")
     asset = ET.SubElement(root, "asset")
+    collision = collision or {}
     for lid, fname in sorted(meshes.items()):
         ET.SubElement(asset, "mesh", name=f"link_{lid}", file=fname, inertia="shell")
+        for k, piece in enumerate(collision.get(lid, [])):
+            ET.SubElement(asset, "mesh", name=f"link_{lid}_collision_{k}", file=piece,
+                          inertia="shell")
     world = ET.SubElement(root, "worldbody")
     bodies: dict[str, ET.Element] = {"base": world}
     by_id = {l.id: l for l in ctx.links}
@@ -78,6 +90,10 @@ def mjcf_string(ctx: ExportContext, meshes: dict[int, str]) -> str:
         if lid in meshes:
             ET.SubElement(body, "geom", name=f"link_{lid}", type="mesh", mesh=f"link_{lid}",
                           pos=_xyz(-frames[lid]), contype="0", conaffinity="0", group="1")
+            for k in range(len(collision.get(lid, []))):
+                ET.SubElement(body, "geom", name=f"link_{lid}_collision_{k}", type="mesh",
+                              mesh=f"link_{lid}_collision_{k}", pos=_xyz(-frames[lid]),
+                              group="3", rgba="0.5 0.5 0.5 0")
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"
 
@@ -88,19 +104,20 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
     Returns
     -------
     list of Path
-        The MJCF file, then the mesh files.
+        The MJCF file, then the mesh files (visual and convex collision pieces).
 
     Raises
     ------
     KinmoDataError
         Inconsistent links (as :func:`kinmo.urdf.urdf_joints`) or unreadable meshes.
     """
-    from kinmo.export.urdf import _write_obj
+    from kinmo.export.urdf import _write_obj, convex_pieces
 
     mdir = ctx.out_dir / "meshes"
     mdir.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
     names: dict[int, str] = {}
+    collision: dict[int, list[str]] = {}
     for lid, m in ctx.meshes.items():
         if len(m.faces) == 0:
             continue
@@ -109,11 +126,14 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
             _write_obj(tmp, m.vertices, m.faces)
         files.append(p)
         names[lid] = p.name
+        pieces = convex_pieces(m, mdir / f"link_{lid}_collision")
+        files.extend(pieces)
+        collision[lid] = [q.name for q in pieces]
     path = ctx.out_dir / "mobility.xml"
-    write_text(path, mjcf_string(ctx, names))
+    write_text(path, mjcf_string(ctx, names, collision))
     return [path] + files
 
 
-@register("mjcf", "MJCF (MuJoCo): nested bodies, hinge/slide joints, OBJ meshes")
+@register("mjcf", "MJCF (MuJoCo): nested bodies, hinge/slide joints, OBJ meshes, convex collision")
 def _mjcf(ctx: ExportContext) -> list[Path]:
     return write_mjcf(ctx)
