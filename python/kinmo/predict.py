@@ -338,8 +338,10 @@ def predict_dataset(
 
     from kinmo.data.readers import find_shapes, read_shape
 
+    from kinmo.io import output_dir
+
     data = Path(data)
-    out = Path(out)
+    out = output_dir(out)
     r = run if isinstance(run, Run) else load_run(run, device)
     axis_net = None
     if axis_model is not None:
