@@ -332,7 +332,7 @@ def predict_dataset(
     Raises
     ------
     KinmoDataError
-        ``data`` holds no shape folder, or the run cannot be loaded.
+        ``data`` holds no shape folder, ``out`` is a file, or the run cannot be loaded.
     """
     from rich.progress import Progress
 

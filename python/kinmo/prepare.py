@@ -13,13 +13,20 @@ processes, and writes:
   :data:`MANIFEST_COLUMNS`), status ``ok`` (built now), ``skipped`` (cache up to date) or
   ``failed`` (with the one-line reason, naming the file), rewritten atomically as shapes
   complete (at most every :data:`MANIFEST_INTERVAL_S` seconds, and at the end).
+  ``manifest.json`` says whether the run finished (``complete``): a run writes
+  ``complete: false`` before its first shape, so a run killed at any point leaves an
+  incomplete manifest, and readers (:func:`check_manifest`, used by
+  :func:`kinmo.train.gnn.load_cache`) refuse it, saying how many shapes are missing and how
+  to resume.
 
 Resume: a shape is skipped when its ``.npz`` exists and records the same cache version
 (:data:`kinmo.data.graph.CACHE_VERSION`), the same configuration (:class:`PrepareConfig`)
 and the same source fingerprint (:func:`source_fingerprint`: names, sizes and modification
-times of every file of the shape folder). The decision reads the ``.npz`` itself, not the
-manifest, so an interrupted run (stray ``.tmp`` files, which are removed at start; manifest
-rows without a cache file) resumes correctly. One run at a time per cache folder (a lock
+times of every file of the shape folder), and is intact (read whole, its arrays' checksum
+checked, :meth:`kinmo.data.graph.PartGraph.load`: a damaged file is rebuilt, never called
+up to date). The decision reads the ``.npz`` itself, not the manifest, so an interrupted
+run (stray ``.tmp`` files, which are removed at start; manifest rows without a cache file)
+resumes correctly. One run at a time per cache folder (a lock
 file, ``.lock``, enforces it).
 
 Parallelism: :func:`prepare_one` is a pure function of picklable arguments returning a
@@ -27,6 +34,11 @@ Parallelism: :func:`prepare_one` is a pure function of picklable arguments retur
 input. :func:`prepare_dataset` maps it over the shapes with :func:`kinmo.parallel.map_unordered`
 (a ``spawn`` process pool, so Rust thread pools are never forked); the same function can be
 shipped unchanged to another executor (e.g. ``ray.remote(prepare_one)``) for cluster runs.
+
+Odd input: a shape that fails (a mesh without faces included, even one of several of a
+part) is a ``failed`` row naming the file; file and folder names that are not UTF-8 are kept
+(surrogateescape: ``manifest.csv`` holds their bytes, ``manifest.json`` has ``\\udcxx``
+escapes); an ``out`` that is a file is a :class:`~kinmo.errors.KinmoDataError`.
 
 Default cache folder (:func:`default_cache_dir`): ``./cache/<name of the dataset folder>``
 relative to the current directory.

@@ -212,6 +212,8 @@ def generate_dataset(
     ------
     ValueError
         Bad ``n``, ``seed`` or category names.
+    KinmoDataError
+        ``out`` exists and is not a folder.
     OSError
         ``out`` cannot be written.
     """
