@@ -130,3 +130,14 @@ def test_prepare_killed_leaves_no_process_and_an_incomplete_manifest(tmp_path: P
     if sig == signal.SIGTERM:
         assert proc.returncode == 128 + signal.SIGTERM
         assert "Traceback" not in (tmp_path / "log.txt").read_text()
+
+
+def test_the_parent_check_leaves_non_workers_alone() -> None:
+    """The pool initializer ties only spawn children of the caller to it: run here (as an
+    executor of threads would) it just calls the caller's initializer."""
+    from kinmo.parallel import _start_worker
+
+    seen = []
+    _start_worker(os.getpid(), seen.append, (1,))
+    _start_worker(os.getppid(), seen.append, (2,))  # not our multiprocessing parent either
+    assert seen == [1, 2]
