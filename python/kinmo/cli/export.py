@@ -39,13 +39,13 @@ def export_cmd(
     """
     from rich.console import Console
 
+    from kinmo.cli._errors import cli_errors
     from kinmo.data.readers import find_shapes
-    from kinmo.errors import KinmoError
     from kinmo.export import export_folder
 
     check_formats(fmt)
-    console, err = Console(), Console(stderr=True)
-    try:
+    console = Console()
+    with cli_errors(1):
         if source is not None or not find_shapes(src):
             if (src / "mobility_v2.json").is_file():  # one predicted folder
                 files = export_folder(src, out, fmt, source=source)
@@ -63,8 +63,5 @@ def export_cmd(
         for folder in folders:
             files = export_folder(folder, out if single else out / folder.name, fmt)
             n += sum(len(v) for v in files.values())
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(1) from None
     console.print(f"exported {len(folders)} object(s) as {', '.join(dict.fromkeys(fmt))}: "
                   f"{n} file(s) -> {out}", highlight=False)

@@ -39,7 +39,7 @@ def predict_cmd(
     """
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, printable
     from kinmo.mobility_tree import TreeOptions
     from kinmo.predict import predict_dataset
 
@@ -47,7 +47,7 @@ def predict_cmd(
     err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
     check_formats(fmt)
-    try:
+    with cli_errors(1):
         from kinmo.user_input import is_user_input, predict_user_input
 
         kw = dict(device=device, options=TreeOptions((0.0, hinge_max), slider_fraction),
@@ -56,13 +56,10 @@ def predict_cmd(
             rows = predict_user_input(data, model, out, formats=fmt or None, **kw)
         else:
             rows = predict_dataset(data, model, out, cache=cache, formats=fmt or None, **kw)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     ok = [r for r in rows if r.status == "ok"]
     bad = [r for r in rows if r.status != "ok"]
     console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {out}")
     for r in bad:
-        err.print(f"[red]failed[/] {r.id}: {r.error}")
+        err.print(f"[red]failed[/] {printable(r.id)}: {printable(r.error)}")
     if bad:
         raise typer.Exit(1)

@@ -24,14 +24,11 @@ def view_cmd(
     """
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.view import view_folder
 
-    try:
+    with cli_errors(1):
         page = view_folder(folder, out, source=source, truth=truth)
-    except KinmoError as e:
-        Console(stderr=True).print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(1) from None
     Console().print(f"viewer -> {page}", highlight=False)
     if open_page:
         import webbrowser
