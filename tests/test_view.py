@@ -47,6 +47,32 @@ def test_view_page_is_self_contained(mobility_root: Path, tmp_path: Path):
     assert '"name":"joint_0"' in page
 
 
+def test_page_moves_links_as_mobility_v2_says(mobility_root: Path, tmp_path: Path, chromium: str):
+    """The page's own kinematics (JavaScript) against kinmo.export.kinematics, for a hinge and
+    a cylindrical joint (two sliders)."""
+    import json
+    import html as htmlmod
+
+    from kinmo.data.readers import read_shape
+    from kinmo.export.kinematics import link_poses
+
+    for oid, hash_, values in (("11700", "joint_0=1.1", {0: 1.1}),
+                               ("3596", "joint_1=0.05&joint_1_rotation=2.0", {1: (0.05, 2.0)})):
+        out = tmp_path / f"{oid}.html"
+        assert CliRunner().invoke(app, ["view", str(mobility_root / oid), "--out", str(out)]).exit_code == 0
+        res = headless(chromium, tmp_path / oid, "--virtual-time-budget=15000", "--dump-dom",
+                       out.as_uri() + "#" + hash_)
+        m = re.search(r'data-poses="([^"]+)"', res.stdout)
+        assert m, res.stderr[-2000:]
+        got = json.loads(htmlmod.unescape(m.group(1)))
+        want = link_poses(read_shape(mobility_root / oid).links, values)
+        assert set(got) == {str(k) for k in want}
+        for lid, T in want.items():
+            np.testing.assert_allclose(np.array(got[str(lid)]["R"]).reshape(3, 3), T[:3, :3], atol=1e-9)
+            np.testing.assert_allclose(got[str(lid)]["p"], T[:3, 3], atol=1e-9)
+        assert any(not np.allclose(T, np.eye(4)) for T in want.values())
+
+
 def test_moving_a_joint_changes_the_view_only_where_the_part_is(
         mobility_root: Path, tmp_path: Path, chromium: str):
     out = tmp_path / "v.html"

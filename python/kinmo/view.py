@@ -98,6 +98,7 @@ function kinmoView(divId, data) {
     line: {color: a.kind === 'true' ? '#111111' : a.color, width: 6, dash: a.kind === 'true' ? 'dash' : 'solid'}}));
   function geometry() {
     const P = poses(), xs = [], ys = [], zs = [];
+    div.setAttribute('data-poses', JSON.stringify(P));  // read back by the tests
     links.forEach(l => {
       const T = P[l.id], n = l.x.length, X = new Array(n), Y = new Array(n), Z = new Array(n);
       for (let q = 0; q < n; q++) {
