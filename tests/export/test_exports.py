@@ -287,6 +287,10 @@ def test_cli_export_writes_formats_and_rejects_unknown(mobility_root: Path, tmp_
                                  "--out", str(tmp_path / "p")])
     assert r.exit_code == 2 and "unknown format" in r.output
     assert not (tmp_path / "p").exists()
+    (tmp_path / "file").write_text("x")
+    r = CliRunner().invoke(app, ["export", str(mobility_root / "3596"), "--format", "usd",
+                                 "--out", str(tmp_path / "file")])
+    assert r.exit_code == 1 and "is not a folder" in r.output and "Traceback" not in r.output
 
 
 def test_cli_export_of_a_predicted_folder_needs_its_source(mobility_root: Path, tmp_path: Path):

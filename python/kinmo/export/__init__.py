@@ -157,7 +157,8 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
     Raises
     ------
     KinmoDataError
-        An unknown format, no links, or a problem of the object (message names the folder).
+        An unknown format, no links, ``out_dir`` is a file, or a problem of the object
+        (message names the folder).
     """
     _load_all()
     fmts = list(dict.fromkeys(fmts))
@@ -169,8 +170,9 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
     if not links:
         raise KinmoDataError(shape.path, "no kinematic links to export (mobility_v2.json or "
                                          "predicted motion needed)")
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    from kinmo.io import output_dir
+
+    out_dir = output_dir(out_dir)
     ctx = ExportContext(shape, links, out_dir, name or shape.id)
     return {f: EXPORTERS[f].write(ctx) for f in fmts}
 
