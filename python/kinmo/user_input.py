@@ -215,12 +215,6 @@ def read_parts(path: str | Path) -> list[Part]:
     return parts
 
 
-def _write_obj(path: Path, v: np.ndarray, f: np.ndarray) -> None:
-    from kinmo.export.urdf import _write_obj as write
-
-    write(path, v, f)
-
-
 def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown") -> Path:
     """Write the parts of ``path`` as a PartNet shape folder (module docs: hierarchy rule).
 
@@ -243,6 +237,8 @@ def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown
     KinmoDataError
         As :func:`read_parts`.
     """
+    from kinmo.export.kinematics import write_obj
+
     path, folder = Path(path), Path(folder)
     parts = read_parts(path)
     if folder.exists():
@@ -250,7 +246,7 @@ def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown
     (folder / "objs").mkdir(parents=True)
     leaves = []
     for k, (name, v, f) in enumerate(parts):
-        _write_obj(folder / "objs" / f"part_{k}.obj", v, f)
+        write_obj(folder / "objs" / f"part_{k}.obj", v, f)
         pname = _clean(name, k)
         leaves.append({"id": k + 1, "name": pname, "text": name or pname, "objs": [f"part_{k}"]})
     stem = _clean(path.stem, 0)

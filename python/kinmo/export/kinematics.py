@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -36,6 +37,7 @@ __all__ = [
     "link_meshes",
     "link_poses",
     "moving_links",
+    "write_obj",
 ]
 
 #: A joint value: a float (hinge: radians, slider: mesh units) or, for a rotating slider, a
@@ -200,3 +202,19 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
             np.concatenate(fs).astype(np.int64) if fs else np.zeros((0, 3), dtype=np.int64),
         )
     return out
+
+
+def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Write a triangle mesh as a plain Wavefront OBJ (``v`` and ``f`` lines, full precision).
+
+    Parameters
+    ----------
+    path : str or Path
+        Written directly (callers that need atomicity pass a temporary path).
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+        Zero-based indices (written one-based).
+    """
+    with open(path, "w") as fh:
+        fh.write("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in np.asarray(vertices).tolist()))
+        fh.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.asarray(faces).tolist()))

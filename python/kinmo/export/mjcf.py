@@ -111,7 +111,8 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
     KinmoDataError
         Inconsistent links (as :func:`kinmo.urdf.urdf_joints`) or unreadable meshes.
     """
-    from kinmo.export.urdf import _write_obj, convex_pieces
+    from kinmo.export.kinematics import write_obj
+    from kinmo.export.urdf import convex_pieces
 
     mdir = ctx.out_dir / "meshes"
     mdir.mkdir(parents=True, exist_ok=True)
@@ -123,7 +124,7 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
             continue
         p = mdir / f"link_{lid}.obj"
         with atomic_path(p) as tmp:
-            _write_obj(tmp, m.vertices, m.faces)
+            write_obj(tmp, m.vertices, m.faces)
         files.append(p)
         names[lid] = p.name
         pieces = convex_pieces(m, mdir / f"link_{lid}_collision")

@@ -34,7 +34,7 @@ import numpy as np
 from kinmo.data.model import Joint, JointType, Link
 from kinmo.errors import KinmoDataError
 from kinmo.export import ExportContext, register
-from kinmo.export.kinematics import LinkMesh
+from kinmo.export.kinematics import LinkMesh, write_obj
 from kinmo.io import atomic_path, write_text
 
 __all__ = ["UrdfLink", "convex_pieces", "read_urdf", "read_urdf_tree", "write_urdf_convex"]
@@ -54,12 +54,6 @@ def _cache_dir() -> Path:
     if env:
         return Path(env)
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "kinmo" / "vhacd"
-
-
-def _write_obj(path: Path, v: np.ndarray, f: np.ndarray) -> None:
-    with open(path, "w") as fh:
-        fh.write("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in v.tolist()))
-        fh.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f.tolist()))
 
 
 _VHACD_SCRIPT = (
@@ -90,7 +84,7 @@ def _hull_or_mesh(mesh: LinkMesh, src: Path, out: Path) -> None:
 
     try:
         hull = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).convex_hull
-        _write_obj(out, np.asarray(hull.vertices), np.asarray(hull.faces))
+        write_obj(out, np.asarray(hull.vertices), np.asarray(hull.faces))
     except Exception:  # qhull: no volume (a flat or degenerate part)
         shutil.copyfile(src, out)
 
@@ -157,7 +151,7 @@ def convex_pieces(mesh: LinkMesh, dest: Path, resolution: int = VHACD_RESOLUTION
         cached.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory() as tmp:
             src, out = Path(tmp) / "in.obj", Path(tmp) / "out.obj"
-            _write_obj(src, mesh.vertices, mesh.faces)
+            write_obj(src, mesh.vertices, mesh.faces)
             if not _vhacd(src, out, resolution, timeout):
                 _hull_or_mesh(mesh, src, out)
             with atomic_path(cached) as tmp_cached:
