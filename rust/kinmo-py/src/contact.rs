@@ -1,6 +1,6 @@
 //! Bindings of `kinmo_geometry::contact`: `contact_pairs`, `mesh_distance`.
 
-use kinmo_geometry::contact::{self, MeshBvh};
+use kinmo_geometry::contact;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 
@@ -48,11 +48,8 @@ fn mesh_distance(
 ) -> PyResult<f64> {
     let a = mesh_from_arrays(&vertices_a, &faces_a, "mesh_a")?;
     let b = mesh_from_arrays(&vertices_b, &faces_b, "mesh_b")?;
-    py.detach(|| {
-        let (ba, bb) = rayon::join(|| MeshBvh::from_mesh(&a), || MeshBvh::from_mesh(&b));
-        contact::mesh_distance(&ba, &bb)
-    })
-    .map_err(to_py)
+    py.detach(|| contact::mesh_distance_of_meshes(&a, &b))
+        .map_err(to_py)
 }
 
 /// Register this module's functions on `kinmo._core`.
