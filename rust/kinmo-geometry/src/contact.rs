@@ -6,13 +6,14 @@
 //!
 //! The pipeline of [`contact_pairs`], on parry3d-f64:
 //!
-//! 1. one `parry3d_f64::shape::TriMesh` per mesh, with parry's bounding volume hierarchy
-//!    of its triangles ([`MeshBvh`]);
+//! 1. one parry `Bvh` per mesh over its triangle AABBs (the hierarchy of parry's
+//!    `TriMesh`, binned SAH build) ([`MeshBvh`]);
 //! 2. broad phase: a parry `Bvh` over the mesh AABBs, each loosened by `tolerance / 2`,
 //!    queried with each mesh's loosened AABB, then the exact AABB distance test;
 //! 3. narrow phase, over the candidate pairs: parry's simultaneous traversal of the two
-//!    hierarchies (`Bvh::leaf_pairs`) pruning every pair of nodes farther apart than the
-//!    best distance found so far (initially `tolerance`), with an exact triangle-triangle
+//!    hierarchies (`Bvh::leaf_pairs`), first over overlapping node pairs only (do the
+//!    surfaces touch?), then pruning every pair of nodes farther apart than the best
+//!    distance found so far (initially `tolerance`), with an exact triangle-triangle
 //!    distance at the leaves. It stops as soon as the surfaces are found to touch, and
 //!    otherwise returns the true minimum distance of the pairs within `tolerance`.
 //!
@@ -41,7 +42,6 @@ use std::cell::Cell;
 use nalgebra::{Point3, Vector3};
 use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhNode};
-use parry3d_f64::shape::TriMesh as ParryMesh;
 use rayon::prelude::*;
 
 use crate::error::{GeometryError, Result};
@@ -88,7 +88,12 @@ fn box_distance2(a: &Aabb, b: &Aabb) -> f64 {
 /// as its edges. A mesh without faces has no surface ([`MeshBvh::is_empty`]).
 #[derive(Clone)]
 pub struct MeshBvh {
-    mesh: Option<ParryMesh>,
+    /// parry's hierarchy over the triangle AABBs (leaf `i`: triangle `i`); `None` when
+    /// the mesh has no triangle.
+    bvh: Option<Bvh>,
+    /// Corners and unnormalised normal `(b - a) × (c - a)` of each triangle, in parry's
+    /// triangle order (contiguous, so the leaves read no index buffer).
+    triangles: Vec<([Point3<f64>; 3], Vector3<f64>)>,
 }
 
 impl std::fmt::Debug for MeshBvh {
@@ -143,25 +148,41 @@ impl MeshBvh {
     /// Build the hierarchy of `mesh` with every coordinate multiplied by `scale` (a power
     /// of two in this module, so the scaling is exact).
     fn from_mesh_scaled(mesh: &TriMesh, scale: f64) -> MeshBvh {
-        if mesh.faces().is_empty() {
-            return MeshBvh { mesh: None };
+        let v = mesh.vertices();
+        let triangles: Vec<([Point3<f64>; 3], Vector3<f64>)> = mesh
+            .faces()
+            .iter()
+            .map(|f| {
+                let t = [v[f[0] as usize], v[f[1] as usize], v[f[2] as usize]].map(|p| p * scale);
+                (t, normal(&t))
+            })
+            .collect();
+        if triangles.is_empty() {
+            return MeshBvh {
+                bvh: None,
+                triangles,
+            };
         }
-        let v: Vec<Point3<f64>> = mesh.vertices().iter().map(|p| p * scale).collect();
-        // `TriMesh` guarantees finite vertices, in-range indices and a non-empty index
-        // buffer, the only things parry's constructor checks.
+        // The hierarchy parry's `TriMesh` builds (binned SAH over the triangle AABBs),
+        // without the rest of `TriMesh` (copies of the buffers), which no query here uses.
+        let boxes: Vec<Aabb> = triangles
+            .iter()
+            .map(|(t, _)| Aabb::from_points(t.iter().copied()))
+            .collect();
         MeshBvh {
-            mesh: ParryMesh::new(v, mesh.faces().to_vec()).ok(),
+            bvh: Some(Bvh::from_leaves(BvhBuildStrategy::Binned, &boxes)),
+            triangles,
         }
     }
 
     /// Number of triangles.
     pub fn num_triangles(&self) -> usize {
-        self.mesh.as_ref().map_or(0, |m| m.indices().len())
+        self.triangles.len()
     }
 
     /// True when the mesh has no triangle (no surface).
     pub fn is_empty(&self) -> bool {
-        self.mesh.is_none()
+        self.bvh.is_none()
     }
 
     /// Axis-aligned bounding box `(mins, maxs)`, `None` for an empty mesh.
@@ -170,14 +191,7 @@ impl MeshBvh {
     }
 
     fn root_aabb(&self) -> Option<Aabb> {
-        self.mesh.as_ref().map(|m| m.local_aabb())
-    }
-
-    /// Corners of triangle `i`.
-    #[inline]
-    fn triangle(mesh: &ParryMesh, i: u32) -> [Point3<f64>; 3] {
-        let t = mesh.triangle(i);
-        [t.a, t.b, t.c]
+        self.bvh.as_ref().map(Bvh::root_aabb)
     }
 }
 
@@ -187,20 +201,35 @@ impl MeshBvh {
 /// the best distance so far; returns as soon as a distance of 0 is found.
 /// `bound2 = INFINITY` gives the unconditional minimum.
 fn min_distance2_within(a: &MeshBvh, b: &MeshBvh, bound2: f64) -> Option<f64> {
-    let (Some(ma), Some(mb)) = (&a.mesh, &b.mesh) else {
+    let (Some(ta), Some(tb)) = (&a.bvh, &b.bvh) else {
         return None;
     };
-    if box_distance2(&ma.local_aabb(), &mb.local_aabb()) > bound2 {
+    if box_distance2(&ta.root_aabb(), &tb.root_aabb()) > bound2 {
         return None;
+    }
+    // First pass: do the surfaces touch? Only overlapping node pairs are visited, and most
+    // touching parts are found here at a fraction of the cost of the bounded search.
+    let overlap = |na: &BvhNode, nb: &BvhNode| aabb_distance2(&na.mins(), &na.maxs(), nb) <= 0.0;
+    for (ia, ib) in ta.leaf_pairs(tb, overlap) {
+        if let (Some((pa, na)), Some((pb, nb))) =
+            (a.triangles.get(ia as usize), b.triangles.get(ib as usize))
+        {
+            if triangle_distance2_below((pa, na), (pb, nb), 0.0) <= 0.0 {
+                return Some(0.0);
+            }
+        }
     }
     let best2 = Cell::new(bound2);
     let mut found = false;
     let check =
         |na: &BvhNode, nb: &BvhNode| aabb_distance2(&na.mins(), &na.maxs(), nb) <= best2.get();
-    for (ia, ib) in ma.bvh().leaf_pairs(mb.bvh(), check) {
-        let (ta, tb) = (MeshBvh::triangle(ma, ia), MeshBvh::triangle(mb, ib));
-        let (na, nb) = (normal(&ta), normal(&tb));
-        let t2 = triangle_distance2_below((&ta, &na), (&tb, &nb), best2.get());
+    for (ia, ib) in ta.leaf_pairs(tb, check) {
+        let (Some((ta, na)), Some((tb, nb))) =
+            (a.triangles.get(ia as usize), b.triangles.get(ib as usize))
+        else {
+            continue;
+        };
+        let t2 = triangle_distance2_below((ta, na), (tb, nb), best2.get());
         if t2 <= best2.get() {
             best2.set(t2);
             found = true;
@@ -776,8 +805,7 @@ mod tests {
             let got = mesh_distance(&a, &b).expect("ok");
             let mut brute = f64::INFINITY;
             let tris = |m: &MeshBvh| -> Vec<[Point3<f64>; 3]> {
-                let m = m.mesh.as_ref().expect("non-empty");
-                m.triangles().map(|t| [t.a, t.b, t.c]).collect()
+                m.triangles.iter().map(|t| t.0).collect()
             };
             for ta in &tris(&a) {
                 for tb in &tris(&b) {

@@ -52,16 +52,43 @@ fn check_points(points: &[Point3<f64>], what: &str) -> Result<()> {
     Ok(())
 }
 
-/// Mask of the points of `query` within squared distance `r2` of a point of `tree`.
-fn mask_within(query: &[Point3<f64>], tree: &KdTree, r2: f64) -> Vec<bool> {
+/// Mask of the points of `query` within squared distance `r2` of a point of `tree`, whose
+/// points have the bounding box `(lo, hi)`: points farther than that from the box are
+/// rejected without a tree query.
+fn mask_within(
+    query: &[Point3<f64>],
+    tree: &KdTree,
+    (lo, hi): (Point3<f64>, Point3<f64>),
+    r2: f64,
+) -> Vec<bool> {
     query
         .iter()
         .map(|p| {
-            tree.nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z])
-                .distance
-                <= r2
+            let mut d2 = 0.0;
+            for k in 0..3 {
+                let gap = (lo[k] - p[k]).max(p[k] - hi[k]);
+                if gap > 0.0 {
+                    d2 += gap * gap;
+                }
+            }
+            d2 <= r2
+                && tree
+                    .nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z])
+                    .distance
+                    <= r2
         })
         .collect()
+}
+
+/// Component-wise bounding box of a non-empty point set.
+fn bounds(points: &[Point3<f64>]) -> (Point3<f64>, Point3<f64>) {
+    points.iter().fold(
+        (
+            Point3::from([f64::INFINITY; 3]),
+            Point3::from([f64::NEG_INFINITY; 3]),
+        ),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    )
 }
 
 /// Interaction region of a moving part and its reference part.
@@ -91,7 +118,7 @@ pub fn interaction_region(
     check_points(reference, "reference")?;
     let r2 = radius * radius;
     let tree_ref = kd_tree(reference);
-    let mask_moving = mask_within(moving, &tree_ref, r2);
+    let mask_moving = mask_within(moving, &tree_ref, bounds(reference), r2);
     if !mask_moving.iter().any(|&m| m) {
         // Nothing within radius: midpoint of the closest pair.
         let mut best: Option<(usize, u32, f64)> = None;
@@ -113,7 +140,7 @@ pub fn interaction_region(
         });
     }
     let tree_mov = kd_tree(moving);
-    let mask_reference = mask_within(reference, &tree_mov, r2);
+    let mask_reference = mask_within(reference, &tree_mov, bounds(moving), r2);
     let mut sum = nalgebra::Vector3::zeros();
     let mut count = 0usize;
     for (pts, mask) in [(moving, &mask_moving), (reference, &mask_reference)] {
