@@ -139,6 +139,16 @@ pub struct SweepResult {
     pub colliding_fraction: [f64; 2],
 }
 
+/// Rest state of a point: its clearance and, within `skin`, its contact.
+#[derive(Debug, Clone, Copy)]
+struct Rest {
+    /// Distance to the obstacle surface at rest (no crossing before the point has moved
+    /// this far: steps inside that ball are not cast).
+    clearance: f64,
+    /// The contact, when `clearance <= skin`.
+    contact: Option<Contact>,
+}
+
 /// Rest state of a point in contact with the obstacle.
 #[derive(Debug, Clone, Copy)]
 struct Contact {
@@ -225,10 +235,10 @@ impl SweepObstacle {
             ]);
         };
         let skin = params.skin;
-        // Rest contacts, once per call, shared by every candidate.
-        let contacts: Vec<Option<Contact>> = points
+        // Rest clearances and contacts, once per call, shared by every candidate.
+        let rests: Vec<Rest> = points
             .par_iter()
-            .map(|p| rest_contact(mesh, p, skin))
+            .map(|p| rest_state(mesh, p, skin))
             .collect();
         let eps = 1e-9 * self.diagonal.max(1e-12);
         let tasks: Vec<(usize, usize)> = (0..candidates.len())
@@ -242,13 +252,11 @@ impl SweepObstacle {
                 let path = Path::new(cand, &axes[c], sign, params.n_steps);
                 points
                     .par_chunks(POINT_CHUNK)
-                    .zip(contacts.par_chunks(POINT_CHUNK))
-                    .flat_map_iter(|(ps, cs)| {
+                    .zip(rests.par_chunks(POINT_CHUNK))
+                    .flat_map_iter(|(ps, rs)| {
                         ps.iter()
-                            .zip(cs)
-                            .map(|(p, contact)| {
-                                path.first_hit(mesh, p, contact.as_ref(), skin, eps)
-                            })
+                            .zip(rs)
+                            .map(|(p, rest)| path.first_hit(mesh, p, rest, skin, eps))
                             .collect::<Vec<f64>>()
                     })
                     .collect()
@@ -356,6 +364,7 @@ pub fn line_mesh_distance(
 /// The stepped path of one candidate sign.
 struct Path {
     kind: MotionKind,
+    origin: Point3<f64>,
     axis: Unit<Vector3<f64>>,
     /// Signed motion per step (radians or mesh units).
     step: f64,
@@ -373,6 +382,7 @@ impl Path {
         };
         Self {
             kind: cand.kind,
+            origin: cand.origin,
             axis: *axis,
             step,
             n_steps,
@@ -385,23 +395,34 @@ impl Path {
         &self,
         mesh: &ParryMesh,
         p: &Point3<f64>,
-        contact: Option<&Contact>,
+        rest: &Rest,
         skin: f64,
         eps: f64,
     ) -> f64 {
         let n = self.n_steps as f64;
+        let contact = rest.contact.as_ref();
         match self.kind {
             MotionKind::Prismatic => {
                 // Collinear steps: one segment over the whole range is the same test.
+                if (self.step * n).abs() < rest.clearance {
+                    return f64::INFINITY;
+                }
                 let end = p + self.axis.as_ref() * (self.step * n);
                 cast_segment(mesh, p, &end, p, contact, skin, true, eps).unwrap_or(f64::INFINITY)
             }
             MotionKind::Revolute => {
+                // Arc length per step; segments ending within the rest clearance (path
+                // length so far below it) cannot cross the obstacle and are not cast.
+                let v = p - self.origin;
+                let radius = (v - self.axis.as_ref() * v.dot(&self.axis)).norm();
+                let arc = radius * self.step.abs();
                 let mut a = *p;
                 for k in 0..self.n_steps {
                     let b = self.step_motion.apply(&a);
-                    if let Some(f) = cast_segment(mesh, &a, &b, p, contact, skin, k == 0, eps) {
-                        return (k as f64 + f) / n;
+                    if (k + 1) as f64 * arc >= rest.clearance {
+                        if let Some(f) = cast_segment(mesh, &a, &b, p, contact, skin, k == 0, eps) {
+                            return (k as f64 + f) / n;
+                        }
                     }
                     a = b;
                 }
@@ -468,22 +489,28 @@ fn cast_segment(
     None
 }
 
-/// The rest contact of a point, or None when it is farther than `skin` from the obstacle.
-fn rest_contact(mesh: &ParryMesh, p: &Point3<f64>, skin: f64) -> Option<Contact> {
+/// The rest clearance of a point, and its contact when within `skin` of the obstacle.
+fn rest_state(mesh: &ParryMesh, p: &Point3<f64>, skin: f64) -> Rest {
     let (proj, feature) = mesh.project_local_point_and_get_feature(p);
-    let d = (p - proj.point).norm();
-    if d > skin {
-        return None;
+    let clearance = (p - proj.point).norm();
+    if clearance > skin {
+        return Rest {
+            clearance,
+            contact: None,
+        };
     }
     let normal = match feature {
         FeatureId::Face(id) if (id as usize) < mesh.indices().len() => mesh.triangle(id).normal(),
         _ => None,
     }
     .or_else(|| Unit::try_new(p - proj.point, 1e-12));
-    Some(Contact {
-        closest: proj.point,
-        normal,
-    })
+    Rest {
+        clearance,
+        contact: Some(Contact {
+            closest: proj.point,
+            normal,
+        }),
+    }
 }
 
 /// Validate the points, candidates and parameters of a sweep.
