@@ -150,6 +150,8 @@ def test_reversed_direction_swaps_the_signs():
         ({"n_steps": 10**9}, "n_steps"),
         ({"skin": -1.0}, "skin"),
         ({"hit_tolerance": 1.0}, "hit_tolerance"),
+        ({"moving_points": np.full((2, 3), 1e13)}, "exceeds"),
+        ({"ranges": [1e13], "kinds": [PRISMATIC]}, "prismatic range"),
     ],
 )
 def test_bad_input_is_a_value_error_naming_the_argument(kwargs, message):

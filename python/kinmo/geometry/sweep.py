@@ -135,8 +135,9 @@ def sweep_collisions(
     ValueError
         Wrong shapes or lengths, NaN/inf, face indices out of range, ``P = 0``, ``C = 0``, a
         zero-length direction, an unknown kind, a negative range (or a revolute one above
-        2π), bad ``n_steps`` / ``skin`` / ``hit_tolerance``, or more than 2**34 casts; the
-        message names the argument.
+        2π, a prismatic one above 1e12), bad ``n_steps`` / ``skin`` / ``hit_tolerance``, a
+        coordinate beyond 1e12 in magnitude, or more than 2**34 casts; the message names the
+        argument.
     """
     p = _f64(moving_points)
     v = _f64(obstacle_vertices)
@@ -184,7 +185,7 @@ def line_mesh_distance(
     Raises
     ------
     ValueError
-        Wrong shapes, NaN/inf, indices out of range, a zero-length direction, or a mesh
-        without faces.
+        Wrong shapes, NaN/inf, indices out of range, a coordinate beyond 1e12 in magnitude, a
+        zero-length direction, or a mesh without faces.
     """
     return _core.line_mesh_distance(_f64(origins), _f64(directions), _f64(vertices), _faces(faces))

@@ -67,6 +67,10 @@ pub const MAX_STEPS: usize = 4096;
 /// Most ray casts (`P * C * 2 * n_steps`) accepted by one call (guards absurd inputs).
 pub const MAX_CASTS: u128 = 1 << 34;
 
+/// Largest coordinate magnitude accepted (mesh units): beyond it squared distances overflow
+/// and parry's queries are no longer defined.
+pub const MAX_COORDINATE: f64 = 1e12;
+
 /// Points per parallel work item inside one candidate sign.
 const POINT_CHUNK: usize = 64;
 
@@ -181,12 +185,16 @@ impl std::fmt::Debug for SweepObstacle {
 impl SweepObstacle {
     /// Prepare an obstacle (builds parry's BVH). A mesh without faces is a valid, empty
     /// obstacle.
-    pub fn new(mesh: &TriMesh) -> Self {
+    ///
+    /// # Errors
+    /// [`GeometryError::Invalid`] for a vertex coordinate beyond [`MAX_COORDINATE`].
+    pub fn new(mesh: &TriMesh) -> Result<Self> {
+        check_magnitude(mesh.vertices(), "obstacle vertices")?;
         if mesh.n_faces() == 0 {
-            return Self {
+            return Ok(Self {
                 mesh: None,
                 diagonal: 0.0,
-            };
+            });
         }
         let diagonal = mesh
             .bounds()
@@ -195,7 +203,7 @@ impl SweepObstacle {
         // `TriMesh::new` guarantees finite vertices and in-range indices; parry only
         // refuses an empty index buffer, excluded above.
         let mesh = ParryMesh::new(mesh.vertices().to_vec(), mesh.faces().to_vec()).ok();
-        Self { mesh, diagonal }
+        Ok(Self { mesh, diagonal })
     }
 
     /// Number of obstacle triangles.
@@ -343,7 +351,7 @@ pub fn sweep_collisions(
     // Validate before paying for the BVH.
     check_params(points, candidates, params)?;
     candidate_axes(candidates)?;
-    SweepObstacle::new(obstacle).sweep(points, candidates, params)
+    SweepObstacle::new(obstacle)?.sweep(points, candidates, params)
 }
 
 /// Distance from each infinite line to a mesh surface: `(C,)` mesh units.
@@ -358,7 +366,7 @@ pub fn line_mesh_distance(
     mesh: &TriMesh,
 ) -> Result<Vec<f64>> {
     line_axes(origins, directions)?;
-    SweepObstacle::new(mesh).line_distance(origins, directions)
+    SweepObstacle::new(mesh)?.line_distance(origins, directions)
 }
 
 /// The stepped path of one candidate sign.
@@ -530,6 +538,7 @@ fn check_params(
         ));
     }
     crate::mesh::check_finite(points, "moving_points")?;
+    check_magnitude(points, "moving_points")?;
     if params.n_steps == 0 || params.n_steps > MAX_STEPS {
         return Err(GeometryError::Invalid(format!(
             "n_steps: {} is outside 1..={MAX_STEPS}",
@@ -568,6 +577,12 @@ fn check_params(
                 c.range
             )));
         }
+        if c.kind == MotionKind::Prismatic && c.range > MAX_COORDINATE {
+            return Err(GeometryError::Invalid(format!(
+                "ranges[{i}]: prismatic range {} exceeds {MAX_COORDINATE:e} mesh units",
+                c.range
+            )));
+        }
         if c.kind == MotionKind::Revolute && c.range > std::f64::consts::TAU + 1e-9 {
             return Err(GeometryError::Invalid(format!(
                 "ranges[{i}]: revolute range {} rad exceeds 2 pi",
@@ -598,6 +613,7 @@ fn line_axes(
         });
     }
     crate::mesh::check_finite(origins, "origins")?;
+    check_magnitude(origins, "origins")?;
     for (i, d) in directions.iter().enumerate() {
         if let Some(k) = d.iter().position(|x| !x.is_finite()) {
             return Err(GeometryError::NonFinite {
@@ -610,17 +626,31 @@ fn line_axes(
         .iter()
         .enumerate()
         .map(|(i, d)| {
-            let norm = d.norm();
-            let u = d / norm;
-            if norm > 0.0 && u.iter().all(|x| x.is_finite()) {
-                Ok(Unit::new_unchecked(u))
-            } else {
-                Err(GeometryError::Degenerate(format!(
+            // Scale by the largest component first: any finite non-zero vector normalises.
+            let big = d.amax();
+            let u = if big > 0.0 { d / big } else { *d };
+            match Unit::try_new(u, 0.0) {
+                Some(u) => Ok(u),
+                None => Err(GeometryError::Degenerate(format!(
                     "directions[{i}]: zero-length axis direction of candidate {i}"
-                )))
+                ))),
             }
         })
         .collect()
+}
+
+/// Error when a coordinate of `points` exceeds [`MAX_COORDINATE`] in magnitude.
+fn check_magnitude(points: &[Point3<f64>], what: &str) -> Result<()> {
+    match points
+        .iter()
+        .flat_map(|p| p.coords.iter().copied())
+        .position(|x| x.abs() > MAX_COORDINATE)
+    {
+        Some(index) => Err(GeometryError::Invalid(format!(
+            "{what}: coordinate at flat index {index} exceeds {MAX_COORDINATE:e} in magnitude"
+        ))),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]
@@ -1027,5 +1057,92 @@ mod tests {
                     < 1e-9, "{:?}", r);
             }
         }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod extreme_tests {
+    use super::*;
+
+    #[test]
+    fn extreme_magnitudes_do_not_panic() {
+        for scale in [1e-300, 1e-12, 1e12, 1e150, 1e300, f64::MAX / 4.0] {
+            let v = vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(scale, 0.0, 0.0),
+                Point3::new(0.0, scale, 0.0),
+                Point3::new(0.0, 0.0, -scale),
+            ];
+            let mesh = TriMesh::new(v, vec![[0, 1, 2], [0, 2, 3], [1, 2, 3]], "m").unwrap();
+            let pts = vec![
+                Point3::new(scale / 3.0, scale / 3.0, scale),
+                Point3::origin(),
+            ];
+            for kind in [MotionKind::Revolute, MotionKind::Prismatic] {
+                let cand = SweepCandidate {
+                    origin: Point3::new(scale, -scale, 0.0),
+                    direction: Vector3::new(scale, 1.0, -scale),
+                    kind,
+                    range: if kind == MotionKind::Revolute {
+                        6.0
+                    } else {
+                        scale
+                    },
+                };
+                for skin in [0.0, scale] {
+                    let params = SweepParams {
+                        skin,
+                        ..SweepParams::default()
+                    };
+                    if let Ok(r) = sweep_collisions(&pts, &mesh, &[cand], &params) {
+                        for s in 0..2 {
+                            assert!((0.0..=1.0).contains(&r[0].free_fraction[s]));
+                            assert!((0.0..=1.0).contains(&r[0].colliding_fraction[s]));
+                        }
+                    }
+                }
+            }
+            let _ = line_mesh_distance(&[Point3::new(scale, scale, scale)], &[Vector3::x()], &mesh);
+        }
+    }
+    #[test]
+    fn degenerate_triangles_do_not_panic() {
+        let v = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(2.0, 0.0, 0.0),
+            Point3::new(0.5, 0.0, 0.0),
+        ];
+        // A point-triangle, collinear triangles, a repeated index.
+        let mesh = TriMesh::new(v, vec![[0, 0, 0], [0, 1, 2], [1, 3, 1]], "m").unwrap();
+        let pts = vec![
+            Point3::new(0.5, 0.0, 0.0),
+            Point3::new(0.5, 1.0, 0.0),
+            Point3::new(1.0, 0.0, 0.001),
+        ];
+        let cands = [
+            SweepCandidate {
+                origin: Point3::new(0.0, 0.5, 0.0),
+                direction: Vector3::z(),
+                kind: MotionKind::Revolute,
+                range: 3.0,
+            },
+            SweepCandidate {
+                origin: Point3::origin(),
+                direction: -Vector3::y(),
+                kind: MotionKind::Prismatic,
+                range: 2.0,
+            },
+        ];
+        let r = sweep_collisions(&pts, &mesh, &cands, &SweepParams::default()).unwrap();
+        for x in &r {
+            for s in 0..2 {
+                assert!((0.0..=1.0).contains(&x.free_fraction[s]));
+                assert!((0.0..=1.0).contains(&x.colliding_fraction[s]));
+            }
+        }
+        let d = line_mesh_distance(&[Point3::new(0.0, 1.0, 0.0)], &[Vector3::z()], &mesh).unwrap();
+        assert!((d[0] - 1.0).abs() < 1e-12, "{d:?}");
     }
 }

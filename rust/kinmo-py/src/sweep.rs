@@ -2,30 +2,15 @@
 
 use kinmo_geometry::sweep::{self, MotionKind, SweepCandidate, SweepObstacle, SweepParams};
 use kinmo_geometry::GeometryError;
-use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{array1, array2, floats_from_array, mesh_from_arrays, points_from_array};
+use crate::convert::{
+    array1, array2, directions_from_array, floats_from_array, mesh_from_arrays, points_from_array,
+};
 use crate::errors::to_py;
 
 type Fractions<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
-
-/// Read `directions (C, 3)` with C fixed by the origins.
-fn directions_from_array(arr: &PyReadonlyArray2<'_, f64>, c: usize) -> PyResult<Vec<Vector3<f64>>> {
-    let d: Vec<Vector3<f64>> = points_from_array(arr, "directions")?
-        .into_iter()
-        .map(|p| p.coords)
-        .collect();
-    if d.len() != c {
-        return Err(to_py(GeometryError::Shape {
-            what: "directions".to_string(),
-            expected: format!("(C, 3) with C = {c} (the number of origins)"),
-            got: format!("({}, 3)", d.len()),
-        }));
-    }
-    Ok(d)
-}
 
 /// Swept-collision feasibility of C candidate motions of one moving part, both signs.
 ///
@@ -55,7 +40,7 @@ fn sweep_collisions<'py>(
     let obstacle = mesh_from_arrays(&obstacle_vertices, &obstacle_faces, "obstacle")?;
     let o = points_from_array(&origins, "origins")?;
     let c = o.len();
-    let d = directions_from_array(&directions, c)?;
+    let d = directions_from_array(&directions, c, "directions")?;
     let kind_view = kinds.as_array();
     if kind_view.len() != c {
         return Err(to_py(GeometryError::Shape {
@@ -113,10 +98,10 @@ fn line_mesh_distance<'py>(
     faces: PyReadonlyArray2<'py, i64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let o = points_from_array(&origins, "origins")?;
-    let d = directions_from_array(&directions, o.len())?;
+    let d = directions_from_array(&directions, o.len(), "directions")?;
     let mesh = mesh_from_arrays(&vertices, &faces, "mesh")?;
     let dist = py
-        .detach(|| SweepObstacle::new(&mesh).line_distance(&o, &d))
+        .detach(|| SweepObstacle::new(&mesh)?.line_distance(&o, &d))
         .map_err(to_py)?;
     Ok(array1(py, dist))
 }
