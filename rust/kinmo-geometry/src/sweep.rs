@@ -45,6 +45,14 @@
 //!   within the range.
 //!
 //! An empty obstacle mesh (no faces) is valid: every motion is free.
+//!
+//! ## Cost
+//! One parry BVH per call (shared by the rayon tasks: candidates x signs x blocks of points)
+//! and one closest-point query per point. Steps that end within a point's rest distance to
+//! the obstacle are not cast (the path so far is shorter than that distance, so no crossing
+//! is possible: exact). A ray running exactly along a triangle edge (a moving face flush
+//! with an obstacle face) is not a crossing for parry; trimesh's inclusive test counts it
+//! (`bench/bench_sweep.py` measures both).
 
 use nalgebra::{Point3, Unit, Vector3};
 use parry3d_f64::math::Isometry;
