@@ -19,6 +19,10 @@ Timings are medians of repeats (wall and CPU of the process), reported as ratios
 of the outputs is the share of candidate-signs whose ``free_fraction`` and
 ``colliding_fraction`` differ by at most 0.02, and the largest difference.
 
+Needs ``rtree`` (trimesh's ``ray_triangle`` and ``proximity``) and ``embreex`` (Embree),
+which the test environment does not install: ``pip install rtree embreex`` first (bench-only;
+to be listed in the ``bench`` extra of ``pyproject.toml``).
+
 Usage::
 
     RAYON_NUM_THREADS=1 python bench/bench_sweep.py [--quick] [--shapes 45001,12252,...]
@@ -194,6 +198,11 @@ def run(bench: Bench, shape_ids: list[str]) -> None:
 
     from kinmo.geometry import sweep_collisions
     from kinmo.geometry.sweep import default_skin
+
+    try:
+        import rtree  # noqa: F401  (trimesh's ray_triangle and proximity need it)
+    except ImportError:
+        raise SystemExit("bench_sweep: needs rtree (and embreex): pip install rtree embreex")
 
     try:
         from trimesh.ray.ray_pyembree import RayMeshIntersector as Embree
