@@ -33,6 +33,7 @@ from kinmo.refine.selector import (
     candidate_labels,
     edge_candidates,
     fit_ranker,
+    shape_meshes,
 )
 
 __all__ = ["DEFAULT_FEATURES", "EdgeGroups", "collect_groups", "fit_selector", "fold_ids",
@@ -154,7 +155,8 @@ class EdgeGroups:
                 features=np.array(FEATURES))
 
 
-def collect_groups(predictions: Sequence, *, seed: int = 0) -> EdgeGroups:
+def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = True
+                   ) -> EdgeGroups:
     """Candidate groups of every truly moving edge that a prediction calls moving.
 
     Parameters
@@ -162,6 +164,9 @@ def collect_groups(predictions: Sequence, *, seed: int = 0) -> EdgeGroups:
     predictions : sequence of kinmo.predict.ShapePrediction
         Of labelled graphs (with :attr:`~kinmo.predict.ShapePrediction.priors`).
     seed : int
+    with_meshes : bool
+        Load each shape's meshes for the swept-collision terms
+        (:func:`~kinmo.refine.selector.shape_meshes`).
 
     Returns
     -------
@@ -177,6 +182,7 @@ def collect_groups(predictions: Sequence, *, seed: int = 0) -> EdgeGroups:
         pri = p.priors if p.priors is not None else GNNPriors(p.edges.probs, p.type_names)
         names = p.type_names
         lab = np.argmax(p.edges.probs, axis=1)
+        meshes = shape_meshes(g) if with_meshes else None
         for k, (i, j) in enumerate(np.asarray(g.sibling_edges).reshape(-1, 2)):
             t_true = FINE_TYPES[int(g.edge_fine[k])]
             t_pred = names[int(lab[k])]
@@ -185,7 +191,8 @@ def collect_groups(predictions: Sequence, *, seed: int = 0) -> EdgeGroups:
             cands, frames = edge_candidates(g, int(i), int(j), t_pred, p.edges.direction[k],
                                             p.edges.origin[k])
             x, _ = candidate_features(g, int(i), int(j), k, cands, frames, pri,
-                                      p.edges.direction[k], p.edges.origin[k], seed=seed)
+                                      p.edges.direction[k], p.edges.origin[k], None, meshes,
+                                      seed=seed)
             to, td = g.edge_axis_origin[k], g.edge_axis_direction[k]
             rev = not t_true.startswith("P_")
             y = candidate_labels(cands, to, td, float(g.scale), rev)

@@ -431,6 +431,7 @@ def select_edge(
     axis_model=None,
     config: RefineConfig | None = None,
     rng: np.random.Generator | int | None = None,
+    meshes=None,
 ) -> EdgeRefinement:
     """Refine one edge with the learned selector (:mod:`kinmo.refine.selector`).
 
@@ -449,6 +450,9 @@ def select_edge(
         Queried only when the ranker uses the ``feasibility`` feature.
     config : RefineConfig, optional
     rng : numpy Generator or int, optional
+    meshes : kinmo.refine.selector.ShapeMeshes, optional
+        The shape's leaf meshes (swept-collision terms); see
+        :func:`kinmo.refine.selector.shape_meshes`.
 
     Returns
     -------
@@ -472,7 +476,7 @@ def select_edge(
     if "feasibility" in ranker.features and axis_model is not None:
         feas, net_sign = _network_feasibility(graph, i, j, cands, axis_model, cfg, rng)
     x, sign = candidate_features(graph, i, j, edge, cands, frames, priors, gnn_direction,
-                                 gnn_origin, feas, seed=cfg.seed)
+                                 gnn_origin, feas, meshes, seed=cfg.seed)
     p = ranker.probabilities(x)
     b = int(np.argmax(p))
     sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
@@ -613,12 +617,18 @@ def refine_predictions(
         ranker = load_ranker(str(cfg.ranker))
         if priors is None:
             priors = GNNPriors(pred.type_prob, pred.type_names)
+        meshes = None
+        if moving.any() and any(f.startswith("sweep") or f == "attach_mesh"
+                                for f in ranker.features):
+            from kinmo.refine.selector import shape_meshes
+
+            meshes = shape_meshes(graph)
     for k in np.flatnonzero(moving):
         i, j = (int(x) for x in pred.edges[k])
         if ranker is not None:
             r = select_edge(graph, int(k), types[k], pred.axis_direction[k], pred.axis_origin[k],
                             priors, ranker, axis_model, cfg,
-                            rng=np.random.default_rng([cfg.seed, int(k)]))
+                            rng=np.random.default_rng([cfg.seed, int(k)]), meshes=meshes)
         else:
             r = refine_edge(graph, i, j, types[k], pred.axis_direction[k], pred.axis_origin[k],
                             axis_model, cfg, rng=np.random.default_rng([cfg.seed, int(k)]))

@@ -14,10 +14,16 @@ the fixed weights let the agreement terms decide. Here instead:
    candidate directions, the mass of those parallel to the candidate), the horizontal /
    vertical and centre / side probabilities of the fine types *before* any consistency step,
    and the distance to the GNN's pivot.
-3. **Geometric terms**: a swept-collision proxy (the moving part's box moved about / along the
-   line in each sign by a few amounts; the fraction of the other parts' surface samples it
-   newly encloses; the static parts are every leaf not below the moving part), and the
-   attachment distance (line to the reference part's samples, and to any static sample).
+3. **Geometric terms**: the swept collision of the moving part's surface samples against the
+   meshes of every part not below it (:func:`kinmo.geometry.sweep_collisions`, parry in the
+   Rust core: free and colliding fraction of the range per sign), the attachment distance
+   (line to the reference part's mesh, :func:`kinmo.geometry.line_mesh_distance`, and to the
+   samples of the reference part and of any static part), and a cheaper point proxy of the
+   collision (the moving part's box moved by a few amounts in each sign; the fraction of the
+   other parts' samples it newly encloses). The meshes are read once per shape from the
+   graph's source folder (``graph.meta["source"]``, :func:`shape_meshes`); without it the
+   mesh terms take neutral constants (free 1, colliding 0, distance = the point attachment),
+   which drop out of the per-edge softmax, and the point terms remain.
 4. **A ranker** (:class:`Ranker`): a linear score ``w . x`` over the standardised features,
    turned into a softmax over the candidates of one edge (listwise), fit on out-of-fold GNN
    predictions of training objects (:func:`fit_ranker`), and a Platt calibration of the
@@ -51,6 +57,7 @@ from kinmo.refine.candidates import (
 __all__ = [
     "FEATURES",
     "GNNPriors",
+    "ShapeMeshes",
     "Ranker",
     "candidate_features",
     "candidate_labels",
@@ -58,6 +65,7 @@ __all__ = [
     "fit_ranker",
     "load_ranker",
     "rotate_about",
+    "shape_meshes",
 ]
 
 #: Names of the per-candidate features, in column order of :func:`candidate_features`.
@@ -66,6 +74,7 @@ FEATURES: tuple[str, ...] = (
     "d_gnn", "attach_ref", "attach_any", "collide_min", "collide_max", "collide_rest",
     "feasibility", "kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
     "frame_moving", "frame_reference", "frame_shape", "shape_aligned", "ref_aligned",
+    "sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max", "attach_mesh",
 )
 _F = {n: k for k, n in enumerate(FEATURES)}
 #: Feature groups removed together in the ablation rows (``Ranker.drop``).
@@ -74,8 +83,9 @@ FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
     "orientation_prior": ("orient_prior",),
     "pivot_prior": ("pivot_prior",),
     "position_prior": ("pos_prior", "d_gnn"),
-    "attachment": ("attach_ref", "attach_any"),
+    "attachment": ("attach_ref", "attach_any", "attach_mesh"),
     "collision": ("collide_min", "collide_max", "collide_rest"),
+    "sweep": ("sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max"),
     "feasibility": ("feasibility",),
     "kind_frame": ("kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
                    "frame_moving", "frame_reference", "frame_shape", "shape_aligned",
@@ -258,6 +268,73 @@ def _static_points(graph: PartGraph, moving: int, cap: int, rng: np.random.Gener
     return pts
 
 
+@dataclass
+class ShapeMeshes:
+    """The leaf meshes of a part graph (mesh frame), for the swept-collision terms.
+
+    Attributes
+    ----------
+    leaves : dict of int to (vertices (V, 3) float64, faces (F, 3) int64)
+        By graph node index (leaves only).
+    """
+
+    leaves: dict[int, tuple[np.ndarray, np.ndarray]]
+
+    def union(self, nodes) -> tuple[np.ndarray, np.ndarray]:
+        """One mesh of the given leaf nodes (faces re-indexed); empty arrays for none."""
+        vs, fs, off = [], [], 0
+        for n in nodes:
+            m = self.leaves.get(int(n))
+            if m is None:
+                continue
+            vs.append(m[0])
+            fs.append(m[1] + off)
+            off += m[0].shape[0]
+        if not vs:
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+        return np.vstack(vs), np.vstack(fs).astype(np.int64)
+
+
+def shape_meshes(graph: PartGraph) -> ShapeMeshes | None:
+    """Load the leaf meshes of ``graph`` from its source folder (``graph.meta["source"]``).
+
+    Every OBJ is read once with the Rust loader (:func:`kinmo.geometry.load_objs`).
+
+    Returns
+    -------
+    ShapeMeshes or None
+        None when the graph has no readable source folder or its parts do not match the
+        graph's node ids (the callers then fall back to the point terms).
+    """
+    from kinmo.errors import KinmoError
+
+    src = graph.meta.get("source") if isinstance(graph.meta, dict) else None
+    if not src or not Path(src).is_dir():
+        return None
+    try:
+        from kinmo.data.build import load_shape_meshes
+        from kinmo.data.readers import read_shape
+
+        shape = read_shape(src)
+        nodes = shape.hierarchy.nodes
+        leaves = [int(k) for k in np.flatnonzero(graph.is_leaf)]
+        objs: dict[str, int] = {}
+        for k in leaves:
+            for o in nodes[int(graph.node_ids[k])].objs:
+                objs.setdefault(o, len(objs))
+        meshes = load_shape_meshes([shape.mesh_path(o) for o in objs])
+        out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        for k in leaves:
+            idx = [objs[o] for o in nodes[int(graph.node_ids[k])].objs]
+            part = ShapeMeshes({n: (np.asarray(meshes[i][0], np.float64),
+                                    np.asarray(meshes[i][1], np.int64))
+                                for n, i in enumerate(idx)})
+            out[k] = part.union(range(len(idx)))
+        return ShapeMeshes(out)
+    except (KinmoError, OSError, ValueError, KeyError):
+        return None
+
+
 def _point_line(points: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """``(C,)`` minimum distance from each line to the points."""
     if points.shape[0] == 0:
@@ -277,7 +354,11 @@ def candidate_features(
     gnn_direction: np.ndarray,
     gnn_origin: np.ndarray,
     feasibility: np.ndarray | None = None,
+    meshes: ShapeMeshes | None = None,
     *,
+    sweep_angle_deg: float = 60.0,
+    sweep_fraction: float = 0.5,
+    sweep_points: int = 256,
     angles_deg: tuple[float, ...] = (30.0, 60.0),
     fractions: tuple[float, ...] = (0.25, 0.5),
     static_cap: int = 2048,
@@ -297,6 +378,14 @@ def candidate_features(
         The GNN's axis (mesh frame).
     feasibility : (C,) float, optional
         The axis-selection network's feasibility of each line (0.5 each without).
+    meshes : ShapeMeshes, optional
+        The shape's leaf meshes (:func:`shape_meshes`) for the swept-collision and mesh
+        attachment terms; without them those terms are neutral constants.
+    sweep_angle_deg, sweep_fraction : float
+        Range of the sweep: rotation (degrees) of revolute lines, translation (fraction of the
+        moving part's extent along the line) of prismatic ones.
+    sweep_points : int
+        Moving-part samples swept (the first ``sweep_points`` of the graph's).
     angles_deg, fractions : tuple of float
         Amounts of the collision proxy: rotations (degrees) of revolute motions, translations
         (fraction of the moving part's extent along the line) of prismatic ones.
@@ -308,7 +397,8 @@ def candidate_features(
     -------
     features : (C, len(FEATURES)) float64
     sign : (C,) int64
-        ±1, the direction of motion whose collision proxy is lower (+1 on ties).
+        ±1, the freer direction of motion: the sweep's (larger free fraction, then smaller
+        colliding fraction) with meshes, the point proxy's otherwise (+1 on ties).
     """
     rng = np.random.default_rng([seed, moving, reference])
     c = len(cands)
@@ -371,6 +461,33 @@ def candidate_features(
         x[:, _F["collide_min"]] = frac.min(axis=1)
         x[:, _F["collide_max"]] = frac.max(axis=1)
         sign = np.where(frac[:, 1] < frac[:, 0], -1, 1).astype(np.int64)
+    x[:, _F["sweep_free_min"]] = x[:, _F["sweep_free_max"]] = 1.0
+    x[:, _F["attach_mesh"]] = x[:, _F["attach_ref"]]
+    if meshes is not None:
+        from kinmo.geometry import line_mesh_distance, sweep_collisions
+
+        sub = _subtree(graph, moving)
+        static_leaves = np.flatnonzero(np.asarray(graph.is_leaf, bool) & ~sub)
+        ov, of = meshes.union(static_leaves)
+        mp = np.asarray(graph.points[moving], dtype=np.float64)[:sweep_points]
+        if revolute:
+            kinds = np.zeros(c, np.int64)
+            ranges = np.full(c, np.radians(sweep_angle_deg))
+        else:
+            kinds = np.ones(c, np.int64)
+            ranges = np.maximum(sweep_fraction * np.ptp(mp @ d.T, axis=0), 1e-9)
+        free, coll = sweep_collisions(mp, ov, of, np.ascontiguousarray(o),
+                                      np.ascontiguousarray(d), kinds, ranges, n_steps=8)
+        x[:, _F["sweep_free_min"]] = free.min(axis=1)
+        x[:, _F["sweep_free_max"]] = free.max(axis=1)
+        x[:, _F["sweep_coll_min"]] = coll.min(axis=1)
+        x[:, _F["sweep_coll_max"]] = coll.max(axis=1)
+        better = np.where(free[:, 1] != free[:, 0], free[:, 1] > free[:, 0], coll[:, 1] < coll[:, 0])
+        sign = np.where(better, -1, 1).astype(np.int64)
+        rv, rf = meshes.union(np.flatnonzero(np.asarray(graph.is_leaf, bool) & _subtree(graph, reference)))
+        if revolute and rf.shape[0]:
+            x[:, _F["attach_mesh"]] = np.minimum(
+                line_mesh_distance(np.ascontiguousarray(o), np.ascontiguousarray(d), rv, rf) / diag, 2.0)
     x[:, _F["feasibility"]] = 0.5 if feasibility is None else np.asarray(feasibility, float)
     for kind in ("edge", "center", "interaction", "axis", "gnn"):
         x[:, _F[f"kind_{kind}"]] = [k == kind for k in cands.kinds]
