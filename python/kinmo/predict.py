@@ -385,7 +385,9 @@ def predict_dataset(
     if axis_model is not None:
         from kinmo.refine.train import load_axis_model
 
-        axis_net = load_axis_model(axis_model, "cpu" if r.device.type == "cpu" else str(r.device))
+        if not (Path(axis_model).is_dir() and not (Path(axis_model) / "model.pt").is_file()
+                and getattr(refine_config, "selector", "paper") == "ranker"):
+            axis_net = load_axis_model(axis_model, "cpu" if r.device.type == "cpu" else str(r.device))
     folders = find_shapes(data)
     if not folders:
         raise KinmoDataError(data, "no shape folder found")
@@ -399,7 +401,7 @@ def predict_dataset(
                 sid = shape.id
                 graph = _graph_for(folder, data, shape, cache)
                 pred = predict_graphs(r, [graph], options)[0]
-                if axis_net is not None:
+                if axis_model is not None:
                     from kinmo.refine.refine import refine_shape_prediction
 
                     pred = refine_shape_prediction(pred, axis_net, refine_config, options)[0]

@@ -225,7 +225,7 @@ def select_groups(groups: EdgeGroups, ranker: Ranker) -> tuple[np.ndarray, np.nd
 
 
 def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k: int = 3,
-                 seed: int = 0, l2: float = 1e-2) -> tuple[Ranker, dict]:
+                 seed: int = 0, l2: float = 0.1) -> tuple[Ranker, dict]:
     """Fit the ranker on all groups and its Platt calibration on ranker-OOF choices.
 
     Parameters
