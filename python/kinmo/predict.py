@@ -56,22 +56,13 @@ __all__ = [
 
 @torch.no_grad()
 def infer_edges(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8) -> list[EdgePrediction]:
-    """Run the motion GNN on part graphs (:func:`infer_edges_with_priors` without the priors).
-
-    Parameters
-    ----------
-    run : Run
-        A loaded model (:func:`kinmo.train.gnn.load_run`).
-    graphs : sequence of PartGraph
-        Labels, if present, are ignored.
-    batch_size : int
-        Graphs per forward pass.
+    """Run the motion GNN on part graphs: the edge predictions of
+    :func:`infer_edges_with_priors` (same parameters), without the priors.
 
     Returns
     -------
     list of EdgePrediction
-        One per graph, rows in ``graph.sibling_edges`` order; probabilities over the run's
-        type set; axes mapped back to each graph's mesh frame.
+        One per graph (mesh frame).
     """
     return infer_edges_with_priors(run, graphs, batch_size)[0]
 

@@ -207,3 +207,29 @@ def test_collect_groups_and_fit_selector_on_oracle_predictions():
     ranker, st = fit_selector(groups, k=2)
     assert st["recall"] == 1.0 and 0.0 <= st["oof_top1"] <= 1.0
     assert ranker.meta["cv"]["groups"] == 12
+
+
+def test_sweep_terms_on_a_real_door_prefer_the_true_hinge(mobility_root):
+    from kinmo.data.build import build_graph
+    from kinmo.data.readers import read_shape
+    from kinmo.refine.selector import shape_meshes
+
+    folder = mobility_root / "45001"  # a cabinet with a hinged door
+    if not folder.is_dir():
+        folder = sorted(p for p in mobility_root.iterdir() if p.is_dir())[0]
+    g = build_graph(read_shape(folder), n_points=256)
+    meshes = shape_meshes(g)
+    assert meshes is not None and set(meshes.leaves) == set(np.flatnonzero(g.is_leaf).tolist())
+    hinges = [k for k, t in enumerate(g.edge_fine) if FINE_TYPES[int(t)].startswith("R_")]
+    assert hinges
+    k = hinges[0]
+    i, j = (int(x) for x in g.sibling_edges[k])
+    pri = GNNPriors(np.full((len(g.sibling_edges), 10), 0.1), FINE_TYPES)
+    d, o = g.edge_axis_direction[k], g.edge_axis_origin[k]
+    cands, frames = edge_candidates(g, i, j, "R", d, o)
+    x, sign = candidate_features(g, i, j, k, cands, frames, pri, d, o, None, meshes)
+    y = candidate_labels(cands, o, d, g.scale, True)
+    assert y.any() and (~y).any()
+    # the true hinge swings free in one sign; the wrong lines on average do not
+    assert x[y, F["sweep_free_max"]].max() > x[~y, F["sweep_free_max"]].mean()
+    assert x[y, F["attach_mesh"]].min() < x[~y, F["attach_mesh"]].mean()
