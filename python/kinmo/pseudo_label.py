@@ -342,7 +342,7 @@ def pseudo_label_shape(
     from kinmo.data.graph import PartGraph
     from kinmo.data.readers import HIERARCHY_FILES, read_shape
     from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
-    from kinmo.predict import consistent_fine, infer_edges_with_priors
+    from kinmo.predict import consistent_fine, infer_edges, infer_edges_with_priors
     from kinmo.prepare import cache_key, source_fingerprint
     from kinmo.refine.refine import refine_predictions
 
@@ -361,14 +361,18 @@ def pseudo_label_shape(
                 graph = PartGraph.load(p)
         if graph is None:
             graph = build_graph(shape)
-        preds, priors = infer_edges_with_priors(models.run, [graph])
-        pred = preds[0]
+        prior = None
+        if config.refine.selector == "ranker":  # the GNN's raw outputs are its priors
+            preds, priors = infer_edges_with_priors(models.run, [graph])
+            pred, prior = preds[0], priors[0]
+        else:
+            pred = infer_edges(models.run, [graph])[0]
         if config.consistent:
             pred = consistent_fine(graph, pred)
         if models.axis is None and config.refine.selector != "ranker":
             raise KinmoDataError(models.axis_path, "no axis network (model.pt) for the paper's "
                                  "scoring; give a run of `kinmo train axis` or a ranker")
-        refined = refine_predictions(graph, pred, models.axis, config.refine, priors=priors[0])
+        refined = refine_predictions(graph, pred, models.axis, config.refine, priors=prior)
         d = refined.axis_direction.copy()
         tree_pred = EdgePrediction(pred.probs, d, refined.axis_origin.copy())
         if config.refine.selector == "ranker":  # the fine type follows the selected axis
