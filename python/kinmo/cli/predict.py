@@ -10,6 +10,7 @@ import typer
 from kinmo.cli._apps import app
 from kinmo.cli.export import FORMAT_HELP, check_formats
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
+from kinmo.cli._refine import PAPER_SELECTOR, RANKER
 
 
 @app.command("predict")
@@ -27,6 +28,8 @@ def predict_cmd(
     keep_gnn: bool = KEEP_GNN,
     snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
     box_frames: str = BOX_FRAMES,
+    paper_selector: bool = PAPER_SELECTOR,
+    ranker: Optional[Path] = RANKER,  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
 ) -> None:
@@ -45,7 +48,8 @@ def predict_cmd(
 
     console = Console()
     err = Console(stderr=True)
-    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
+    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
+                       paper_selector, ranker)
     check_formats(fmt)
     with cli_errors(1):
         from kinmo.user_input import is_user_input, predict_user_input
