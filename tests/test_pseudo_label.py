@@ -165,10 +165,14 @@ def test_cli(data, runs, tmp_path, monkeypatch):
     res = CliRunner().invoke(app, [
         "pseudo-label", str(data), "--model", str(runs[0]), "--axis-model", str(runs[1]),
         "--out", str(out), "--threshold", "0", "--quiet", "--sign", "feasibility",
+        "--format", "semantics", "--format", "mjcf",
     ])
     assert res.exit_code == 0, res.output
     assert "kept" in res.output and f"{len(SHAPES)} kept" in res.output
     assert len(list(out.glob("*/mobility_v2.json"))) == len(SHAPES)
+    # --format: mobility_v2.json always, then the formats asked for (kinmo.export)
+    assert len(list(out.glob("*/mobility.xml"))) == len(SHAPES)
+    assert not list(out.glob("*/mobility.urdf"))
     bad = CliRunner().invoke(app, [
         "pseudo-label", str(data), "--model", str(tmp_path / "missing"), "--axis-model",
         str(runs[1]), "--out", str(out),

@@ -30,7 +30,8 @@ PartNet-Mobility tools) exactly like a real object:
 - ``textured_objs/<name>.obj``: the shape's meshes, symbolic links to the source files (copies
   where links cannot be made, or with ``link="copy"``);
 - ``mobility_v2.json``, ``semantics.txt`` (:mod:`kinmo.data.writers`), ``mobility.urdf``
-  (:func:`kinmo.urdf.write_urdf`, meshes relative to it);
+  (meshes relative to it, convex collision pieces in ``collision/``) and any other format of
+  :mod:`kinmo.export` chosen with ``formats`` (through :func:`kinmo.export.export`);
 - ``scores.json``: the per-joint scores (refinement confidence, feasibility, direction and
   position agreement, type probability, candidate kind), the threshold and the models used.
 
@@ -118,6 +119,9 @@ class PseudoLabelConfig(BaseModel):
         How meshes get into ``textured_objs/``.
     device : str
         Torch device of both networks.
+    formats : tuple of str
+        Export formats of a kept shape (:mod:`kinmo.export`); ``mobility_v2.json`` is always
+        written (it makes the folder a PartNet-Mobility object).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -130,6 +134,7 @@ class PseudoLabelConfig(BaseModel):
     consistent: bool = False
     link: Literal["symlink", "copy"] = "symlink"
     device: str = "cpu"
+    formats: tuple[str, ...] = ("mobility_v2", "semantics", "urdf")
 
 
 @dataclass
@@ -263,8 +268,7 @@ def _write_folder(
 ) -> None:
     """Assemble the PartNet-Mobility folder of a kept shape in ``stage``."""
     from kinmo.data.readers import read_shape
-    from kinmo.data.writers import write_mobility_v2, write_semantics
-    from kinmo.urdf import write_urdf
+    from kinmo.export import export
 
     stage.mkdir(parents=True)
     shutil.copyfile(hierarchy_file, stage / "result.json")
@@ -280,11 +284,9 @@ def _write_folder(
     names = {m for nid in shape.hierarchy.nodes for m in shape.hierarchy.nodes[nid].objs}
     for name in sorted(names):
         _link_or_copy(shape.mesh_path(name), tex / f"{name}.obj", config.link)
-    write_mobility_v2(links, stage / "mobility_v2.json", shape.hierarchy)
-    write_semantics(links, stage / "semantics.txt",
-                    {lk.id: "_".join(lk.name.split()) or f"link_{lk.id}" for lk in links})
+    export(shape, stage, ["mobility_v2"], links=links, name=shape.id)
     out_shape = read_shape(stage)  # the folder as kinmo reads it (validates the round trip)
-    write_urdf(out_shape, stage / "mobility.urdf", out_shape.links, name=shape.id)
+    export(out_shape, stage, [f for f in config.formats if f != "mobility_v2"], name=shape.id)
     write_json(stage / "scores.json", {
         "shape_id": shape.id,
         "category": shape.category,

@@ -498,7 +498,9 @@ def run_evaluation(
     all_shapes : bool
         Evaluate every labelled graph of ``data``.
     render : bool
-        Write ``out/renders/<model>/<id>.png`` per shape.
+        Write ``out/renders/<model>/<id>.png`` per shape, and the predicted links as
+        ``out/viewers/<model>/<id>/`` (:func:`kinmo.view.write_view_links`) for the
+        report's interactive viewer.
     device : str
     progress : bool
     console : rich.console.Console, optional
@@ -557,9 +559,17 @@ def run_evaluation(
     if render:
         from kinmo.viz import render_prediction
 
+        from kinmo.view import write_view_links
+
         for n, plist in preds.items():
             for p in plist:
                 render_prediction(p, out / "renders" / n / f"{p.shape_id}.png")
+                if p.graph.meta.get("source") and Path(p.graph.meta["source"]).is_dir():
+                    try:  # the interactive gallery of the report (kinmo.view.gallery_page)
+                        write_view_links(out / "viewers" / n / p.shape_id, p.tree.links,
+                                         p.graph.meta["source"])
+                    except KinmoDataError:
+                        pass  # the source changed since the cache was built: no viewer
     if console is not None:
         print_report(report, console)
     return report, paths
