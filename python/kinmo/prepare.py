@@ -49,7 +49,8 @@ from typing import Any
 from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError
 from kinmo.io import folder_lock
-from kinmo.parallel import available_cpus, map_unordered, resolve_workers
+from kinmo.executor import map_unordered
+from kinmo.parallel import available_cpus, resolve_workers
 
 __all__ = [
     "MANIFEST_COLUMNS",
@@ -499,6 +500,7 @@ def prepare_dataset(
     force: bool = False,
     progress: bool = True,
     on_row: Callable[[ManifestRow], None] | None = None,
+    executor: str = "local",
 ) -> PrepareResult:
     """Prepare every shape under ``root`` into the cache folder ``out``.
 
@@ -519,6 +521,8 @@ def prepare_dataset(
         Show a rich progress bar (on stderr).
     on_row : callable, optional
         Called in this process with each row as it completes.
+    executor : str
+        ``local``, ``ray``, ``ray:auto`` or ``ray:ADDRESS`` (:mod:`kinmo.executor`).
 
     Returns
     -------
@@ -584,6 +588,7 @@ def prepare_dataset(
                     on_error=_worker_failed,
                     initializer=_init_worker,
                     initargs=(max(1, available_cpus() // n_workers),),
+                    executor=executor,
                 )
             finally:
                 _write_manifest(

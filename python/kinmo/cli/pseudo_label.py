@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli._executor import EXECUTOR
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
 
 
@@ -30,6 +31,7 @@ def pseudo_label_cmd(
     device: str = typer.Option("cpu", "--device", help="Torch device of both networks."),
     force: bool = typer.Option(False, "--force", help="Redo shapes already processed with the same inputs."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    executor: str = EXECUTOR,
 ) -> None:
     """Predict and refine the motions of every shape under DIR; keep the confident ones.
 
@@ -64,7 +66,8 @@ def pseudo_label_cmd(
         raise typer.Exit(2) from None
     try:
         res = pseudo_label_dataset(data_dir, model, axis_model, out, config, workers=workers,
-                                   cache=cache, force=force, progress=not quiet)
+                                   cache=cache, force=force, progress=not quiet,
+                                   executor=executor)
     except KinmoError as e:
         err.print(f"[red]error:[/] {e}", highlight=False)
         raise typer.Exit(2) from None
