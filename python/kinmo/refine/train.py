@@ -150,6 +150,13 @@ class AxisTrainConfig(BaseModel):
         Share of each category's remaining shapes that validate the axis network.
     val_repeats : int
         Validation triples per validation edge (fixed seed).
+    val_every : int
+        Validate (loss and selection accuracy) every this many epochs and at the last; only
+        validated epochs can be saved as ``model.pt``.
+    val_edges_per_shape : int
+        Validation edges per validation shape (a fixed random subset; 0: all). The selection
+        accuracy weighs shapes equally anyway, and it costs a network call per candidate
+        motion.
     interaction_radius : float
         Passed to :func:`~kinmo.refine.candidates.candidate_axes`.
     amounts : MotionAmounts fields
@@ -197,6 +204,8 @@ class AxisTrainConfig(BaseModel):
     test_fraction: float = Field(0.25, ge=0, lt=1)
     val_fraction: float = Field(0.2, ge=0, lt=1)
     val_repeats: int = Field(2, ge=1)
+    val_every: int = Field(1, ge=1)
+    val_edges_per_shape: int = Field(0, ge=0)
     interaction_radius: float = Field(0.1, gt=0)
     angles_deg: tuple[float, ...] = (60.0,)
     translation_fraction: float = Field(0.5, gt=0)
@@ -218,9 +227,12 @@ class AxisTrainConfig(BaseModel):
 #: 128-d embedding, Adam 3e-4 / 1e-4, step decay 0.7 every 20 epochs), meant for a GPU.
 PRESETS: dict[str, dict[str, Any]] = {
     "quick": {
-        "net": {"n_points": 512, "k": 16, "widths": [32, 32, 64], "emb_dim": 64,
+        "net": {"n_points": 256, "k": 16, "widths": [32, 32, 64], "emb_dim": 64,
                 "head": [64, 32], "dropout": 0.3, "norm": "batch"},
-        "epochs": 12, "batch_size": 16, "lr": 1e-3, "lr_step": 8, "samples_per_shape": 4,
+        "epochs": 24, "batch_size": 16, "lr": 1e-3, "lr_step": 10, "samples_per_shape": 4,
+        "articulated_prob": 0.5, "angles_deg": (30.0, 45.0, 60.0, 80.0), "sign_mode": "mean",
+        "val_every": 3, "val_edges_per_shape": 4,
+        "category_min_objects": 5, "category_epochs": 6,
         "threads": 1,  # as the other quick presets: the same weights on any machine
     },
     "paper": {
@@ -472,7 +484,8 @@ def _fit(
                               bar.advance)
         sched.step()
         vl = va = vs = vch = vc = float("nan")
-        if va_edges:
+        validate = bool(va_edges) and (epoch % config.val_every == 0 or epoch == epochs)
+        if validate:
             vrng = np.random.default_rng([config.seed, 10**6])
             v_edges = [e for e in va_edges for _ in range(config.val_repeats)]
             with torch.no_grad():
@@ -486,7 +499,7 @@ def _fit(
         bar.log(f"{label} epoch {epoch}: loss {tl:.3f} acc {ta:.3f} | val loss {vl:.3f} "
                 f"acc {va:.3f} select {vs:.3f} (chance {vch:.3f}, coverage {vc:.3f})")
         key = (float(epoch), 0.0) if not va_edges else (vs, -vl)
-        better = best_key is None or key > best_key
+        better = (validate or not va_edges) and (best_key is None or key > best_key)
         if better:
             best_key, best_epoch = key, epoch
             best_state = copy.deepcopy(model.state_dict())
@@ -587,6 +600,10 @@ def train_axis_model(
     tr_set, va_set = set(tr_idx), set(va_idx)
     tr_edges = [e for e in all_edges if e.graph in tr_set]
     va_edges = [e for e in all_edges if e.graph in va_set]
+    if config.val_edges_per_shape:
+        va_edges = sorted(_epoch_edges(va_edges, config.val_edges_per_shape,
+                                       np.random.default_rng([config.seed, 10**6 + 1])),
+                          key=lambda e: (e.graph, e.edge))
     if not tr_edges:
         raise KinmoDataError(str(data), "no moving joints in the training graphs")
     if config.threads:
