@@ -232,7 +232,7 @@ def bench_batched(bench: Bench) -> None:
     torch.set_num_threads(1)
     model = _model(bench.axis_model)
     graphs = load_graphs(_cache(bench))
-    picked = graphs[:: max(1, len(graphs) // (8 if bench.quick else 40))]
+    picked = graphs[:: max(1, len(graphs) // (8 if bench.quick else 24))]
     amounts = MotionAmounts(PAPER_ANGLES)
     per_shape: list[list[LineRequest]] = []
     for g in picked:
@@ -246,7 +246,7 @@ def bench_batched(bench: Bench) -> None:
                                              if r.candidates.motion != "P" else 1)
                     for reqs in per_shape for r in reqs)
 
-    def per_edge_loop():  # the refinement's path before score_lines
+    def per_edge_loop(model=model):  # the refinement's path before score_lines
         out = []
         for reqs in per_shape:
             for r in reqs:
@@ -280,6 +280,19 @@ def bench_batched(bench: Bench) -> None:
         row.note = (f"{n_shapes / row.wall_s:.2f} shapes/s (per-edge loop "
                     f"{n_motions / base.wall_s:.0f} motions/s, {n_shapes / base.wall_s:.2f} "
                     f"shapes/s); max |diff| {err:.1e}; {model.config.n_points} points")
+    # before: the per-edge loop with the previous quick preset's 512-point network
+    from kinmo.refine.axis_net import AxisSelectionNet
+    from kinmo.refine.train import preset_config
+
+    torch.manual_seed(0)
+    old = AxisSelectionNet(preset_config("quick", net={"n_points": 512}).net).eval()
+    old_t = measure(lambda: per_edge_loop(old), bench.reps(3, 1))
+    row = bench.compare("batched", f"score_lines all shapes vs 512-point per-edge loop: "
+                        f"{n_shapes} objects", all_shapes_batched, "per-edge loop, 512 points",
+                        old_t, bench.reps(3, 1), unit="motions/s")
+    row.value = n_motions / row.wall_s
+    row.note = (f"{n_shapes / row.wall_s:.2f} shapes/s vs {n_shapes / old_t.wall_s:.2f} "
+                f"shapes/s ({n_motions / old_t.wall_s:.0f} motions/s) before")
 
 
 SECTIONS = {"apply": bench_apply, "edgeconv": bench_edgeconv, "batched": bench_batched,
