@@ -76,11 +76,14 @@ def test_gnn_with_torchrun_matches_one_process(tmp_path: Path):
         assert (tmp_path / "two" / name).is_file(), name
 
 
-@pytest.mark.parametrize("trainer", ["ancsh"])
-def test_trainer_with_torchrun_matches_one_process(trainer: str, tmp_path: Path, mobility_root: Path):
-    """ANCSH (``train_ancsh``, laptops, tiny network) on 2 processes: rank 0 renders the scans,
-    the other rank reads them; the loss curve agrees with one process within 3 % (measured: 1.3 %;
-    batch norm normalises each half batch on its own rank)."""
+@pytest.mark.parametrize(("trainer", "column", "rtol"), [("ancsh", "loss", 0.03), ("axis", "train_loss", 1e-4)])
+def test_trainer_with_torchrun_matches_one_process(trainer: str, column: str, rtol: float, tmp_path: Path,
+                                                   mobility_root: Path):
+    """ANCSH (``train_ancsh``, laptops, tiny network): rank 0 renders the scans, the other rank
+    reads them; the loss curve agrees with one process within 3 % (measured: 1.3 %; batch norm
+    normalises each half batch on its own rank). Axis network (``train_axis_model``, generated
+    cabinets, group norm): within 1e-4 (measured: equal to 6 digits; with batch norm on these
+    batches of 5 the curves differ by up to 8 %)."""
     script = Path(__file__).with_name("ddp_script.py")
     data = tmp_path / "data"
     data.mkdir()
@@ -88,7 +91,8 @@ def test_trainer_with_torchrun_matches_one_process(trainer: str, tmp_path: Path,
         (data / oid).symlink_to(mobility_root / oid, target_is_directory=True)
     _run([sys.executable, str(script), trainer, str(data), str(tmp_path / "one")], tmp_path)
     _run([*TORCHRUN, str(script), trainer, str(data), str(tmp_path / "two")], tmp_path)
-    one, two = _losses(tmp_path / "one" / "metrics.csv"), _losses(tmp_path / "two" / "metrics.csv")
+    one = _losses(tmp_path / "one" / "metrics.csv", column)
+    two = _losses(tmp_path / "two" / "metrics.csv", column)
     assert len(one) == len(two) >= 2
-    np.testing.assert_allclose(two, one, rtol=0.03)
+    np.testing.assert_allclose(two, one, rtol=rtol)
     assert (tmp_path / "two" / "model.pt").is_file()

@@ -50,6 +50,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from kinmo.data.graph import PartGraph
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json, write_text
+from kinmo.train import distributed
 from kinmo.refine.axis_data import (
     MovingEdge,
     _diag,
@@ -425,8 +426,11 @@ def _run_batches(model, opt, graphs, edges, config, rng, device, train: bool,
         chunk = list(edges[start : start + bs])
         if train and len(chunk) < 2 and config.net.norm == "batch" and start > 0:
             continue  # a batch of one breaks batch norm; it is drawn again next epoch
-        rest, pos, neg = (torch.from_numpy(a).to(device)
-                          for a in build_triples(graphs, chunk, config, rng))
+        triples, weight = build_triples(graphs, chunk, config, rng), 1.0
+        if train:  # torchrun: this rank's rows of the global batch (kinmo.train.distributed)
+            rows, weight = distributed.shard(range(len(triples[0])))
+            triples = tuple(a[rows] for a in triples)
+        rest, pos, neg = (torch.from_numpy(a).to(device) for a in triples)
         b = rest.shape[0]
         with torch.set_grad_enabled(train):
             f = model.encode(torch.cat([rest, pos, neg]))
@@ -436,13 +440,17 @@ def _run_batches(model, opt, graphs, edges, config, rng, device, train: bool,
             loss = F.binary_cross_entropy_with_logits(logits, target)
         if train:
             opt.zero_grad()
-            loss.backward()
+            (loss * weight).backward()
+            distributed.sync_gradients(model)  # the mean gradient over the ranks
             opt.step()
-        losses += float(loss.detach()) * 2 * b
-        accs += float(((logits > 0).float() == target).float().sum())
-        count += 2 * b
+        if weight > 0:
+            losses += float(loss.detach()) * 2 * b
+            accs += float(((logits > 0).float() == target).float().sum())
+            count += 2 * b
         if on_batch is not None:
             on_batch()
+    if train:  # the epoch's figures over all ranks
+        losses, accs, count = distributed.all_sum([losses, accs, count])
     return losses / max(count, 1), accs / max(count, 1)
 
 
@@ -538,9 +546,12 @@ def _category_networks(
         rows.append(row)
         if keep:
             rel = f"categories/{cat}.pt"
-            save_axis_model(out / rel, model, epoch=best_epoch, category=cat,
-                            train_config=config.model_dump(mode="json"))
+            if distributed.info().is_main:
+                save_axis_model(out / rel, model, epoch=best_epoch, category=cat,
+                                train_config=config.model_dump(mode="json"))
             kept[cat] = {"file": rel, "global_select_acc": g_acc, "category_select_acc": c_acc}
+    if not distributed.info().is_main:  # torchrun: rank 0 writes
+        return rows
     write_json(out / CATEGORIES_FILE, {"rule": {
         "min_train_objects": config.category_min_objects, "min_val_objects": 1,
         "kept_when": "category_select_acc > global_select_acc"}, "categories": kept})
@@ -609,16 +620,18 @@ def train_axis_model(
     if config.threads:
         torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
-    model = AxisSelectionNet(config.net).to(_device(config.device))
-    write_json(out / "config.json", {
-        "kind": "axis-selection",
-        "config": config.model_dump(mode="json"),
-        "data": str(data) if isinstance(data, (str, Path)) else None,
-        "split": {"train": [graphs[k].shape_id for k in tr_idx],
-                  "val": [graphs[k].shape_id for k in va_idx], "test": test_ids},
-        "n_train_edges": len(tr_edges),
-        "n_val_edges": len(va_edges),
-    })
+    dist_info, device = distributed.setup(_device(config.device))  # torchrun: rank 0 writes
+    model = AxisSelectionNet(config.net).to(device)
+    if dist_info.is_main:
+        write_json(out / "config.json", {
+            "kind": "axis-selection",
+            "config": config.model_dump(mode="json"),
+            "data": str(data) if isinstance(data, (str, Path)) else None,
+            "split": {"train": [graphs[k].shape_id for k in tr_idx],
+                      "val": [graphs[k].shape_id for k in va_idx], "test": test_ids},
+            "n_train_edges": len(tr_edges),
+            "n_val_edges": len(va_edges),
+        })
     per_graph: dict[int, int] = {}
     for e in tr_edges:
         per_graph[e.graph] = per_graph.get(e.graph, 0) + 1
@@ -628,17 +641,20 @@ def train_axis_model(
 
     def on_epoch(epoch: int, row: dict[str, float], better: bool) -> None:
         rows.append(row)
+        if not dist_info.is_main:
+            return
         extra = {"epoch": epoch, "metrics": row, "train_config": config.model_dump(mode="json")}
         save_axis_model(out / "last.pt", model, **extra)
         if better:
             save_axis_model(out / "model.pt", model, **extra)
         write_text(out / "metrics.csv", _metrics_csv(rows))
 
-    with _Progress(progress, config.epochs * steps) as bar:
+    with _Progress(progress and dist_info.is_main, config.epochs * steps) as bar:
         _, best_epoch, best_state = _fit(model, graphs, tr_edges, va_edges, config,
                                          config.epochs, config.lr, bar, "axis net", on_epoch)
         kept: list[str] = []
-        (out / CATEGORIES_FILE).unlink(missing_ok=True)  # a stale index of an earlier run
+        if dist_info.is_main:
+            (out / CATEGORIES_FILE).unlink(missing_ok=True)  # a stale index of an earlier run
         if config.category_min_objects > 0:
             model.load_state_dict(best_state)
             cats = _category_networks(model, graphs, tr_edges, va_edges, config, out, bar)
