@@ -270,10 +270,16 @@ def cmd_all(a: argparse.Namespace) -> None:
         for stage in stages:
             src = pn if stage == "pseudo-label" else mob
             data = subset(src, n, out / "subsets" / f"{stage}-{n}")
-            for ex, w in EXECUTORS:
+            for ex, w in _executors(a):
                 if (f"synth-{n}", stage, ex, w) in have:
                     continue
                 measure(stage, ex, w, data, out / "work", log, a.frames, f"synth-{n}")
+
+
+def _executors(a: argparse.Namespace) -> list[tuple[str, int]]:
+    if not a.executors:
+        return list(EXECUTORS)
+    return [(e.split(":")[0], int(e.split(":")[1])) for e in a.executors.split(",")]
 
 
 def cmd_real(a: argparse.Namespace) -> None:
@@ -284,7 +290,7 @@ def cmd_real(a: argparse.Namespace) -> None:
     for stage in a.stages.split(","):
         src = data / ("partnet" if stage == "pseudo-label" else "partnet-mobility")
         label = f"real-{sum(1 for p in src.iterdir() if p.is_dir())}"
-        for ex, w in EXECUTORS:
+        for ex, w in _executors(a):
             if (label, stage, ex, w) not in have:
                 measure(stage, ex, w, src, out / "work", log, a.frames, label)
 
@@ -354,9 +360,11 @@ def cmd_report(a: argparse.Namespace) -> None:
 
     out = Path(a.out)
     rows = [json.loads(l) for l in (out / "scaling.jsonl").read_text().splitlines()]
+    for r in rows:
+        r["cpu_ms_per_shape"] = round(1e3 * r["cpu_s"] / r["n"], 1)
     cols = ["data", "stage", "executor", "workers", "n", "wall_s", "shapes_per_s", "cpu_s",
-            "ray_start_s", "worker_peak_mb", "driver_peak_mb", "out_mb", "failed",
-            "load_before", "load_after"]
+            "cpu_ms_per_shape", "ray_start_s", "worker_peak_mb", "driver_peak_mb",
+            "system_peak_mb", "out_mb", "failed", "load_before", "load_after"]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in sorted(rows, key=lambda r: (r["stage"], r["data"].startswith("real"), r["n"],
                                          r["executor"], r["workers"])):
@@ -366,14 +374,15 @@ def cmd_report(a: argparse.Namespace) -> None:
     fig, axes = plt.subplots(2, 3, figsize=(13, 7), sharex=True)
     for j, stage in enumerate(STAGES):
         for ex, w in EXECUTORS:
-            pts = sorted((r["n"], r["wall_s"], r["worker_peak_mb"] or r["driver_peak_mb"])
+            pts = sorted((r["n"], r["wall_s"], r["cpu_s"], r["worker_peak_mb"] or r["driver_peak_mb"])
                          for r in rows if r["stage"] == stage and r["executor"] == ex
                          and r["workers"] == w and r["data"].startswith("synth"))
             if not pts:
                 continue
-            n, wall, mem = zip(*pts)
+            n, wall, cpu, mem = zip(*pts)
             label = f"{ex} x{w}" + (" (in process)" if ex == "local" and w == 1 else "")
-            axes[0, j].plot(n, wall, "o-", label=label)
+            line = axes[0, j].plot(n, wall, "o-", label=f"{label} wall")[0]
+            axes[0, j].plot(n, cpu, "s--", color=line.get_color(), alpha=0.6, label=f"{label} CPU")
             axes[1, j].plot(n, mem, "o-", label=label)
         axes[0, j].set_title(stage)
         axes[0, j].set_xscale("log")
@@ -382,9 +391,9 @@ def cmd_report(a: argparse.Namespace) -> None:
         axes[1, j].grid(True, alpha=0.3)
         axes[1, j].set_xlabel("generated objects")
         axes[1, j].set_ylim(bottom=0)
-    axes[0, 0].set_ylabel("wall seconds (log)")
+    axes[0, 0].set_ylabel("seconds (log): wall -, CPU --")
     axes[1, 0].set_ylabel("peak RSS per worker (MB)")
-    axes[0, 0].legend(fontsize=8)
+    axes[0, 0].legend(fontsize=7)
     fig.suptitle("kinmo per-shape stages on a shared 2-core machine (load average in the table)")
     fig.tight_layout()
     fig.savefig(a.png, dpi=110)
@@ -406,6 +415,7 @@ def main() -> None:
         s.add_argument("--sizes", default="100,300,1000")
         s.add_argument("--stages", default=",".join(STAGES))
         s.add_argument("--frames", type=int, default=2)
+        s.add_argument("--executors", default="", help="e.g. local:1,local:2,ray:2 (default: all)")
         s.add_argument("--data", default=str(REPO.parent / "shared" / "data"))
         s.add_argument("--png", default=str(REPO / "docs" / "results" / "scaling.png"))
     a = p.parse_args()
