@@ -374,7 +374,8 @@ def cmd_report(a: argparse.Namespace) -> None:
     fig, axes = plt.subplots(2, 3, figsize=(13, 7), sharex=True)
     for j, stage in enumerate(STAGES):
         for ex, w in EXECUTORS:
-            pts = sorted((r["n"], r["wall_s"], r["cpu_s"], r["worker_peak_mb"] or r["driver_peak_mb"])
+            pts = sorted((r["n"], r["wall_s"], r["cpu_s"],
+                          r["driver_peak_mb"] if r["workers"] == 1 else r["worker_peak_mb"])
                          for r in rows if r["stage"] == stage and r["executor"] == ex
                          and r["workers"] == w and r["data"].startswith("synth"))
             if not pts:
@@ -392,7 +393,7 @@ def cmd_report(a: argparse.Namespace) -> None:
         axes[1, j].set_xlabel("generated objects")
         axes[1, j].set_ylim(bottom=0)
     axes[0, 0].set_ylabel("seconds (log): wall -, CPU --")
-    axes[1, 0].set_ylabel("peak RSS per worker (MB)")
+    axes[1, 0].set_ylabel("peak RSS per worker (MB; x1: the process)")
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("kinmo per-shape stages on a shared 2-core machine (load average in the table)")
     fig.tight_layout()
