@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from kinmo.errors import KinmoDataError
-from kinmo.io import atomic_path
+from kinmo.io import atomic_path, read_checkpoint
 from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
 
 __all__ = ["AxisModelSet", "load_axis_model", "load_axis_models", "save_axis_model"]
@@ -59,14 +59,11 @@ def save_axis_model(path: str | Path, model: AxisSelectionNet, **extra: Any) -> 
 
 
 def _read_checkpoint(p: Path, device: str) -> AxisSelectionNet:
-    import torch
-
     if not p.is_file():
         raise KinmoDataError(p, "no axis-selection checkpoint (train one with `kinmo train axis`)")
+    blob = read_checkpoint(p, "kinmo-axis-selection", "axis-selection")  # one line if damaged
     try:
-        blob = torch.load(p, map_location=device, weights_only=True)
-        if not isinstance(blob, dict) or blob.get("format", "kinmo-axis-selection") != \
-                "kinmo-axis-selection" or "net" not in blob:
+        if "net" not in blob:
             raise ValueError("not a kinmo axis-selection checkpoint")
         model = AxisSelectionNet(AxisNetConfig(**blob["net"]))
         model.load_state_dict(blob["state_dict"])
