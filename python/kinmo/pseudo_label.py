@@ -68,7 +68,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.progress import CountingBar
 from kinmo.io import folder_lock, write_json, write_text
-from kinmo.parallel import map_unordered, resolve_workers
+from kinmo.executor import map_unordered, parse_executor
+from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
 
 __all__ = [
@@ -549,6 +550,7 @@ def pseudo_label_dataset(
     force: bool = False,
     progress: bool = True,
     on_record: Callable[[ShapeRecord], None] | None = None,
+    executor: str = "local",
 ) -> PseudoLabelResult:
     """Pseudo-label every shape folder below ``data`` (module docstring).
 
@@ -575,6 +577,8 @@ def pseudo_label_dataset(
         Show a rich progress bar.
     on_record : callable, optional
         Called with every finished shape's record.
+    executor : str
+        ``local``, ``ray``, ``ray:auto`` or ``ray:ADDRESS`` (:mod:`kinmo.executor`).
 
     Returns
     -------
@@ -598,13 +602,13 @@ def pseudo_label_dataset(
     out.mkdir(parents=True, exist_ok=True)
     with folder_lock(out, "kinmo pseudo-label"):
         return _label_all(data, out, gnn_run, axis_run, folders, config, workers, cache, force,
-                          progress, on_record, t0)
+                          progress, on_record, t0, executor)
 
 
 def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: list[Path],
                config: PseudoLabelConfig, workers: int, cache: str | Path | None, force: bool,
-               progress: bool, on_record: Callable[[ShapeRecord], None] | None, t0: float
-               ) -> PseudoLabelResult:
+               progress: bool, on_record: Callable[[ShapeRecord], None] | None, t0: float,
+               executor: str = "local") -> PseudoLabelResult:
     """The body of :func:`pseudo_label_dataset`, run while holding ``out``'s lock."""
     shutil.rmtree(out / ".staging", ignore_errors=True)  # leftovers of an interrupted run
     models_fp = _models_fingerprint(gnn_run, axis_run)
@@ -633,7 +637,8 @@ def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: li
                 _write_tables(out, list(records.values()))
 
         if todo:
-            if workers == 1:  # in this process: map_unordered calls fn directly
+            local = parse_executor(executor).kind == "local"
+            if workers == 1 and local:  # in this process: map_unordered calls fn directly
                 models = _load_models(gnn_run, axis_run, config.device)
                 fn = partial(pseudo_label_shape, out=out, models=models, config=config,
                              cache=cache, root=data)
@@ -641,7 +646,7 @@ def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: li
                 fn = partial(_worker_run, out=str(out), config_json=config.model_dump(mode="json"),
                              cache=None if cache is None else str(cache), root=str(data))
             map_unordered(fn, todo, workers, record, _worker_failed, initializer=_worker_init,
-                          initargs=(str(gnn_run), str(axis_run), config.device))
+                          initargs=(str(gnn_run), str(axis_run), config.device), executor=executor)
     recs = sorted(records.values(), key=lambda r: r.id)
     _write_tables(out, recs)
     shutil.rmtree(out / ".staging", ignore_errors=True)
