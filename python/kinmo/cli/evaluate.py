@@ -30,20 +30,16 @@ def pre_segmented_cmd(
     """Evaluate motion GNN(s) on the test split: type accuracy, mobile-part detection, axis errors."""
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.evaluate.pre_segmented import run_evaluation
 
     console = Console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 11-column tables
         console = Console(width=max(console.width, 140))
-    err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
-    try:
+    with cli_errors(1):
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,
                                        console=console, axis_model=axis_model,
                                        refine_config=rc)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     console.print(f"wrote {paths['csv']} and {paths['markdown']}")

@@ -40,20 +40,17 @@ def train_all(
     shapes" says whether they helped."""
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.pipeline import PipelineConfig, run_pipeline
 
     console = Console(stderr=True)
-    try:
+    with cli_errors(1, also=(ValueError,)):
         cfg = PipelineConfig(
             labeled=labeled, unlabeled=unlabeled, out=out, preset=preset, categories=category or None,
             labeled_fraction=labeled_fraction, seed=seed, workers=workers, skip_ancsh=skip_ancsh,
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
         )
         res = run_pipeline(cfg, console=console)
-    except (KinmoError, ValueError) as e:
-        console.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     console.print(f"[green]done[/]: report at {res.report}")
 
 
@@ -70,14 +67,11 @@ def demo(
     pseudo-label, eval, report."""
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.pipeline import run_demo
 
     console = Console(stderr=True)
-    try:
+    with cli_errors(1, also=(ValueError,)):
         res = run_demo(out, n_labeled=n, n_unlabeled=max(n // 2, 2), seed=seed, data=data, unlabeled=unlabeled,
                        tiny=tiny, console=console)
-    except (KinmoError, ValueError) as e:
-        console.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     console.print(f"[green]done[/]: open {res.report}")

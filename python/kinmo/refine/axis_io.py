@@ -11,7 +11,8 @@ falls back to the global network. Both are accepted by
 
 Checkpoints are ``torch.save`` dicts with ``format = "kinmo-axis-selection"``, the state dict
 and the network configuration (:class:`~kinmo.refine.axis_net.AxisNetConfig`), written
-atomically (:func:`kinmo.io.atomic_path`) and read with ``weights_only=True``.
+atomically (:func:`kinmo.io.atomic_path`) and read with :func:`kinmo.io.read_checkpoint`
+(``weights_only=True``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from kinmo.errors import KinmoDataError
-from kinmo.io import atomic_path
+from kinmo.io import atomic_path, read_checkpoint
 from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
 
 __all__ = ["AxisModelSet", "load_axis_model", "load_axis_models", "save_axis_model"]
@@ -59,14 +60,11 @@ def save_axis_model(path: str | Path, model: AxisSelectionNet, **extra: Any) -> 
 
 
 def _read_checkpoint(p: Path, device: str) -> AxisSelectionNet:
-    import torch
-
     if not p.is_file():
         raise KinmoDataError(p, "no axis-selection checkpoint (train one with `kinmo train axis`)")
+    blob = read_checkpoint(p, "kinmo-axis-selection", "axis-selection")
     try:
-        blob = torch.load(p, map_location=device, weights_only=True)
-        if not isinstance(blob, dict) or blob.get("format", "kinmo-axis-selection") != \
-                "kinmo-axis-selection" or "net" not in blob:
+        if "net" not in blob:
             raise ValueError("not a kinmo axis-selection checkpoint")
         model = AxisSelectionNet(AxisNetConfig(**blob["net"]))
         model.load_state_dict(blob["state_dict"])
