@@ -122,7 +122,7 @@ def test_training_run_writes_a_reproducible_loadable_model(tmp_path):
     assert 0 <= float(rows[1]["val_select_acc"]) <= float(rows[1]["val_select_coverage"]) <= 1
     conf = json.loads((tmp_path / "run" / "config.json").read_text())
     assert conf["config"]["net"] == {**TINY_NET, "norm": "batch", "dynamic": True,
-                                     "context_fraction": 0.25, "crop": None, "input": "shape"}
+                                     "context_fraction": 0.25, "crop": None, "input": "pair"}
     assert len(conf["split"]["val"]) == 1
     model = load_axis_model(tmp_path / "run")
     assert not model.training and model.config.n_points == 64

@@ -223,14 +223,14 @@ class AxisTrainConfig(BaseModel):
 
 
 #: Named configurations. ``quick``: a small network that trains on a CPU in minutes; its
-#: whole-shape input was chosen over the moving/reference pair by validation selection
+#: moving/reference-pair input was chosen over the whole-shape input by validation selection
 #: accuracy (docs/results/table1_four_settings.md, "Axis-selection network").
 #: ``paper``: the paper code's network and optimiser (DGCNN 64-64-128, 4096 points, k = 20,
 #: 128-d embedding, Adam 3e-4 / 1e-4, step decay 0.7 every 20 epochs), meant for a GPU.
 PRESETS: dict[str, dict[str, Any]] = {
     "quick": {
         "net": {"n_points": 256, "k": 16, "widths": [32, 32, 64], "emb_dim": 64,
-                "head": [64, 32], "dropout": 0.3, "norm": "batch", "input": "shape"},
+                "head": [64, 32], "dropout": 0.3, "norm": "batch"},
         "epochs": 24, "batch_size": 16, "lr": 1e-3, "lr_step": 10, "samples_per_shape": 4,
         "articulated_prob": 0.5, "angles_deg": (30.0, 45.0, 60.0, 80.0), "sign_mode": "mean",
         "val_every": 3, "val_edges_per_shape": 4,
