@@ -36,7 +36,7 @@ augmentation). Randomness comes only from the generator passed in: runs are repr
 :func:`kinmo.train.split.make_split`) are never used; of the other shapes a share per
 category validates (:func:`split_graphs`).
 
-The configuration (:class:`kinmo.refine.train.AxisTrainConfig`) is duck-typed here (its
+The configuration (:class:`kinmo.refine.axis_config.AxisTrainConfig`) is duck-typed here (its
 ``net``, amounts and probabilities), so this module does not import the training loop.
 """
 
@@ -59,7 +59,7 @@ from kinmo.refine.candidates import candidate_axes, motion_of
 from kinmo.refine.motions import PairCloud, edge_cloud, network_inputs
 
 if TYPE_CHECKING:
-    from kinmo.refine.train import AxisTrainConfig
+    from kinmo.refine.axis_config import AxisTrainConfig
 
 __all__ = [
     "MovingEdge",

@@ -11,7 +11,8 @@ falls back to the global network. Both are accepted by
 
 Checkpoints are ``torch.save`` dicts with ``format = "kinmo-axis-selection"``, the state dict
 and the network configuration (:class:`~kinmo.refine.axis_net.AxisNetConfig`), written
-atomically (:func:`kinmo.io.atomic_path`) and read with ``weights_only=True``.
+atomically (:func:`kinmo.io.atomic_path`) and read with :func:`kinmo.io.read_checkpoint`
+(``weights_only=True``).
 """
 
 from __future__ import annotations

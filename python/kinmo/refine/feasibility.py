@@ -109,7 +109,7 @@ def score_lines(
     requests: Sequence[LineRequest],
     amounts: MotionAmounts | None = None,
     seed: int = 0,
-    chunk: int = 256,
+    chunk: int = 16,
     n_points: int | None = None,
 ) -> list[LineFeasibility]:
     """Score the candidate lines of many moving edges in batched network calls.
@@ -126,7 +126,8 @@ def score_lines(
     seed : int
         Default sampling seed (request ``r`` uses ``[seed, r]``).
     chunk : int
-        Moved clouds per encoder call.
+        Moved clouds per encoder call (16: on one CPU thread larger batches were not faster,
+        ``bench/bench_refine.py --only batched``; raise it on a GPU).
     n_points : int, optional
         Points per cloud (default: the network's ``n_points``; fewer is faster).
 
