@@ -594,6 +594,7 @@ def train_ancsh(
     init: str | Path | None = None,
     progress: bool = True,
     console: Any = None,
+    structure: KinematicStructure | None = None,
 ) -> TrainResult:
     """Train ANCSH on rendered scans of one category in one setting (module docstring).
 
@@ -623,6 +624,10 @@ def train_ancsh(
         Rich progress bars.
     console : rich.console.Console, optional
         Receives one-line status messages.
+    structure : KinematicStructure, optional
+        Train on the objects with this structure (one model per structure of a category with
+        several, :func:`kinmo.ancsh.structure.structure_groups`); default the category's most
+        common one.
 
     Returns
     -------
@@ -649,7 +654,7 @@ def train_ancsh(
     t_start = time.perf_counter()
     data = Path(data)
     out = Path(out)
-    cat = scan_category(data, category)
+    cat = scan_category(data, category, structure)
     if cat.structure is None:
         raise KinmoError(f"{data}: no object of category {cat.category} can be expressed by ANCSH")
     structure = cat.structure

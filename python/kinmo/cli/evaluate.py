@@ -16,8 +16,8 @@ def pre_segmented_cmd(
     model: list[Path] = typer.Option(..., "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns."),
     data: Path = typer.Option(..., "--data", "-d", help="Part-graph cache (`kinmo prepare`) or PartNet-Mobility dataset folder."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for table1.csv, table1.md, shapes.csv [default: first run folder/eval]."),  # noqa: UP007
-    split: Optional[Path] = typer.Option(None, "--split", help="Split file; default: the first run's split.json (its test ids)."),  # noqa: UP007
-    all_shapes: bool = typer.Option(False, "--all", help="Evaluate every labelled shape of DATA, ignoring the split."),
+    split: Optional[Path] = typer.Option(None, "--split", help="Split file; default: the first run's split.json. Shapes of DATA that are not its training ids are evaluated (the test split, or every new shape of another folder)."),  # noqa: UP007
+    all_shapes: bool = typer.Option(False, "--all", help="Evaluate every labelled shape of DATA, training shapes of the split included."),
     render: bool = typer.Option(False, "--render", help="Write a PNG per shape and model (OUT/renders/<model>/<id>.png)."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: add OBB_fine / OBB_coarse columns with refined axes."),  # noqa: UP007
     feasibility_only: bool = FEASIBILITY_ONLY,
@@ -27,7 +27,8 @@ def pre_segmented_cmd(
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
-    """Evaluate motion GNN(s) on the test split: type accuracy, mobile-part detection, axis errors."""
+    """Evaluate motion GNN(s) on the shapes they did not train on (the test split of their own
+    data, or every shape of another folder): type accuracy, mobile-part detection, axis errors."""
     from rich.console import Console
 
     from kinmo.errors import KinmoError
