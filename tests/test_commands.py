@@ -2,6 +2,7 @@
 in a fresh folder holding a few real objects: ``kinmo prepare partnet/``, ``kinmo train all``,
 ``kinmo eval --category refrigerator`` (with ``KINMO_PRESET=tiny``, as the README documents)."""
 
+import csv
 import json
 import shutil
 
@@ -49,6 +50,16 @@ def test_prepare_train_all_eval_category_as_written(tmp_path, monkeypatch, mobil
         assert setting in out and paper in out
     table = (tmp_path / "runs/all/ancsh/Refrigerator/eval-refrigerator/table2.csv").read_text().splitlines()
     assert [r.split(",")[0] for r in table[1:]] == ["supervised", "semi", "semi-weakly"]
+
+    # Table 1 the same way: the models of `kinmo train all`, the shapes they did not train on
+    res = runner.invoke(app, ["eval", "pre-segmented", "--data", "runs/all/cache/labeled", "-q",
+                              "--out", "t1"])
+    assert res.exit_code == 0, res.output
+    test = json.loads((tmp_path / "runs/all/split.json").read_text())["test"]
+    with open(tmp_path / "t1/shapes.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert {r["shape_id"] for r in rows} == set(test)
+    assert {r["model"] for r in rows} == {"GNN_fine", "GNN_coarse", "OBB_fine", "OBB_coarse"}
 
 
 def test_train_all_without_data_names_what_to_run(tmp_path, monkeypatch):

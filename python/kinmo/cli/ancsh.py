@@ -133,6 +133,8 @@ def eval_ancsh_cmd(
     from rich.console import Console
 
     console = Console()
+    if not console.is_terminal:  # pipes and logs: do not squeeze the 9-column tables
+        console = Console(width=max(console.width, 140))
     err = Console(stderr=True)
     if category is None:
         console.print(ctx.get_help())

@@ -13,7 +13,7 @@ from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE
 
 @eval_app.command("pre-segmented")
 def pre_segmented_cmd(
-    model: list[Path] = typer.Option(..., "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns."),
+    model: Optional[list[Path]] = typer.Option(None, "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns (default: the motion GNNs and axis network of the last `kinmo train all`, runs/all)."),  # noqa: UP007
     data: Path = typer.Option(..., "--data", "-d", help="Part-graph cache (`kinmo prepare`) or PartNet-Mobility dataset folder."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for table1.csv, table1.md, shapes.csv [default: first run folder/eval]."),  # noqa: UP007
     split: Optional[Path] = typer.Option(None, "--split", help="Split file; default: the first run's split.json. Shapes of DATA that are not its training ids are evaluated (the test split, or every new shape of another folder)."),  # noqa: UP007
@@ -39,6 +39,17 @@ def pre_segmented_cmd(
         console = Console(width=max(console.width, 140))
     err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
+    if not model:
+        from kinmo.pipeline import DEFAULT_RUN
+
+        model = [DEFAULT_RUN / f"gnn_{t}" for t in ("fine", "coarse") if (DEFAULT_RUN / f"gnn_{t}").is_dir()]
+        if not model:
+            err.print(f"[red]error:[/] no --model given and no motion GNN of `kinmo train all` in {DEFAULT_RUN}")
+            raise typer.Exit(1)
+        if axis_model is None and (DEFAULT_RUN / "axis" / ".done").is_file():
+            axis_model = DEFAULT_RUN / "axis"
+        err.print(f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
+                  highlight=False, soft_wrap=True)
     try:
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,
