@@ -154,28 +154,20 @@ def category_structure(objects: dict[str, ObjectParts | None]) -> tuple[Kinemati
     fitting : list of str
         Sorted ids of the objects with exactly that structure.
     """
-    from collections import Counter
-
-    counts = Counter(o.structure for o in objects.values() if o is not None)
-    if not counts:
-        return None, []
-    best = min(counts, key=lambda s: (-counts[s], s.n_parts, s.signature()))
-    return best, sorted(i for i, o in objects.items() if o is not None and o.structure == best)
+    every = category_structures(objects)
+    return every[0] if every else (None, [])
 
 
 def category_structures(objects: dict[str, ObjectParts | None]) -> list[tuple[KinematicStructure, list[str]]]:
     """Every structure of a category with the objects that have it, most common first.
 
-    Parameters
-    ----------
-    objects : dict of str to ObjectParts or None
-        Object id → its parts (None: cannot be expressed).
+    Parameters: as :func:`category_structure`.
 
     Returns
     -------
     list of (KinematicStructure, list of str)
-        Ordered as :func:`category_structure` breaks ties (more objects, fewer parts,
-        signature text), so the first entry is :func:`category_structure`'s; ids sorted.
+        Most objects first; ties broken by fewer parts, then by signature text (the first
+        entry is :func:`category_structure`'s); ids sorted.
     """
     by: dict[KinematicStructure, list[str]] = {}
     for i, o in objects.items():
