@@ -7,6 +7,7 @@ that need them fail, never skip, when they are absent: CI always has them.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -38,6 +39,31 @@ def mobility_root(shared_data: Path) -> Path:
 @pytest.fixture(scope="session")
 def partnet_root(shared_data: Path) -> Path:
     return shared_data / "partnet"
+
+
+@pytest.fixture(scope="session")
+def data_facts(shared_data: Path) -> dict[str, int]:
+    """Counts the shared data's ``README.md`` states, so tests follow the data as it grows.
+
+    Keys: ``mobility_objects``, ``mobility_categories``, ``partnet_shapes``,
+    ``partnet_categories``, ``axes``, ``non_unit_axes``, ``rotating_sliders``, ``min_leaves``,
+    ``max_leaves``. A README that no longer states one of them fails the test that asks.
+    """
+    text = (shared_data / "README.md").read_text(encoding="utf-8")
+    patterns = {
+        ("mobility_objects", "mobility_categories"): r"## partnet-mobility/ \((\d+) objects, (\d+) categories\)",
+        ("partnet_shapes", "partnet_categories"): r"## partnet/ \((\d+) shapes, (\d+) categories\)",
+        ("non_unit_axes", "axes"): r"(\d+) of the (\d+) axis directions are not of unit length",
+        ("rotating_sliders",): r"(\d+) sliders with `rotates`",
+        ("min_leaves", "max_leaves"): r"leaf counts from (\d+) to (\d+)",
+    }
+    facts: dict[str, int] = {}
+    for keys, pattern in patterns.items():
+        m = re.search(pattern, text)
+        if m is None:
+            raise AssertionError(f"{shared_data / 'README.md'}: no line matching {pattern!r}")
+        facts.update({k: int(v) for k, v in zip(keys, m.groups())})
+    return facts
 
 
 # --- A synthetic PartNet-Mobility cabinet with known labels (kinmo.data tests) -----------

@@ -20,12 +20,12 @@ def _areas(v: np.ndarray, f: np.ndarray) -> float:
 
 
 @pytest.fixture(scope="module")
-def all_objs(mobility_root: Path, partnet_root: Path) -> list[Path]:
+def all_objs(mobility_root: Path, partnet_root: Path, data_facts: dict[str, int]) -> list[Path]:
     mob = sorted(mobility_root.glob("*/textured_objs/*.obj"))
     pn = sorted(partnet_root.glob("*/objs/*.obj"))
     # Every object of both datasets has meshes.
-    assert len({p.parents[1] for p in mob}) == 109
-    assert len({p.parents[1] for p in pn}) == 97
+    assert len({p.parents[1] for p in mob}) == data_facts["mobility_objects"]
+    assert len({p.parents[1] for p in pn}) == data_facts["partnet_shapes"]
     return mob + pn
 
 
