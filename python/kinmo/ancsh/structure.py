@@ -193,8 +193,12 @@ class StructureGroup:
     test: tuple[str, ...]
 
     def describe(self) -> str:
-        """E.g. ``"3 training and 0 test objects fit 0<R-1"``."""
-        return f"{len(self.train)} training and {len(self.test)} test objects fit {self.structure.signature()}"
+        """E.g. ``"3 training and 0 test objects fit 0<R-1"`` (long signatures shortened to
+        their first three joints and the joint count)."""
+        sig = self.structure.signature()
+        if self.structure.n_joints > 4:
+            sig = ",".join(sig.split(",")[:3]) + f",... ({self.structure.n_joints} joints)"
+        return f"{len(self.train)} training and {len(self.test)} test objects fit {sig}"
 
 
 def structure_groups(objects: dict[str, ObjectParts | None], test: set[str] | frozenset[str],
