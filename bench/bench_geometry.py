@@ -18,6 +18,9 @@ Sections (``--only NAME`` to run some, comma-separated):
   numpy equivalent (``motion_transforms`` + matmul), and its written bytes per second as a
   fraction of the memory-copy bandwidth (a numpy copy of a large array).
 
+- ``before-after``: with ``--old-core PATH`` (a copy of an older ``_core*.so``), contact
+  adjacency, OBB, interaction region and sampling of today's build against that one in the
+  same run, with output agreement checks, and contact adjacency against FCL.
 - ``obb``: every leaf part of ``partnet-mobility/``: :func:`~kinmo.geometry.fit_obb` per part
   vs ``trimesh.bounds.oriented_bounds`` (median per-part times, their ratio), tightness
   against trimesh (fractions tighter / equal / looser, max volume ratio) and up alignment.
@@ -616,6 +619,118 @@ def bench_obb(bench: Bench) -> None:
                           note=f"trimesh: {up_theirs / k:.3f}"))
 
 
+# ------------------------------------------------------------------------------ before/after
+
+
+def _load_core(path: Path):
+    """Import a ``_core`` extension module from ``path`` (e.g. a copy of an older build)."""
+    import importlib.machinery
+    import importlib.util
+
+    loader = importlib.machinery.ExtensionFileLoader("_core", str(path))
+    spec = importlib.util.spec_from_file_location("_core", path, loader=loader)
+    mod = importlib.util.module_from_spec(spec)
+    loader.exec_module(mod)
+    return mod
+
+
+OLD_CORE: Path | None = None  # set by --old-core
+
+
+@section("before-after")
+def bench_before_after(bench: Bench) -> None:
+    """Today's ``kinmo._core`` against an older build (``--old-core PATH``) in one run.
+
+    Written for issue 13 (the core moved onto parry3d-f64, kiddo and rand_xoshiro): the
+    same inputs through both modules, the median per-object/per-call ratio, and checks that
+    the outputs agree (contact pairs and distances, sampled points bit for bit, OBB volumes).
+    Contact adjacency is also compared with FCL (build + all-pairs distance), which it must
+    beat by at least 10x. Skipped (a note) without ``--old-core``.
+    """
+    from kinmo import _core as new
+
+    if OLD_CORE is None:
+        bench.note("before-after", "no --old-core given")
+        return
+    old = _load_core(OLD_CORE)
+    sec = "before-after"
+    # Contact adjacency on every object's leaves.
+    folders = sorted(p for p in (bench.data / "partnet-mobility").iterdir() if p.is_dir())
+    if bench.quick:
+        folders = folders[:: max(1, len(folders) // 12)][:12]
+    per, differ, n_pairs = [], 0, 0
+    for folder in folders:
+        meshes = _leaf_meshes(folder)
+        if len(meshes) < 2:
+            continue
+        allv = np.concatenate([v for v, _ in meshes])
+        tol = 0.01 * float(np.linalg.norm(allv.max(0) - allv.min(0)))
+        a, b = new.contact_pairs(meshes, tol), old.contact_pairs(meshes, tol)
+        n_pairs += len(a[0])
+        if a[0].tolist() != b[0].tolist() or not np.allclose(a[1], b[1], rtol=0, atol=1e-9 * tol):
+            differ += 1
+        reps = bench.reps(5, 2)
+        per.append((measure(lambda: new.contact_pairs(meshes, tol), reps),
+                    measure(lambda: old.contact_pairs(meshes, tol), reps),
+                    measure(lambda: _fcl_all_pairs(meshes), bench.reps(3, 1), warmup=0)))
+    for k, base in [(1, "old kinmo._core (own BVH + sweep-and-prune)"),
+                    (2, "FCL build + all-pairs distance")]:
+        ratios = [p[k].wall_s / p[0].wall_s for p in per]
+        cpu = [p[k].cpu_s / p[0].cpu_s for p in per]
+        bench.rows.append(Row(
+            sec, f"contact_pairs, sum over {len(per)} objects", sum(p[0].wall_s for p in per),
+            sum(p[0].cpu_s for p in per), per[0][0].repeats, baseline=base,
+            baseline_wall_s=sum(p[k].wall_s for p in per),
+            baseline_cpu_s=sum(p[k].cpu_s for p in per), value=float(np.median(ratios)),
+            unit="x median per-object wall ratio (baseline / new)",
+            note=f"min per-object {min(ratios):.2f}x; cpu: median {np.median(cpu):.2f}x, "
+                 f"min {min(cpu):.2f}x"))
+    bench.rows.append(Row(sec, "objects whose contact pairs differ new vs old", float("nan"),
+                          float("nan"), 0, value=differ,
+                          unit=f"of {len(per)} objects ({n_pairs} pairs, atol 1e-9 tol)"))
+    # OBB per part (hull + kiddo symmetry tree).
+    paths = [p for obj in _mobility_objs(bench) for p in obj]
+    parts = [v for v, _ in new.load_objs([str(p) for p in paths]) if len(v)]
+    vol = lambda r: 8 * float(np.prod(r[2]))  # noqa: E731
+    worse = sum(vol(new.fit_obb(v)) > vol(old.fit_obb(v)) * (1 + 1e-9) for v in parts)
+    bench.compare(sec, f"fit_obb_batch, {len(parts)} parts", lambda: new.fit_obb_batch(parts),
+                  "old kinmo._core", lambda: old.fit_obb_batch(parts), bench.reps(3, 1))
+    bench.rows.append(Row(sec, "parts whose OBB volume grew new vs old", float("nan"),
+                          float("nan"), 0, value=worse, unit=f"of {len(parts)} parts"))
+    rng = np.random.default_rng(0)
+    sphere = rng.normal(size=(20000, 3))
+    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)
+    bench.rows.append(_compare_once(sec, "fit_obb, 20 000 points on a sphere (all on the hull)",
+                                    lambda: new.fit_obb(sphere), lambda: old.fit_obb(sphere)))
+    # Interaction region (kiddo k-d trees).
+    n = 20000 if bench.quick else 100000
+    a = rng.uniform(0, 1, (n, 3))
+    b = rng.uniform(0, 1, (n, 3)) + [0.95, 0, 0]
+    same = all(np.array_equal(x, y) for x, y in zip(new.interaction_region(a, b, 0.02)[:3],
+                                                     old.interaction_region(a, b, 0.02)[:3]))
+    bench.compare(sec, f"interaction_region ({n} + {n} points, radius 0.02)",
+                  lambda: new.interaction_region(a, b, 0.02), "old kinmo._core",
+                  lambda: old.interaction_region(a, b, 0.02), bench.reps(7, 3),
+                  note=f"identical output: {same}")
+    # Sampling (rand_xoshiro): bit-identical and as fast.
+    meshes = _leaf_meshes(folders[0])
+    groups = [[i] for i in range(len(meshes))]
+    same = np.array_equal(new.sample_surface_groups(meshes, groups, 4096, 7),
+                          old.sample_surface_groups(meshes, groups, 4096, 7))
+    bench.compare(sec, f"sample_surface_groups ({len(groups)} groups x 4096 points)",
+                  lambda: new.sample_surface_groups(meshes, groups, 4096, 7), "old kinmo._core",
+                  lambda: old.sample_surface_groups(meshes, groups, 4096, 7), bench.reps(7, 3),
+                  note=f"bit-identical output: {same}")
+
+
+def _compare_once(sec: str, name: str, fn, base) -> Row:
+    """One timed call of each (for slow baselines), as a row."""
+    t = measure(fn, 1, warmup=0)
+    b = measure(base, 1, warmup=0)
+    return Row(sec, name, t.wall_s, t.cpu_s, 1, baseline="old kinmo._core",
+               baseline_wall_s=b.wall_s, baseline_cpu_s=b.cpu_s)
+
+
 # ------------------------------------------------------------------------------ main
 
 
@@ -626,7 +741,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data", type=Path,
                     default=Path(os.environ.get("KINMO_DATA", REPO.parent / "shared" / "data")))
     ap.add_argument("--csv", type=Path, default=RESULTS)
+    ap.add_argument("--old-core", type=Path, default=None,
+                    help="an older _core*.so for the before-after section")
     args = ap.parse_args(argv)
+    global OLD_CORE
+    OLD_CORE = args.old_core
     names = [s for s in args.only.split(",") if s] or list(SECTIONS)
     unknown = [s for s in names if s not in SECTIONS]
     if unknown:

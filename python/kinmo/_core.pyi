@@ -4,6 +4,13 @@ Hand-written: keep in step with ``rust/kinmo-py/src``. The public, documented AP
 :mod:`kinmo.geometry`; these functions take exactly-typed, C-compatible numpy arrays
 (float64 coordinates, int64 faces) and raise ``ValueError`` (bad input) or ``OSError``
 (files) naming the problem. The GIL is released while the Rust code runs.
+
+Size bound: every array a function copies or creates has at most ``2**30`` values (8 GiB
+of float64); a larger input (e.g. a broadcast view of ``2**31`` rows) or requested output
+(``n = 2**40`` points, ``apply_motions`` with 1e5 x 1e5) is a ``ValueError`` naming the
+argument, checked before any copy. An allocation numpy refuses below that bound is a
+``MemoryError``. A Rust panic (a bug) never crosses: it becomes ``RuntimeError("<function>:
+internal error in kinmo._core ...")``, an ordinary ``Exception``.
 """
 
 from collections.abc import Sequence
@@ -22,9 +29,12 @@ Mesh = tuple[F64, I64]
 def load_obj(path: str) -> Mesh:
     """Read one OBJ file: ``(vertices (V, 3) float64, faces (F, 3) int64)``.
 
-    Triangulated, all objects/groups merged, materials ignored. ``OSError`` naming the file
-    when it is missing or unreadable; ``ValueError`` naming it when it is malformed, binary,
-    has non-finite vertices or out-of-range face indices.
+    Triangulated, all objects/groups merged, materials ignored; a UTF-8 byte order mark is
+    skipped. ``OSError`` naming the file when it is missing, unreadable, not a regular file
+    (directory, ``/dev/zero``, FIFO) or larger than 4 GiB; ``ValueError`` naming it when it
+    is malformed, binary, a text file without vertices whose lines are no OBJ statements,
+    has non-finite vertices or vertices beyond the float32 range (``|x| > 3.4e38``), or
+    out-of-range face indices. An empty or comment-only file is an empty mesh.
     """
 
 def load_objs(paths: Sequence[str]) -> list[Mesh]:
@@ -55,7 +65,9 @@ def fit_obb(
     """``(center (3,), axes (3, 3) rows, half_extents (3,))`` of a point set ``(N, 3)``.
 
     Tight, up- and symmetry-aligned, canonical rows (see :mod:`kinmo.geometry.obb`).
-    ``ValueError`` on empty input, bad shape, NaN/inf or bad options.
+    ``O(N log N)`` (exact hull, then at most 256 face-flush candidates measured on the hull
+    vertices): 100 000 points on a sphere take about 3 s. ``ValueError`` on empty input,
+    bad shape, NaN/inf or bad options.
     """
 
 def fit_obb_batch(
@@ -80,7 +92,8 @@ def contact_pairs(meshes: Sequence[Mesh], tolerance: float) -> tuple[I64, F64]:
 def mesh_distance(vertices_a: F64, faces_a: I64, vertices_b: F64, faces_b: I64) -> float:
     """Exact minimum distance between two triangle-mesh surfaces (0 when touching).
 
-    ``ValueError`` when a mesh has no faces.
+    Scale-robust (coordinates scaled by a power of two first): exact at ``1e200`` and at
+    ``1e-300``. ``ValueError`` when a mesh has no faces.
     """
 
 # --- interaction (rust/kinmo-py/src/interaction.rs) --------------------------------------
@@ -99,9 +112,12 @@ def interaction_region(
 def motion_transforms(origins: F64, directions: F64, angles: F64, translations: F64) -> F64:
     """``(C, 4, 4)`` homogeneous matrices: rotate ``angles[c]`` rad about the line
     ``(origins[c], directions[c])`` (right-hand rule), then translate ``translations[c]``
-    along the unit direction. Zero-length direction: ``ValueError`` naming the candidate."""
+    along the unit direction (normalised scale-robustly: ``(1e300, 1e300, 0)`` is valid).
+    Zero-length direction: ``ValueError`` naming the candidate."""
 
 def apply_motions(
     points: F64, origins: F64, directions: F64, angles: F64, translations: F64
 ) -> F64:
-    """``(C, N, 3)``: every candidate motion applied to ``points (N, 3)``, parallel."""
+    """``(C, N, 3)``: every candidate motion applied to ``points (N, 3)``, parallel.
+
+    ``ValueError`` naming ``origins x points`` when ``C * N * 3`` exceeds ``2**30``."""

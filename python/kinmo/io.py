@@ -43,18 +43,108 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise
 
 
-def atomic_write(path: str | Path, write: Callable[[IO[Any]], None], mode: str = "w") -> None:
-    """Write ``path`` atomically by calling ``write(file)`` on a temporary file."""
+def atomic_write(
+    path: str | Path, write: Callable[[IO[Any]], None], mode: str = "w", errors: str | None = None
+) -> None:
+    """Write ``path`` atomically by calling ``write(file)`` on a temporary file.
+
+    ``errors`` is :func:`open`'s (text mode), e.g. ``"surrogateescape"`` to write non-UTF-8
+    file names back as their original bytes.
+    """
     with atomic_path(path) as tmp:
-        with open(tmp, mode) as f:
+        with open(tmp, mode, errors=errors) as f:
             write(f)
             f.flush()
             os.fsync(f.fileno())
 
 
-def write_text(path: str | Path, text: str) -> None:
-    """Write a text file atomically."""
-    atomic_write(path, lambda f: f.write(text))
+def write_text(path: str | Path, text: str, errors: str | None = None) -> None:
+    """Write a text file atomically (``errors``: see :func:`atomic_write`)."""
+    atomic_write(path, lambda f: f.write(text), errors=errors)
+
+
+def output_dir(path: str | Path) -> Path:
+    """Create the output folder ``path`` (and its parents) if needed and return it.
+
+    Raises
+    ------
+    KinmoDataError
+        ``path`` (or a parent) exists and is not a folder, or cannot be created; one line
+        naming it.
+    """
+    from kinmo.errors import KinmoDataError
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise KinmoDataError(path, "exists and is not a folder (the output must be a folder)")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise KinmoDataError(e.filename or path, f"cannot create the output folder: {e.strerror or e}"
+                             ) from None
+    return path
+
+
+def read_checkpoint(path: str | Path, fmt: str, what: str) -> dict[str, Any]:
+    """Load a kinmo ``torch.save`` checkpoint with ``torch.load(weights_only=True)``.
+
+    The one loader of every model checkpoint (motion GNN, axis network, ANCSH): only plain
+    tensors, dicts, lists, tuples, strings and numbers are unpickled, never code, and a
+    damaged file gets one line naming it instead of torch's multi-line text.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.pt`` file.
+    fmt : str
+        The ``"format"`` entry the checkpoint must carry (e.g. ``"kinmo-motion-gnn"``);
+        a checkpoint without one is accepted.
+    what : str
+        What it is, for messages (``"motion-GNN"``).
+
+    Returns
+    -------
+    dict
+        The checkpoint, tensors on the CPU.
+
+    Raises
+    ------
+    KinmoDataError
+        Missing, empty, truncated or garbage file, or a file that is not a ``what``
+        checkpoint.
+    """
+    import pickle
+    import zipfile
+
+    import torch
+
+    from kinmo.errors import KinmoDataError
+
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+    except OSError as e:
+        raise KinmoDataError(path, f"cannot read the {what} checkpoint: {e.strerror or e}") from None
+    if size == 0:
+        raise KinmoDataError(path, f"empty file (0 bytes), not a {what} checkpoint")
+    if not zipfile.is_zipfile(path):
+        raise KinmoDataError(
+            path, f"not a {what} checkpoint: not a torch.save archive (truncated or corrupt file?)"
+        )
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as e:
+        first = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+        raise KinmoDataError(
+            path, f"not a {what} checkpoint: refused by torch.load(weights_only=True) ({first.strip()})"
+        ) from None
+    except Exception as e:  # torch raises many types for damaged archives
+        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
+        raise KinmoDataError(path, f"cannot read the {what} checkpoint (corrupt file?): {first}"
+                             ) from None
+    if not isinstance(payload, dict) or payload.get("format", fmt) != fmt:
+        raise KinmoDataError(path, f"not a kinmo {what} checkpoint")
+    return payload
 
 
 def write_json(path: str | Path, obj: Any, indent: int | None = 2) -> None:

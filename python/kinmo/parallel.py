@@ -26,7 +26,14 @@ shape is independent. :func:`map_unordered` is the loop they share:
   KeyboardInterrupt in this process; on a terminal the workers, in the same process group,
   are interrupted too), the pool is shut down before the call returns or raises: items not
   started are cancelled and the running ones are waited for, so no worker process outlives
-  the call.
+  the call;
+- **workers end with their parent**: a worker dies with the process that started it however
+  that one ends: SIGTERM to the parent terminates the workers (a handler installed for the
+  call, in the main thread, then the exception ``SystemExit(143)``, so callers' ``finally``
+  blocks still run, e.g. the last manifest write of ``kinmo prepare``); SIGKILL (or any
+  death) of the parent is seen by each worker (Linux: ``prctl(PR_SET_PDEATHSIG)``;
+  everywhere: a thread polling :func:`os.getppid`), which then exits. The resource tracker
+  of :mod:`multiprocessing` exits by itself once parent and workers are gone.
 
 What stays in the stages: which items to run (resume / skip logic), how a result is recorded
 (manifests, progress bar, counters), what a failed item's row looks like (``on_error``), and
@@ -45,7 +52,12 @@ Ray; nothing here needs changing for that but the executor.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from multiprocessing import get_context
 from typing import Any, TypeVar
@@ -92,6 +104,81 @@ def resolve_workers(workers: int, n_items: int) -> int:
     """
     n = workers if workers > 0 else available_cpus()
     return max(1, min(n, n_items))
+
+
+#: Seconds between two parent checks of a worker's watch thread.
+PARENT_POLL_S = 0.5
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Make this (worker) process end when the process ``parent_pid`` that started it ends.
+
+    Does nothing unless this is a :mod:`multiprocessing` child of ``parent_pid`` (an executor
+    running the initializer in threads, or in processes it started otherwise, is left alone).
+    """
+    import multiprocessing
+
+    parent = multiprocessing.parent_process()
+    if os.getpid() == parent_pid or parent is None or parent.pid != parent_pid:
+        return
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            pr_set_pdeathsig = 1
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # pragma: no cover - no prctl: the thread below
+            pass
+    if os.getppid() != parent_pid:  # the parent died before prctl was set
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(PARENT_POLL_S)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="kinmo-parent-watch", daemon=True).start()
+
+
+def _start_worker(parent_pid: int, initializer: Callable[..., Any] | None,
+                  initargs: tuple[Any, ...]) -> None:
+    """Pool initializer: tie the worker to its parent, then the caller's initializer."""
+    _exit_with_parent(parent_pid)
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def _terminate_workers(ex: ProcessPoolExecutor) -> None:
+    # ProcessPoolExecutor has no public way to stop running items: terminate its processes
+    # (the pool then reports itself broken and shuts down without waiting for them)
+    for p in list((getattr(ex, "_processes", None) or {}).values()):
+        try:
+            p.terminate()
+        except (OSError, ValueError):  # already gone
+            pass
+
+
+@contextmanager
+def _sigterm_raises() -> Iterator[dict[str, bool]]:
+    """While the block runs, SIGTERM raises ``SystemExit(128 + SIGTERM)`` in the main thread
+    (elsewhere signals cannot be handled: nothing is installed). A second SIGTERM gets the
+    default action. Yields a dict whose ``"terminated"`` says whether it happened."""
+    state = {"terminated": False}
+    if threading.current_thread() is not threading.main_thread():
+        yield state
+        return
+
+    def on_term(signum: int, frame: Any) -> None:
+        state["terminated"] = True
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield state
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def map_unordered(
@@ -149,6 +236,8 @@ def map_unordered(
     KeyboardInterrupt
         On Ctrl-C, after the pool is shut down (pending items cancelled, running ones
         waited for).
+    SystemExit
+        On SIGTERM (code 143, pool case, main thread), after the workers are terminated.
     BrokenProcessPool
         When a worker died: the items in flight are first handed to ``on_error``, then
         submitting the next item raises (the pool cannot be used any more).
@@ -168,12 +257,19 @@ def map_unordered(
         return False
 
     max_in_flight = max(1, in_flight_per_worker) * n_workers
-    ex = ProcessPoolExecutor(
-        max_workers=n_workers,
-        mp_context=get_context("spawn"),
-        initializer=initializer,
-        initargs=initargs,
-    )
+    with _sigterm_raises() as sigterm:
+        ex = ProcessPoolExecutor(
+            max_workers=n_workers,
+            mp_context=get_context("spawn"),
+            initializer=_start_worker,
+            initargs=(os.getpid(), initializer, initargs),
+        )
+        return _run_pool(ex, fn, items, on_result, on_error, max_in_flight, sigterm)
+
+
+def _run_pool(ex: ProcessPoolExecutor, fn: Callable[[T], R], items: Sequence[T],
+              on_result: Callable[[T, R], bool | None], on_error: Callable[[T, Exception], R],
+              max_in_flight: int, sigterm: dict[str, bool]) -> bool:
     stopped = False
     try:
         pending: dict[Future[R], T] = {}
@@ -202,5 +298,7 @@ def map_unordered(
                 break
             fill()
     finally:
+        if sigterm["terminated"]:
+            _terminate_workers(ex)
         ex.shutdown(wait=True, cancel_futures=True)
     return stopped

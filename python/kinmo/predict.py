@@ -332,14 +332,16 @@ def predict_dataset(
     Raises
     ------
     KinmoDataError
-        ``data`` holds no shape folder, or the run cannot be loaded.
+        ``data`` holds no shape folder, ``out`` is a file, or the run cannot be loaded.
     """
     from rich.progress import Progress
 
     from kinmo.data.readers import find_shapes, read_shape
 
+    from kinmo.io import output_dir
+
     data = Path(data)
-    out = Path(out)
+    out = output_dir(out)
     r = run if isinstance(run, Run) else load_run(run, device)
     axis_net = None
     if axis_model is not None:

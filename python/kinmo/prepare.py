@@ -13,13 +13,20 @@ processes, and writes:
   :data:`MANIFEST_COLUMNS`), status ``ok`` (built now), ``skipped`` (cache up to date) or
   ``failed`` (with the one-line reason, naming the file), rewritten atomically as shapes
   complete (at most every :data:`MANIFEST_INTERVAL_S` seconds, and at the end).
+  ``manifest.json`` says whether the run finished (``complete``): a run writes
+  ``complete: false`` before its first shape, so a run killed at any point leaves an
+  incomplete manifest, and readers (:func:`check_manifest`, used by
+  :func:`kinmo.train.gnn.load_cache`) refuse it, saying how many shapes are missing and how
+  to resume.
 
 Resume: a shape is skipped when its ``.npz`` exists and records the same cache version
 (:data:`kinmo.data.graph.CACHE_VERSION`), the same configuration (:class:`PrepareConfig`)
 and the same source fingerprint (:func:`source_fingerprint`: names, sizes and modification
-times of every file of the shape folder). The decision reads the ``.npz`` itself, not the
-manifest, so an interrupted run (stray ``.tmp`` files, which are removed at start; manifest
-rows without a cache file) resumes correctly. One run at a time per cache folder (a lock
+times of every file of the shape folder), and is intact (read whole, its arrays' checksum
+checked, :meth:`kinmo.data.graph.PartGraph.load`: a damaged file is rebuilt, never called
+up to date). The decision reads the ``.npz`` itself, not the manifest, so an interrupted
+run (stray ``.tmp`` files, which are removed at start; manifest rows without a cache file)
+resumes correctly. One run at a time per cache folder (a lock
 file, ``.lock``, enforces it).
 
 Parallelism: :func:`prepare_one` is a pure function of picklable arguments returning a
@@ -27,6 +34,11 @@ Parallelism: :func:`prepare_one` is a pure function of picklable arguments retur
 input. :func:`prepare_dataset` maps it over the shapes with :func:`kinmo.parallel.map_unordered`
 (a ``spawn`` process pool, so Rust thread pools are never forked); the same function can be
 shipped unchanged to another executor (e.g. ``ray.remote(prepare_one)``) for cluster runs.
+
+Odd input: a shape that fails (a mesh without faces included, even one of several of a
+part) is a ``failed`` row naming the file; file and folder names that are not UTF-8 are kept
+(surrogateescape: ``manifest.csv`` holds their bytes, ``manifest.json`` has ``\\udcxx``
+escapes); an ``out`` that is a file is a :class:`~kinmo.errors.KinmoDataError`.
 
 Default cache folder (:func:`default_cache_dir`): ``./cache/<name of the dataset folder>``
 relative to the current directory.
@@ -48,7 +60,7 @@ from typing import Any
 
 from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError
-from kinmo.io import folder_lock
+from kinmo.io import folder_lock, output_dir
 from kinmo.parallel import available_cpus, map_unordered, resolve_workers
 
 __all__ = [
@@ -57,6 +69,7 @@ __all__ = [
     "PrepareConfig",
     "PrepareResult",
     "cache_key",
+    "check_manifest",
     "default_cache_dir",
     "prepare_dataset",
     "prepare_one",
@@ -231,7 +244,8 @@ def source_fingerprint(folder: str | Path) -> str:
         walk(folder, "")
     except OSError as e:
         raise KinmoDataError(folder, f"cannot list the folder: {e.strerror or e}") from None
-    h = hashlib.sha256("\n".join(sorted(entries)).encode())
+    # surrogateescape: a file name that is not UTF-8 counts by its bytes, never fails
+    h = hashlib.sha256("\n".join(sorted(entries)).encode("utf-8", "surrogateescape"))
     return h.hexdigest()[:16]
 
 
@@ -252,19 +266,19 @@ def _one_line(text: str) -> str:
 
 
 def _cached_row(npz: Path, key: str, folder: Path, config: PrepareConfig, fp: str) -> ManifestRow | None:
-    """The row of an up-to-date cache file, or None when it must be (re)built."""
-    import numpy as np
+    """The row of an up-to-date cache file, or None when it must be (re)built.
 
-    from kinmo.data.graph import CACHE_VERSION
+    The file is read whole and its checksum checked (:meth:`PartGraph.load`): a corrupt file
+    is rebuilt, never reported up to date."""
+    from kinmo.data.graph import CACHE_VERSION, PartGraph
 
     if not npz.is_file():
         return None
     try:
-        with np.load(npz, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta_json"]))
-            category, fmt = str(z["category"]), str(z["format"])
-    except Exception:  # unreadable or foreign file: rebuild it
+        graph = PartGraph.load(npz)
+    except KinmoDataError:  # unreadable, corrupt or foreign file: rebuild it
         return None
+    meta, category, fmt = graph.meta, graph.category, graph.format
     if (
         meta.get("cache_version") != CACHE_VERSION
         or meta.get("config") != config.as_dict()
@@ -398,7 +412,9 @@ def _write_manifest(
     from kinmo.io import write_json, write_text
 
     rows = sorted(rows, key=lambda r: r.id)
-    write_text(out / "manifest.csv", _manifest_csv(rows))
+    # surrogateescape: non-UTF-8 folder names are written back as their bytes (read_manifest
+    # reads them the same way); manifest.json escapes them (\udcxx)
+    write_text(out / "manifest.csv", _manifest_csv(rows), errors="surrogateescape")
     write_json(
         out / "manifest.json",
         {
@@ -426,7 +442,7 @@ def read_manifest(path: str | Path) -> list[ManifestRow]:
     if path.is_dir():
         path = path / "manifest.csv"
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open(path, newline="", encoding="utf-8", errors="surrogateescape") as f:
             reader = csv.DictReader(f)
             if tuple(reader.fieldnames or ()) != MANIFEST_COLUMNS:
                 raise KinmoDataError(path, f"unexpected columns {reader.fieldnames}")
@@ -449,6 +465,54 @@ def read_manifest(path: str | Path) -> list[ManifestRow]:
         if isinstance(e, KinmoDataError):
             raise
         raise KinmoDataError(path, f"malformed manifest: {e}") from None
+
+
+def check_manifest(cache: str | Path) -> list[ManifestRow]:
+    """The rows of a cache folder's manifest, after checking that it accounts for the run.
+
+    ``manifest.json`` records whether the run that wrote it finished (``complete``; a run
+    writes ``complete: false`` before its first shape). A run killed or stopped early
+    (``--strict``) leaves it false, maybe with graphs on disk that no row lists; reading
+    such a cache would silently use part of the data, so it is refused, saying how many
+    shapes are missing and how to resume.
+
+    Parameters
+    ----------
+    cache : str or Path
+        A cache folder written by :func:`prepare_dataset` (holding ``manifest.csv``).
+
+    Returns
+    -------
+    list of ManifestRow
+
+    Raises
+    ------
+    KinmoDataError
+        The manifest is missing or malformed, or incomplete: ``"<cache>: incomplete cache:
+        the manifest accounts for K of N shapes (M graphs on disk not in it); ... resume it
+        with `kinmo prepare <root> --out <cache>`"``.
+    """
+    cache = Path(cache)
+    rows = read_manifest(cache)
+    info_path = cache / "manifest.json"
+    if not info_path.is_file():  # a manifest.csv alone (hand-made or older): trust it
+        return rows
+    try:
+        info = json.loads(info_path.read_text(encoding="utf-8"))
+        complete, n_shapes = bool(info["complete"]), int(info["n_shapes"])
+        root = str(info.get("root", "DIR"))
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise KinmoDataError(info_path, f"malformed manifest: {e}") from None
+    if complete:
+        return rows
+    listed = {r.id for r in rows}
+    extra = sum(p.stem not in listed for p in cache.glob("*.npz"))
+    raise KinmoDataError(
+        cache,
+        f"incomplete cache: the manifest accounts for {len(rows)} of {n_shapes} shapes "
+        f"({n_shapes - len(rows)} missing, {extra} graphs on disk not in it): `kinmo prepare` "
+        f"was interrupted or stopped early; resume it with `kinmo prepare {root} --out {cache}`",
+    )
 
 
 # ------------------------------------------------------------------------------- the run
@@ -542,15 +606,17 @@ def prepare_dataset(
         raise KinmoDataError(
             root, "no shape folders found (folders holding result.json or mobility_v2.json)"
         )
-    out = Path(out) if out is not None else default_cache_dir(root)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(out if out is not None else default_cache_dir(root))
     jobs = [(f, cache_key(f, root)) for f in folders]
 
     rows: dict[str, ManifestRow] = {}
     stopped = False
     with folder_lock(out, "kinmo prepare"):
         _clean_tmp(out)
-        last_write = 0.0
+        # An incomplete manifest first: a run killed at any point leaves ``complete: false``
+        # (readers then say how many graphs are missing, :func:`check_manifest`).
+        _write_manifest(out, root, config, [], len(jobs), complete=False)
+        last_write = time.monotonic()
 
         def record(row: ManifestRow, bar: Any) -> bool:
             nonlocal last_write

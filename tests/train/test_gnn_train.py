@@ -95,7 +95,7 @@ def test_errors(tmp_path):
         load_run(tmp_path / "nothing")
     (tmp_path / "bad").mkdir()
     (tmp_path / "bad" / "model.pt").write_bytes(b"not a checkpoint")
-    with pytest.raises(KinmoDataError, match="cannot read checkpoint"):
+    with pytest.raises(KinmoDataError, match="not a motion-GNN checkpoint"):
         load_run(tmp_path / "bad")
     with pytest.raises(KinmoDataError, match="cache folder does not exist"):
         train_gnn(tmp_path / "no-cache", tmp_path / "r", tiny(epochs=1), progress=False)

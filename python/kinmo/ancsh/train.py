@@ -75,7 +75,7 @@ from kinmo.ancsh.dataset import (
 from kinmo.ancsh.model import ANCSH, ancsh_loss
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.io import atomic_path, write_json, write_text
+from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
 
 __all__ = [
     "METRIC_COLUMNS",
@@ -174,11 +174,8 @@ def load_run(run: str | Path, device: str = "auto") -> ANCSHRun:
     ckpt = run / "model.pt" if run.is_dir() else run
     if not ckpt.is_file():
         raise KinmoDataError(ckpt, "checkpoint is missing (train with `kinmo train ancsh`)")
-    try:
-        payload = torch.load(ckpt, map_location="cpu", weights_only=True)
-    except Exception as e:  # torch raises many types for corrupt files
-        raise KinmoDataError(ckpt, f"cannot read checkpoint: {e}") from None
-    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
+    payload = read_checkpoint(ckpt, CHECKPOINT_FORMAT, "ANCSH")
+    if payload.get("format") != CHECKPOINT_FORMAT:
         raise KinmoDataError(ckpt, "not a kinmo ANCSH checkpoint")
     try:
         config = ANCSHConfig.model_validate(payload["config"])

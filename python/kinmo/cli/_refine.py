@@ -33,8 +33,7 @@ def refine_config(feasibility_only: bool, keep_gnn: bool, snap_angle: Optional[f
     typer.Exit
         Code 2 after printing the problem, for invalid values (an unknown box frame).
     """
-    from rich.console import Console
-
+    from kinmo.cli._errors import fail
     from kinmo.refine.refine import RefineConfig
     from kinmo.refine.scoring import ScoringConfig
 
@@ -43,6 +42,4 @@ def refine_config(feasibility_only: bool, keep_gnn: bool, snap_angle: Optional[f
         return RefineConfig(scoring=ScoringConfig(feasibility_only=feasibility_only),
                             keep_gnn=keep_gnn, snap_angle_deg=snap_angle or None, box_frames=frames)
     except ValueError as e:
-        msg = " ".join(str(e).split())
-        Console(stderr=True).print(f"[red]error:[/] invalid refinement option: {msg}", highlight=False)
-        raise typer.Exit(2) from None
+        fail(f"invalid refinement option: {e}", 2)

@@ -69,32 +69,23 @@ def train_ancsh_cmd(
     from kinmo.ancsh.config import SETTINGS
     from kinmo.ancsh.config import preset as make_preset
     from kinmo.ancsh.train import train_ancsh
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, fail
 
     console = Console()
-    err = Console(stderr=True)
     if setting not in SETTINGS:
-        err.print(f"[red]error:[/] --setting must be one of {', '.join(SETTINGS)}, got {setting!r}", highlight=False)
-        raise typer.Exit(2)
+        fail(f"--setting must be one of {', '.join(SETTINGS)}, got {setting!r}", 2)
     data = data or _default_data("partnet-mobility")
     if data is None:
-        err.print("[red]error:[/] give --data (the PartNet-Mobility folder) or set KINMO_DATA", highlight=False)
-        raise typer.Exit(2)
-    try:
+        fail("give --data (the PartNet-Mobility folder) or set KINMO_DATA", 2)
+    with cli_errors(2, also=(ValueError,)):
         cfg = make_preset(preset, labeled_fraction=labeled_fraction, seed=seed, epochs=epochs,
                           steps_per_epoch=steps_per_epoch, semi_epochs=semi_epochs,
                           frames_per_object=frames_per_object,
                           batch_size=batch_size, device=device, threads=threads, render_workers=workers)
-    except ValueError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(2) from None
     out = out or Path("runs") / "ancsh" / _snake(category) / setting
-    try:
+    with cli_errors(1):
         res = train_ancsh(category, setting, out, cfg, data=data, partnet=partnet, pseudo=pseudo,
                           split=split, scans=scans, init=init, progress=not quiet, console=console)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(1) from None
     last = res.history[-1]
     d = res.data
     console.print(
@@ -135,13 +126,12 @@ def eval_ancsh_cmd(
     console = Console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 9-column tables
         console = Console(width=max(console.width, 140))
-    err = Console(stderr=True)
     if category is None:
         console.print(ctx.get_help())
         raise typer.Exit(0)
 
     from kinmo.ancsh.evaluate import evaluate_category, paper_table
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, fail
 
     if runs:
         run_paths = list(runs)
@@ -150,19 +140,15 @@ def eval_ancsh_cmd(
 
         found = category_runs(category)
         if found.runs is None:
-            err.print(f"[red]error:[/] {found.message}", highlight=False, soft_wrap=True)
-            raise typer.Exit(1)
-        err.print(f"{found.category}: {found.message}", highlight=False, soft_wrap=True)
+            fail(found.message)
+        Console(stderr=True).print(f"{found.category}: {found.message}", highlight=False, soft_wrap=True)
         run_paths, category = [found.runs], found.category
         if scans is None and found.scans is not None and data is None:
             scans = found.scans  # the test scans `kinmo train all` rendered
-    try:
+    with cli_errors(1):
         rows, paths = evaluate_category(category, run_paths, data=data, out=out, scans=scans, frames=frames,
                                         seed=seed, device=device, workers=workers, progress=not quiet,
                                         console=console, symmetric=symmetric)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(1) from None
     console.print(paper_table(rows, category))
     console.print(f"wrote {paths['csv']}, {paths['markdown']} and {paths['frames']}", highlight=False,
                   soft_wrap=True)

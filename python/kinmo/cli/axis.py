@@ -34,27 +34,20 @@ def train_axis_cmd(
     """
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.refine.train import preset_config, train_axis_model
 
     console = Console()
-    err = Console(stderr=True)
     overrides: dict = {"seed": seed, "device": device, "threads": threads}
     for key, val in (("epochs", epochs), ("batch_size", batch_size), ("lr", lr)):
         if val is not None:
             overrides[key] = val
     if n_points is not None:
         overrides["net"] = {"n_points": n_points}
-    try:
+    with cli_errors(2, also=(ValueError,)):
         cfg = preset_config(preset, **overrides)
-    except ValueError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(2) from None
-    try:
+    with cli_errors(1):
         res = train_axis_model(data, out, cfg, split=split, progress=not quiet)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(1) from None
     best = res.metrics[res.best_epoch - 1]
     console.print(
         f"trained axis network ({cfg.preset}) on {res.n_train_edges} moving edges "

@@ -31,31 +31,28 @@ def pre_segmented_cmd(
     data, or every shape of another folder): type accuracy, mobile-part detection, axis errors."""
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.evaluate.pre_segmented import run_evaluation
 
     console = Console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 11-column tables
         console = Console(width=max(console.width, 140))
-    err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
     if not model:
+        from kinmo.cli._errors import fail
         from kinmo.pipeline import DEFAULT_RUN
 
         model = [DEFAULT_RUN / f"gnn_{t}" for t in ("fine", "coarse") if (DEFAULT_RUN / f"gnn_{t}").is_dir()]
         if not model:
-            err.print(f"[red]error:[/] no --model given and no motion GNN of `kinmo train all` in {DEFAULT_RUN}")
-            raise typer.Exit(1)
+            fail(f"no --model given and no motion GNN of `kinmo train all` in {DEFAULT_RUN}")
         if axis_model is None and (DEFAULT_RUN / "axis" / ".done").is_file():
             axis_model = DEFAULT_RUN / "axis"
-        err.print(f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
-                  highlight=False, soft_wrap=True)
-    try:
+        Console(stderr=True).print(
+            f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
+            highlight=False, soft_wrap=True)
+    with cli_errors(1):
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,
                                        console=console, axis_model=axis_model,
                                        refine_config=rc)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     console.print(f"wrote {paths['csv']} and {paths['markdown']}")

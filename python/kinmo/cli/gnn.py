@@ -32,26 +32,18 @@ def train_gnn_cmd(
     """
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, fail
     from kinmo.train.config import preset as make_preset
     from kinmo.train.gnn import train_gnn
 
     console = Console()
-    err = Console(stderr=True)
     if types not in (None, "fine", "coarse"):
-        err.print(f"[red]error:[/] --types must be fine or coarse, got {types!r}")
-        raise typer.Exit(2)
-    try:
+        fail(f"--types must be fine or coarse, got {types!r}", 2)
+    with cli_errors(2, also=(ValueError,)):
         cfg = make_preset(preset, types=types, epochs=epochs, seed=seed, device=device,
                           batch_size=batch_size, lr=lr, threads=threads)
-    except ValueError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(2) from None
-    try:
+    with cli_errors(1):
         res = train_gnn(data, out, cfg, split=split, progress=not quiet)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     last = res.history[-1]
     console.print(
         f"trained {cfg.model.types} GNN ({cfg.preset}) on {len(res.split.train)} shapes in "

@@ -46,18 +46,17 @@ def train_all(
     shapes" says whether they helped."""
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, fail
     from kinmo.pipeline import TINY, PipelineConfig, find_data, missing_data_message, run_pipeline
 
     console = Console(stderr=True)
     found = find_data(labeled=labeled, unlabeled=unlabeled)
     if found.labeled is None:
-        console.print(f"[red]error:[/] {missing_data_message()}", highlight=False, soft_wrap=True)
-        raise typer.Exit(1)
+        fail(missing_data_message())
     console.print(f"data: labelled {found.labeled} ({found.why_labeled}); unlabelled "
                   + (f"{found.unlabeled} ({found.why_unlabeled})" if found.unlabeled is not None
                      else "none (no PartNet folder found: supervised ANCSH only)"), highlight=False, soft_wrap=True)
-    try:
+    with cli_errors(1, also=(ValueError,)):
         cfg = PipelineConfig(
             labeled=found.labeled, unlabeled=found.unlabeled if (refine or unlabeled is not None) else None, out=out,
             preset="quick" if preset == "tiny" else preset, categories=category or None,
@@ -66,9 +65,6 @@ def train_all(
             **(TINY if preset == "tiny" else {}),
         )
         res = run_pipeline(cfg, console=console)
-    except (KinmoError, ValueError) as e:
-        console.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     console.print(f"[green]done[/]: report at {res.report}")
 
 
@@ -85,14 +81,11 @@ def demo(
     pseudo-label, eval, report."""
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.pipeline import run_demo
 
     console = Console(stderr=True)
-    try:
+    with cli_errors(1, also=(ValueError,)):
         res = run_demo(out, n_labeled=n, n_unlabeled=max(n // 2, 2), seed=seed, data=data, unlabeled=unlabeled,
                        tiny=tiny, console=console)
-    except (KinmoError, ValueError) as e:
-        console.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     console.print(f"[green]done[/]: open {res.report}")

@@ -34,25 +34,22 @@ def predict_cmd(
     """
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, printable
     from kinmo.mobility_tree import TreeOptions
     from kinmo.predict import predict_dataset
 
     console = Console()
     err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
-    try:
+    with cli_errors(1):
         rows = predict_dataset(data, model, out, cache=cache, device=device,
                                options=TreeOptions((0.0, hinge_max), slider_fraction),
                                progress=not quiet, render=render, axis_model=axis_model,
                                refine_config=rc)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     ok = [r for r in rows if r.status == "ok"]
     bad = [r for r in rows if r.status != "ok"]
     console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {out}")
     for r in bad:
-        err.print(f"[red]failed[/] {r.id}: {r.error}")
+        err.print(f"[red]failed[/] {printable(r.id)}: {printable(r.error)}")
     if bad:
         raise typer.Exit(1)

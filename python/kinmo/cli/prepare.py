@@ -48,11 +48,10 @@ def prepare(
     from rich.console import Console
     from rich.table import Table
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, printable
     from kinmo.prepare import PrepareConfig, prepare_dataset
 
     console = Console()
-    err = Console(stderr=True)
     try:
         config = PrepareConfig(
             n_points=n_points,
@@ -63,14 +62,11 @@ def prepare(
         )
     except ValueError as e:
         raise typer.BadParameter(str(e)) from None
-    try:
+    with cli_errors(2):
         result = prepare_dataset(
             data_dir, out, config=config, workers=workers, strict=strict, force=force,
             progress=not quiet,
         )
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}", markup=True, highlight=False)
-        raise typer.Exit(2) from None
 
     console.print(
         f"{result.n_shapes} shapes in {result.seconds:.1f} s: "
@@ -84,7 +80,7 @@ def prepare(
         table.add_column("id", no_wrap=True)
         table.add_column("error", overflow="fold")
         for r in result.failures:
-            table.add_row(r.id, r.error)
+            table.add_row(printable(r.id), printable(r.error))
         console.print(table)
     if result.stopped:
         console.print(

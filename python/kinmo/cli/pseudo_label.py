@@ -42,7 +42,7 @@ def pseudo_label_cmd(
     from rich.console import Console
     from rich.table import Table
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.pseudo_label import (
         STATUSES,
         PseudoLabelConfig,
@@ -51,23 +51,16 @@ def pseudo_label_cmd(
     )
 
     console = Console()
-    err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
-    try:
+    with cli_errors(2, also=(ValueError,)):
         config = PseudoLabelConfig(
             threshold=threshold,
             refine=rc,
             sign=sign, consistent=consistent, link="copy" if copy else "symlink", device=device,
         )
-    except ValueError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(2) from None
-    try:
+    with cli_errors(2):
         res = pseudo_label_dataset(data_dir, model, axis_model, out, config, workers=workers,
                                    cache=cache, force=force, progress=not quiet)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}", highlight=False)
-        raise typer.Exit(2) from None
 
     table = Table(title=f"Pseudo-labels (threshold {threshold:g})")
     table.add_column("category")

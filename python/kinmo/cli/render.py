@@ -42,21 +42,17 @@ def render(
     from rich.console import Console
     from rich.table import Table
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.render.dataset import RenderConfig, render_dataset
 
     console = Console()
-    err = Console(stderr=True)
     try:
         config = RenderConfig(width=size, height=size, fov_y=fov, seed=seed)
     except ValueError as e:
         raise typer.BadParameter(str(e)) from None
-    try:
+    with cli_errors(2):
         result = render_dataset(data_dir, out, frames_per_object, config, workers=workers,
                                 force=force, progress=not quiet)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}", markup=True, highlight=False)
-        raise typer.Exit(2) from None
     console.print(
         f"{len(result.rows)} frames of {result.n_objects} objects in {result.seconds:.1f} s: "
         f"{result.count('ok')} rendered, {result.count('skipped')} skipped (up to date), "

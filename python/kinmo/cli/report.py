@@ -26,16 +26,12 @@ def report_cmd(
     """
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors
     from kinmo.report import write_report
 
     console = Console()
-    err = Console(stderr=True)
-    try:
+    with cli_errors(1):
         res = write_report(run, out=out, max_images=max_images, title=title)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     found = ", ".join(f"{k} {n}" for k, n in res.found.items() if n)
     console.print(f"found: {found or 'nothing'}")
     if res.missing:

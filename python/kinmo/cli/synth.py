@@ -33,6 +33,7 @@ def synth(
     Object k goes to OUT/9<seed:05d><k:05d>/, an id no real PartNet object has.
     OUT/synth-<seed>.json lists the objects and their sampled parameters.
     """
+    from kinmo.cli._errors import cli_errors
     from kinmo.synth import CATEGORIES, generate_dataset
 
     cats = None
@@ -44,5 +45,6 @@ def synth(
                 f"unknown categories {', '.join(bad)}; choose from {', '.join(CATEGORIES)}",
                 param_hint="--categories",
             )
-    folders = generate_dataset(out, n, seed, categories=cats, partnet=partnet, progress=not quiet)
+    with cli_errors(2):
+        folders = generate_dataset(out, n, seed, categories=cats, partnet=partnet, progress=not quiet)
     typer.echo(f"wrote {len(folders)} objects to {out}")

@@ -81,15 +81,23 @@ def load_shape_meshes(paths: list[Path]) -> list[tuple[np.ndarray, np.ndarray]]:
     Raises
     ------
     KinmoDataError
-        A file is missing, unreadable, does not parse, or has non-finite vertices or bad face
-        indices; the error names that file.
+        A file is missing, unreadable, does not parse, has non-finite vertices or bad face
+        indices, or has no faces (an empty file, or text that is not an OBJ); the error names
+        that file. A shape with such a file fails as a whole, even when the file is one of
+        several meshes of a leaf: a part silently missing its geometry would be cached as
+        "ok".
     """
     from kinmo.geometry import load_obj, load_objs
 
     try:
-        return load_objs(paths)
+        meshes = load_objs(paths)
     except (OSError, ValueError):
         pass
+    else:
+        for p, (_, f) in zip(paths, meshes):
+            if len(f) == 0:
+                raise KinmoDataError(p, "no faces (an empty file, or not an OBJ file)")
+        return meshes
     # Find the first failing file to name it (only on the failure path).
     for p in paths:
         try:

@@ -11,7 +11,9 @@ Frames and units: mesh frame of the OBJ files (PartNet objects are y-up), mesh u
 
 from __future__ import annotations
 
+import hashlib
 import json
+import zipfile
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -22,9 +24,34 @@ from kinmo.errors import KinmoDataError
 from kinmo.io import atomic_path
 
 #: Bump when the layout or the computation of cached graphs changes: older caches are redone.
-CACHE_VERSION = 1
+#: 2: ``meta["checksum"]`` (:func:`arrays_checksum`) in every cached graph.
+CACHE_VERSION = 2
 
 _OPTIONAL = ("edge_fine", "edge_axis_origin", "edge_axis_direction", "edge_link", "node_link")
+
+
+def arrays_checksum(arrays: dict[str, Any]) -> str:
+    """Checksum of a cached graph's arrays: SHA-256 of every array's name, dtype, shape and
+    bytes, in name order (``meta_json``, which stores the checksum, is left out).
+
+    Parameters
+    ----------
+    arrays : dict of str to array_like
+        The arrays of the ``.npz`` file.
+
+    Returns
+    -------
+    str
+        32 hex digits.
+    """
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        if name == "meta_json":
+            continue
+        a = np.asarray(arrays[name])
+        h.update(f"{name}\0{a.dtype.str}\0{a.shape}\0".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:32]
 
 
 @dataclass
@@ -128,7 +155,10 @@ class PartGraph:
 
     def save(self, path: str | Path) -> None:
         """Write the graph as one ``.npz`` file (uncompressed: saving is a quarter of
-        ``kinmo prepare``'s time when compressed, for 30% smaller files), atomically."""
+        ``kinmo prepare``'s time when compressed, for 30% smaller files), atomically.
+
+        ``meta["checksum"]`` of the written file is :func:`arrays_checksum` of its arrays
+        (checked by :meth:`load`)."""
         arrays: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
@@ -140,6 +170,7 @@ class PartGraph:
         arrays["node_names"] = np.asarray(self.node_names, dtype=np.str_)
         meta = dict(self.meta)
         meta.setdefault("cache_version", CACHE_VERSION)
+        meta["checksum"] = arrays_checksum(arrays)
         arrays["meta_json"] = np.asarray(json.dumps(meta))
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as fh:
@@ -149,22 +180,44 @@ class PartGraph:
     def load(cls, path: str | Path) -> PartGraph:
         """Read a graph written by :meth:`save`.
 
+        The file is checked whole: its zip CRCs, and the checksum of its arrays
+        (``meta["checksum"]`` in the file, cache version 2 on; older files have none; it is
+        not kept in the loaded graph's ``meta``).
+
         Raises
         ------
         KinmoDataError
-            If the file is missing, unreadable, or lacks a field.
+            If the file is missing, unreadable, corrupt (damaged archive, checksum mismatch)
+            or lacks a field; one line naming the file.
         """
         path = Path(path)
+        redo = "re-run `kinmo prepare` to rebuild it"
         try:
             with np.load(path, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
-        except (OSError, ValueError) as e:
-            raise KinmoDataError(path, f"cannot read part graph: {e}") from None
+        except FileNotFoundError:
+            raise KinmoDataError(path, "part graph is missing") from None
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
+            msg = " ".join(str(e).split()) or type(e).__name__
+            raise KinmoDataError(path, f"corrupt or unreadable part graph ({msg}); {redo}") from None
+        try:
+            meta = json.loads(str(data["meta_json"]))
+            if not isinstance(meta, dict):
+                raise ValueError("meta_json is not an object")
+        except KeyError:
+            raise KinmoDataError(path, "part graph lacks field 'meta_json'") from None
+        except ValueError as e:
+            raise KinmoDataError(path, f"corrupt part graph (meta_json: {e}); {redo}") from None
+        stored = meta.pop("checksum", None)  # the file's, not the graph's: save recomputes it
+        if stored is None and int(meta.get("cache_version", 1)) >= 2:
+            raise KinmoDataError(path, f"corrupt part graph (no checksum); {redo}")
+        if stored is not None and stored != arrays_checksum(data):
+            raise KinmoDataError(path, f"corrupt part graph (checksum mismatch); {redo}")
         try:
             kwargs: dict[str, Any] = {}
             for f in fields(cls):
                 if f.name == "meta":
-                    kwargs["meta"] = json.loads(str(data["meta_json"]))
+                    kwargs["meta"] = meta
                 elif f.name == "node_names":
                     kwargs["node_names"] = [str(s) for s in data["node_names"]]
                 elif f.name in ("shape_id", "category", "format"):

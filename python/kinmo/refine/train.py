@@ -67,7 +67,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TYPES
 from kinmo.errors import KinmoDataError
-from kinmo.io import atomic_path, write_json, write_text
+from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
 from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
 from kinmo.refine.candidates import candidate_axes, motion_of
 from kinmo.refine.motions import (
@@ -702,17 +702,14 @@ def load_axis_model(path: str | Path, device: str = "cpu") -> AxisSelectionNet:
     KinmoDataError
         Missing or unreadable checkpoint (message names the file).
     """
-    import torch
-
     p = Path(path)
     if p.is_dir():
         p = p / "model.pt"
     if not p.is_file():
         raise KinmoDataError(p, "no axis-selection checkpoint (train one with `kinmo train axis`)")
+    blob = read_checkpoint(p, "kinmo-axis-selection", "axis-selection")
     try:
-        blob = torch.load(p, map_location=device, weights_only=True)
-        if not isinstance(blob, dict) or blob.get("format", "kinmo-axis-selection") != \
-                "kinmo-axis-selection" or "net" not in blob:
+        if "net" not in blob:
             raise ValueError("not a kinmo axis-selection checkpoint")
         model = AxisSelectionNet(AxisNetConfig(**blob["net"]))
         model.load_state_dict(blob["state_dict"])

@@ -212,6 +212,8 @@ def generate_dataset(
     ------
     ValueError
         Bad ``n``, ``seed`` or category names.
+    KinmoDataError
+        ``out`` exists and is not a folder.
     OSError
         ``out`` cannot be written.
     """
@@ -221,8 +223,9 @@ def generate_dataset(
         raise ValueError(f"seed must be >= 0, got {seed}")
     cats = _check_categories(categories)
     order = [cats[i] for i in np.random.default_rng(seed).permutation(len(cats))]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    from kinmo.io import output_dir
+
+    out = output_dir(out)
     folders: list[Path] = []
     records: list[dict] = []
 

@@ -39,7 +39,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TO_COARSE
 from kinmo.errors import KinmoDataError
 from kinmo.features import GraphBatch, GraphTensors, SemanticVocab, collate, graph_tensors, yaw_rotation
-from kinmo.io import atomic_path, write_json, write_text
+from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
 from kinmo.models.losses import MotionLoss, class_weights
 from kinmo.models.motion_gnn import ModelConfig, MotionGNN
 from kinmo.train.config import TrainConfig, resolve_device
@@ -71,7 +71,9 @@ def load_cache(cache: str | Path, ids: Sequence[str] | None = None) -> list[Part
     ----------
     cache : str or Path
         Folder with ``<id>.npz`` files and (normally) ``manifest.csv``. With a manifest only
-        its ``ok``/``skipped`` rows are read; without one every ``*.npz``.
+        its ``ok``/``skipped`` rows are read, and an incomplete manifest (an interrupted
+        ``kinmo prepare``) is refused (:func:`kinmo.prepare.check_manifest`); without one
+        every ``*.npz``. Every graph is checked (:meth:`PartGraph.load`).
     ids : sequence of str, optional
         Read only these ids (in this order).
 
@@ -83,16 +85,17 @@ def load_cache(cache: str | Path, ids: Sequence[str] | None = None) -> list[Part
     Raises
     ------
     KinmoDataError
-        The folder does not exist, holds no graphs, or a requested id is missing.
+        The folder does not exist, holds no graphs, its manifest is incomplete, a requested
+        id is missing, or a graph is corrupt (naming the file).
     """
     cache = Path(cache)
     if not cache.is_dir():
         raise KinmoDataError(cache, "cache folder does not exist (run `kinmo prepare`)")
     if ids is None:
         if (cache / "manifest.csv").is_file():
-            from kinmo.prepare import read_manifest
+            from kinmo.prepare import check_manifest
 
-            keys = sorted(r.id for r in read_manifest(cache) if r.status in ("ok", "skipped"))
+            keys = sorted(r.id for r in check_manifest(cache) if r.status in ("ok", "skipped"))
         else:
             keys = sorted(p.stem for p in cache.glob("*.npz"))
         if not keys:
@@ -175,11 +178,8 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
     ckpt = run / "model.pt" if run.is_dir() else run
     if not ckpt.is_file():
         raise KinmoDataError(ckpt, "checkpoint is missing (train with `kinmo train gnn`)")
-    try:
-        payload = torch.load(ckpt, map_location="cpu", weights_only=True)
-    except Exception as e:  # torch raises many types for corrupt files
-        raise KinmoDataError(ckpt, f"cannot read checkpoint: {e}") from None
-    if not isinstance(payload, dict) or payload.get("format") != "kinmo-motion-gnn":
+    payload = read_checkpoint(ckpt, "kinmo-motion-gnn", "motion-GNN")
+    if payload.get("format") != "kinmo-motion-gnn":
         raise KinmoDataError(ckpt, "not a kinmo motion-GNN checkpoint")
     try:
         raw = payload["config"]

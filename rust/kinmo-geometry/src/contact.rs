@@ -4,33 +4,44 @@
 //! each other. kinmo's part graphs use `tolerance = 0.01 × diagonal` of the object's
 //! axis-aligned bounding box ([`DEFAULT_RELATIVE_TOLERANCE`]).
 //!
-//! The pipeline of [`contact_pairs`]:
+//! The pipeline of [`contact_pairs`], on parry3d-f64:
 //!
-//! 1. one bounding volume hierarchy of axis-aligned boxes per mesh ([`MeshBvh`], median
-//!    split along the widest axis of the triangle centres, 8 triangles per leaf);
-//! 2. broad phase: sort-and-sweep over the mesh AABBs along x, keeping the pairs whose
-//!    AABBs are within `tolerance` (cost `O(n log n + k)` in the number of meshes `n`);
-//! 3. narrow phase, over the candidate pairs: a branch-and-bound traversal of the two
-//!    hierarchies, closest pair of nodes first, that prunes every pair of nodes (and of
-//!    triangles) farther apart than the best distance found so far (initially
-//!    `tolerance`), with an exact triangle-triangle distance at the leaves. It stops as
-//!    soon as the surfaces are found to touch, and otherwise returns the true minimum
-//!    distance of the pairs within `tolerance`.
+//! 1. one parry `Bvh` per mesh over its triangle AABBs (the hierarchy of parry's
+//!    `TriMesh`, binned SAH build) ([`MeshBvh`]);
+//! 2. broad phase: a parry `Bvh` over the mesh AABBs, each loosened by `tolerance / 2`,
+//!    queried with each mesh's loosened AABB, then the exact AABB distance test;
+//! 3. narrow phase, over the candidate pairs: parry's simultaneous traversal of the two
+//!    hierarchies (`Bvh::leaf_pairs`), first over overlapping node pairs only (do the
+//!    surfaces touch?), then pruning every pair of nodes farther apart than the best
+//!    distance found so far (initially `tolerance`), with an exact triangle-triangle
+//!    distance at the leaves. It stops as soon as the surfaces are found to touch, and
+//!    otherwise returns the true minimum distance of the pairs within `tolerance`.
 //!
 //! Steps 1 and 3 run in parallel (rayon) when the meshes have 20 000 triangles or more.
 //!
-//! The triangle-triangle distance first rejects pairs lying on one side of the other's
-//! plane beyond the bound, then tests the 9 edge pairs with the separating-slab early exit
-//! of PQP (Larsen et al., *Fast Proximity Queries with Swept Sphere Volumes*, 1999), the
-//! 6 edge-triangle crossings (intersection: distance 0) and the 6 vertex-face projections.
-//! Zero-area triangles reduce to their edges.
+//! **Own code kept:** the triangle-triangle distance at the leaves. parry measures the
+//! distance of two triangles with GJK (`query::distance` on support maps), an iterative
+//! method accurate to its convergence tolerance (about `1e-9` relative here): contacts
+//! exactly at the tolerance would flip, and touching triangles come out at a tiny positive
+//! distance. The exact closed-form distance (below) decides those cases exactly; it first
+//! rejects pairs lying on one side of the other's plane beyond the bound, then tests the 9
+//! edge pairs with the separating-slab early exit of PQP (Larsen et al., *Fast Proximity
+//! Queries with Swept Sphere Volumes*, 1999), the 6 edge-triangle crossings (intersection:
+//! distance 0) and the 6 vertex-face projections. Zero-area triangles reduce to their
+//! edges.
 //!
 //! Distances are Euclidean, in the units of the vertices, between the *surfaces* (the
 //! triangles): a mesh nested inside a closed mesh without touching it is at a positive
-//! distance. Coordinates are assumed to stay well within `1e±150`, so that squared
-//! distances and cross products neither overflow nor underflow.
+//! distance. [`contact_pairs_of_meshes`] and [`mesh_distance_of_meshes`] first scale all
+//! coordinates by one power of two (exact) so that the largest magnitude is about 1, so
+//! squared distances neither overflow (coordinates up to `f64::MAX`) nor underflow
+//! (coordinates down to about `1e-300`).
+
+use std::cell::Cell;
 
 use nalgebra::{Point3, Vector3};
+use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhNode};
 use rayon::prelude::*;
 
 use crate::error::{GeometryError, Result};
@@ -44,99 +55,53 @@ pub const DEFAULT_RELATIVE_TOLERANCE: f64 = 0.01;
 /// the thread pool would cost more than the work (about a millisecond).
 const PARALLEL_MIN_TRIANGLES: usize = 20_000;
 
-/// Most triangles in one leaf of a [`MeshBvh`].
-const LEAF_SIZE: usize = 8;
-
-/// Axis-aligned box; `mins > maxs` component-wise for the empty box.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Aabb {
-    mins: [f64; 3],
-    maxs: [f64; 3],
-}
-
-impl Aabb {
-    const EMPTY: Aabb = Aabb {
-        mins: [f64::INFINITY; 3],
-        maxs: [f64::NEG_INFINITY; 3],
-    };
-
-    fn of_triangle(t: &[Point3<f64>; 3]) -> Aabb {
-        let mut b = Aabb::EMPTY;
-        for p in t {
-            b.add_point(p);
-        }
-        b
-    }
-
-    #[inline]
-    fn add_point(&mut self, p: &Point3<f64>) {
-        for k in 0..3 {
-            self.mins[k] = self.mins[k].min(p[k]);
-            self.maxs[k] = self.maxs[k].max(p[k]);
+/// Squared distance between two boxes (0 when they overlap).
+#[inline]
+fn aabb_distance2(a_mins: &Point3<f64>, a_maxs: &Point3<f64>, b: &BvhNode) -> f64 {
+    let (b_mins, b_maxs) = (b.mins(), b.maxs());
+    let mut d2 = 0.0;
+    for k in 0..3 {
+        let gap = (b_mins[k] - a_maxs[k]).max(a_mins[k] - b_maxs[k]);
+        if gap > 0.0 {
+            d2 += gap * gap;
         }
     }
+    d2
+}
 
-    #[inline]
-    fn merge(&mut self, o: &Aabb) {
-        for k in 0..3 {
-            self.mins[k] = self.mins[k].min(o.mins[k]);
-            self.maxs[k] = self.maxs[k].max(o.maxs[k]);
+/// Squared distance between two parry AABBs (0 when they overlap).
+#[inline]
+fn box_distance2(a: &Aabb, b: &Aabb) -> f64 {
+    let mut d2 = 0.0;
+    for k in 0..3 {
+        let gap = (b.mins[k] - a.maxs[k]).max(a.mins[k] - b.maxs[k]);
+        if gap > 0.0 {
+            d2 += gap * gap;
         }
     }
-
-    /// Squared distance between two boxes (0 when they overlap).
-    #[inline]
-    fn distance2(&self, o: &Aabb) -> f64 {
-        let mut d2 = 0.0;
-        for k in 0..3 {
-            let gap = (o.mins[k] - self.maxs[k]).max(self.mins[k] - o.maxs[k]);
-            if gap > 0.0 {
-                d2 += gap * gap;
-            }
-        }
-        d2
-    }
-
-    fn volume_proxy(&self) -> f64 {
-        // Half surface area: a robust size measure for flat boxes too.
-        let e = [
-            self.maxs[0] - self.mins[0],
-            self.maxs[1] - self.mins[1],
-            self.maxs[2] - self.mins[2],
-        ];
-        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
-    }
+    d2
 }
 
-/// One node of a [`MeshBvh`]: a leaf holds `count > 0` triangles starting at `first`,
-/// an inner node has `count == 0` and its children at `first` and `first + 1`.
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    aabb: Aabb,
-    first: u32,
-    count: u32,
-}
-
-impl Node {
-    #[inline]
-    fn is_leaf(&self) -> bool {
-        self.count > 0
-    }
-}
-
-/// A triangle mesh with a bounding volume hierarchy, ready for distance queries.
+/// A triangle mesh with parry's bounding volume hierarchy, ready for distance queries.
 ///
-/// Triangles are stored by value in leaf order (a triangle soup: shared vertices are
-/// copied), so queries touch contiguous memory. Zero-area triangles and duplicate
-/// vertices are accepted: a degenerate triangle behaves as its edges.
-#[derive(Clone, Debug)]
+/// Zero-area triangles and duplicate vertices are accepted: a degenerate triangle behaves
+/// as its edges. A mesh without faces has no surface ([`MeshBvh::is_empty`]).
+#[derive(Clone)]
 pub struct MeshBvh {
-    triangles: Vec<[Point3<f64>; 3]>,
-    /// Box of each triangle, same order.
-    boxes: Vec<Aabb>,
-    /// Unnormalised normal `(b - a) × (c - a)` of each triangle (zero when degenerate).
-    normals: Vec<Vector3<f64>>,
-    nodes: Vec<Node>,
+    /// parry's hierarchy over the triangle AABBs (leaf `i`: triangle `i`); `None` when
+    /// the mesh has no triangle.
+    bvh: Option<Bvh>,
+    /// Corners and unnormalised normal `(b - a) × (c - a)` of each triangle, in parry's
+    /// triangle order (contiguous, so the leaves read no index buffer).
+    triangles: Vec<([Point3<f64>; 3], Vector3<f64>)>,
+}
+
+impl std::fmt::Debug for MeshBvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MeshBvh")
+            .field("num_triangles", &self.num_triangles())
+            .finish()
+    }
 }
 
 impl MeshBvh {
@@ -151,134 +116,62 @@ impl MeshBvh {
         Self::with_name(vertices, faces, "mesh")
     }
 
-    /// Build the hierarchy of an already validated mesh.
-    pub fn from_mesh(mesh: &TriMesh) -> MeshBvh {
-        let v = mesh.vertices();
-        // `TriMesh` guarantees finite vertices and in-range indices.
-        let triangles = mesh
-            .faces()
-            .iter()
-            .map(|f| [v[f[0] as usize], v[f[1] as usize], v[f[2] as usize]])
-            .collect();
-        Self::from_triangles(triangles)
-    }
-
     /// Same as [`MeshBvh::new`], with `what` naming the mesh in error messages.
     pub fn with_name(vertices: &[Point3<f64>], faces: &[[u32; 3]], what: &str) -> Result<Self> {
-        for (i, p) in vertices.iter().enumerate() {
-            if let Some(k) = (0..3).find(|&k| !p[k].is_finite()) {
-                return Err(GeometryError::NonFinite {
-                    what: format!("{what} vertices"),
-                    index: 3 * i + k,
-                });
-            }
-        }
-        let n = vertices.len();
-        let mut triangles = Vec::with_capacity(faces.len());
-        for (fi, f) in faces.iter().enumerate() {
-            let mut t = [Point3::origin(); 3];
-            for (slot, &v) in t.iter_mut().zip(f.iter()) {
-                *slot =
-                    *vertices
-                        .get(v as usize)
-                        .ok_or_else(|| GeometryError::IndexOutOfRange {
-                            what: format!("{what} faces"),
-                            face: fi,
-                            vertex: i64::from(v),
-                            n_vertices: n,
-                        })?;
-            }
-            triangles.push(t);
-        }
-        Ok(Self::from_triangles(triangles))
+        let mesh = TriMesh::new(
+            vertices.to_vec(),
+            faces.to_vec(),
+            &format!("{what} vertices"),
+        )
+        .map_err(|e| match e {
+            GeometryError::IndexOutOfRange {
+                face,
+                vertex,
+                n_vertices,
+                ..
+            } => GeometryError::IndexOutOfRange {
+                what: format!("{what} faces"),
+                face,
+                vertex,
+                n_vertices,
+            },
+            other => other,
+        })?;
+        Ok(Self::from_mesh(&mesh))
     }
 
-    /// Build the hierarchy of a triangle soup. Coordinates must be finite (not checked).
-    fn from_triangles(triangles: Vec<[Point3<f64>; 3]>) -> MeshBvh {
-        let n = triangles.len();
-        if n == 0 {
-            return MeshBvh {
-                triangles,
-                boxes: Vec::new(),
-                normals: Vec::new(),
-                nodes: Vec::new(),
-            };
-        }
-        let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
-        let centers: Vec<[f64; 3]> = boxes
+    /// Build the hierarchy of an already validated mesh.
+    pub fn from_mesh(mesh: &TriMesh) -> MeshBvh {
+        Self::from_mesh_scaled(mesh, 1.0)
+    }
+
+    /// Build the hierarchy of `mesh` with every coordinate multiplied by `scale` (a power
+    /// of two in this module, so the scaling is exact).
+    fn from_mesh_scaled(mesh: &TriMesh, scale: f64) -> MeshBvh {
+        let v = mesh.vertices();
+        let triangles: Vec<([Point3<f64>; 3], Vector3<f64>)> = mesh
+            .faces()
             .iter()
-            .map(|b| {
-                [
-                    0.5 * (b.mins[0] + b.maxs[0]),
-                    0.5 * (b.mins[1] + b.maxs[1]),
-                    0.5 * (b.mins[2] + b.maxs[2]),
-                ]
+            .map(|f| {
+                let t = [v[f[0] as usize], v[f[1] as usize], v[f[2] as usize]].map(|p| p * scale);
+                (t, normal(&t))
             })
             .collect();
-        let mut order: Vec<u32> = (0..n as u32).collect();
-        let mut nodes = Vec::with_capacity(2 * n.div_ceil(LEAF_SIZE));
-        nodes.push(Node {
-            aabb: Aabb::EMPTY,
-            first: 0,
-            count: 0,
-        });
-        // (node index, start, end) in `order`.
-        let mut stack = vec![(0usize, 0usize, n)];
-        while let Some((node, lo, hi)) = stack.pop() {
-            let mut aabb = Aabb::EMPTY;
-            let mut cbox = Aabb::EMPTY;
-            for &i in &order[lo..hi] {
-                aabb.merge(&boxes[i as usize]);
-                let c = centers[i as usize];
-                cbox.add_point(&Point3::new(c[0], c[1], c[2]));
-            }
-            let extent = [
-                cbox.maxs[0] - cbox.mins[0],
-                cbox.maxs[1] - cbox.mins[1],
-                cbox.maxs[2] - cbox.mins[2],
-            ];
-            let axis = if extent[0] >= extent[1] && extent[0] >= extent[2] {
-                0
-            } else if extent[1] >= extent[2] {
-                1
-            } else {
-                2
+        if triangles.is_empty() {
+            return MeshBvh {
+                bvh: None,
+                triangles,
             };
-            nodes[node].aabb = aabb;
-            if hi - lo <= LEAF_SIZE || extent[axis] <= 0.0 {
-                nodes[node].first = lo as u32;
-                nodes[node].count = (hi - lo) as u32;
-                continue;
-            }
-            let mid = lo + (hi - lo) / 2;
-            order[lo..hi].select_nth_unstable_by(mid - lo, |&a, &b| {
-                centers[a as usize][axis].total_cmp(&centers[b as usize][axis])
-            });
-            let left = nodes.len();
-            nodes[node].first = left as u32;
-            nodes[node].count = 0;
-            for _ in 0..2 {
-                nodes.push(Node {
-                    aabb: Aabb::EMPTY,
-                    first: 0,
-                    count: 0,
-                });
-            }
-            stack.push((left, lo, mid));
-            stack.push((left + 1, mid, hi));
         }
-        let triangles: Vec<[Point3<f64>; 3]> =
-            order.iter().map(|&i| triangles[i as usize]).collect();
-        let boxes = order.iter().map(|&i| boxes[i as usize]).collect();
-        let normals = triangles
+        // The hierarchy parry's `TriMesh` builds (binned SAH over the triangle AABBs),
+        // without the rest of `TriMesh` (copies of the buffers), which no query here uses.
+        let boxes: Vec<Aabb> = triangles
             .iter()
-            .map(|t| (t[1] - t[0]).cross(&(t[2] - t[0])))
+            .map(|(t, _)| Aabb::from_points(t.iter().copied()))
             .collect();
         MeshBvh {
+            bvh: Some(Bvh::from_leaves(BvhBuildStrategy::Binned, &boxes)),
             triangles,
-            boxes,
-            normals,
-            nodes,
         }
     }
 
@@ -289,109 +182,69 @@ impl MeshBvh {
 
     /// True when the mesh has no triangle (no surface).
     pub fn is_empty(&self) -> bool {
-        self.triangles.is_empty()
+        self.bvh.is_none()
     }
 
     /// Axis-aligned bounding box `(mins, maxs)`, `None` for an empty mesh.
     pub fn aabb(&self) -> Option<(Point3<f64>, Point3<f64>)> {
-        self.nodes
-            .first()
-            .map(|n| (Point3::from(n.aabb.mins), Point3::from(n.aabb.maxs)))
+        self.root_aabb().map(|b| (b.mins, b.maxs))
     }
 
-    fn root_aabb(&self) -> Option<&Aabb> {
-        self.nodes.first().map(|n| &n.aabb)
-    }
-
-    /// Index range of the triangles of a leaf.
-    #[inline]
-    fn leaf_range(node: &Node) -> std::ops::Range<usize> {
-        let s = node.first as usize;
-        s..s + node.count as usize
+    fn root_aabb(&self) -> Option<Aabb> {
+        self.bvh.as_ref().map(Bvh::root_aabb)
     }
 }
 
 /// Squared minimum surface distance between `a` and `b` if it is `<= bound2`.
 ///
-/// Branch and bound over pairs of nodes, closest pair of children first; returns as soon as
-/// a distance of 0 is found. `bound2 = INFINITY` gives the unconditional minimum.
+/// parry's simultaneous traversal of the two hierarchies, pruning node pairs farther than
+/// the best distance so far; returns as soon as a distance of 0 is found.
+/// `bound2 = INFINITY` gives the unconditional minimum.
 fn min_distance2_within(a: &MeshBvh, b: &MeshBvh, bound2: f64) -> Option<f64> {
-    let (Some(ra), Some(rb)) = (a.root_aabb(), b.root_aabb()) else {
+    let (Some(ta), Some(tb)) = (&a.bvh, &b.bvh) else {
         return None;
     };
-    let root_d2 = ra.distance2(rb);
-    if root_d2 > bound2 {
+    if box_distance2(&ta.root_aabb(), &tb.root_aabb()) > bound2 {
         return None;
     }
-    let mut best2 = bound2;
-    let mut found = false;
-    let mut stack: Vec<(u32, u32, f64)> = Vec::with_capacity(64);
-    stack.push((0, 0, root_d2));
-    while let Some((ia, ib, d2)) = stack.pop() {
-        if d2 > best2 {
-            continue;
-        }
-        let na = &a.nodes[ia as usize];
-        let nb = &b.nodes[ib as usize];
-        match (na.is_leaf(), nb.is_leaf()) {
-            (true, true) => {
-                for ia in MeshBvh::leaf_range(na) {
-                    let ba = &a.boxes[ia];
-                    if ba.distance2(&nb.aabb) > best2 {
-                        continue;
-                    }
-                    for ib in MeshBvh::leaf_range(nb) {
-                        if ba.distance2(&b.boxes[ib]) > best2 {
-                            continue;
-                        }
-                        let t2 = triangle_distance2_below(
-                            (&a.triangles[ia], &a.normals[ia]),
-                            (&b.triangles[ib], &b.normals[ib]),
-                            best2,
-                        );
-                        if t2 <= best2 {
-                            best2 = t2;
-                            found = true;
-                            if t2 == 0.0 {
-                                return Some(0.0);
-                            }
-                        }
-                    }
-                }
-            }
-            (leaf_a, leaf_b) => {
-                // Descend the bigger inner node (or the only inner one).
-                let split_a =
-                    !leaf_a && (leaf_b || na.aabb.volume_proxy() >= nb.aabb.volume_proxy());
-                let (c0, c1) = if split_a {
-                    let c = na.first;
-                    ((c, ib), (c + 1, ib))
-                } else {
-                    let c = nb.first;
-                    ((ia, c), (ia, c + 1))
-                };
-                let d0 = a.nodes[c0.0 as usize]
-                    .aabb
-                    .distance2(&b.nodes[c0.1 as usize].aabb);
-                let d1 = a.nodes[c1.0 as usize]
-                    .aabb
-                    .distance2(&b.nodes[c1.1 as usize].aabb);
-                // Push the farther pair first so the closer one is explored first.
-                let (near, far) = if d0 <= d1 {
-                    ((c0, d0), (c1, d1))
-                } else {
-                    ((c1, d1), (c0, d0))
-                };
-                if far.1 <= best2 {
-                    stack.push((far.0 .0, far.0 .1, far.1));
-                }
-                if near.1 <= best2 {
-                    stack.push((near.0 .0, near.0 .1, near.1));
-                }
+    // First pass: do the surfaces touch? Only overlapping node pairs are visited, and most
+    // touching parts are found here at a fraction of the cost of the bounded search.
+    let overlap = |na: &BvhNode, nb: &BvhNode| aabb_distance2(&na.mins(), &na.maxs(), nb) <= 0.0;
+    for (ia, ib) in ta.leaf_pairs(tb, overlap) {
+        if let (Some((pa, na)), Some((pb, nb))) =
+            (a.triangles.get(ia as usize), b.triangles.get(ib as usize))
+        {
+            if triangle_distance2_below((pa, na), (pb, nb), 0.0) <= 0.0 {
+                return Some(0.0);
             }
         }
     }
-    found.then_some(best2)
+    let best2 = Cell::new(bound2);
+    let mut found = false;
+    let check =
+        |na: &BvhNode, nb: &BvhNode| aabb_distance2(&na.mins(), &na.maxs(), nb) <= best2.get();
+    for (ia, ib) in ta.leaf_pairs(tb, check) {
+        let (Some((ta, na)), Some((tb, nb))) =
+            (a.triangles.get(ia as usize), b.triangles.get(ib as usize))
+        else {
+            continue;
+        };
+        let t2 = triangle_distance2_below((ta, na), (tb, nb), best2.get());
+        if t2 <= best2.get() {
+            best2.set(t2);
+            found = true;
+            if t2 == 0.0 {
+                return Some(0.0);
+            }
+        }
+    }
+    found.then_some(best2.get())
+}
+
+/// Unnormalised normal `(b - a) × (c - a)` (zero when degenerate).
+#[inline]
+fn normal(t: &[Point3<f64>; 3]) -> Vector3<f64> {
+    (t[1] - t[0]).cross(&(t[2] - t[0]))
 }
 
 /// Exact minimum distance between the surfaces of two meshes (0 if they touch or
@@ -409,6 +262,39 @@ pub fn mesh_distance(a: &MeshBvh, b: &MeshBvh) -> Result<f64> {
     min_distance2_within(a, b, f64::INFINITY)
         .map(f64::sqrt)
         .ok_or_else(|| GeometryError::Degenerate("meshes have no surface".into()))
+}
+
+/// [`mesh_distance`] of two validated meshes, scale-robust: coordinates are first scaled
+/// by a power of two (exact) so the largest magnitude is about 1, and the distance is
+/// scaled back, so it is neither `inf` at `1e200` nor `0` at `1e-300`.
+///
+/// # Errors
+///
+/// [`GeometryError::Degenerate`] if either mesh has no triangle.
+pub fn mesh_distance_of_meshes(a: &TriMesh, b: &TriMesh) -> Result<f64> {
+    let s = unit_scale([a, b]);
+    let (ba, bb) = rayon::join(
+        || MeshBvh::from_mesh_scaled(a, s),
+        || MeshBvh::from_mesh_scaled(b, s),
+    );
+    Ok(mesh_distance(&ba, &bb)? / s)
+}
+
+/// The power of two `s` such that `s × max |coordinate|` of `meshes` is in `[0.5, 1)`
+/// (`1` when all coordinates are zero).
+fn unit_scale<'a>(meshes: impl IntoIterator<Item = &'a TriMesh>) -> f64 {
+    let m = meshes
+        .into_iter()
+        .flat_map(|m| m.vertices().iter())
+        .flat_map(|p| p.iter().map(|x| x.abs()))
+        .fold(0.0f64, f64::max);
+    if !(m > 0.0 && m.is_finite()) {
+        return 1.0;
+    }
+    // 2^-e with m = f × 2^e, f in [0.5, 1); built from the exponent, clamped to the range
+    // of normal doubles.
+    let e = m.log2().floor() as i32 + 1;
+    2f64.powi((-e).clamp(-1022, 1023))
 }
 
 /// Minimum surface distance between `a` and `b` if it is `<= tolerance`, else `None`.
@@ -433,28 +319,35 @@ pub struct ContactPair {
     pub distance: f64,
 }
 
-/// Pairs of meshes whose AABBs are within `tolerance` (sort-and-sweep along x), `i < j`.
-///
-/// `None` entries (meshes without triangles) never pair.
-fn broad_phase(boxes: &[Option<&Aabb>], tolerance: f64) -> Vec<(usize, usize)> {
+/// Pairs of boxes within `tolerance` of each other (`i < j`): a parry `Bvh` over the boxes
+/// loosened by `tolerance / 2`, then the exact box distance. `None` entries never pair.
+fn broad_phase(boxes: &[Option<Aabb>], tolerance: f64) -> Vec<(usize, usize)> {
     let tol2 = tolerance * tolerance;
-    let mut order: Vec<usize> = (0..boxes.len()).filter(|&i| boxes[i].is_some()).collect();
-    let min_x = |i: usize| boxes[i].map_or(f64::INFINITY, |b| b.mins[0]);
-    order.sort_unstable_by(|&a, &b| min_x(a).total_cmp(&min_x(b)));
+    let ids: Vec<usize> = (0..boxes.len()).filter(|&i| boxes[i].is_some()).collect();
+    let loose: Vec<Aabb> = ids
+        .iter()
+        .filter_map(|&i| boxes[i].map(|b| b.loosened(0.5 * tolerance)))
+        .collect();
+    if loose.is_empty() {
+        return Vec::new();
+    }
+    let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &loose);
     let mut pairs = Vec::new();
-    for (k, &i) in order.iter().enumerate() {
-        let Some(bi) = boxes[i] else { continue };
-        let reach = bi.maxs[0] + tolerance;
-        for &j in &order[k + 1..] {
-            let Some(bj) = boxes[j] else { continue };
-            if bj.mins[0] > reach {
-                break;
+    for (k, (&i, b)) in ids.iter().zip(&loose).enumerate() {
+        for leaf in bvh.intersect_aabb(b) {
+            let l = leaf as usize;
+            if l <= k {
+                continue;
             }
-            if bi.distance2(bj) <= tol2 {
-                pairs.push((i.min(j), i.max(j)));
+            let j = ids[l];
+            if let (Some(bi), Some(bj)) = (&boxes[i], &boxes[j]) {
+                if box_distance2(bi, bj) <= tol2 {
+                    pairs.push((i, j));
+                }
             }
         }
     }
+    pairs.sort_unstable();
     pairs
 }
 
@@ -480,11 +373,18 @@ fn broad_phase(boxes: &[Option<&Aabb>], tolerance: f64) -> Vec<(usize, usize)> {
 /// [`GeometryError::Invalid`] for a negative or non-finite tolerance.
 pub fn contact_pairs(meshes: &[MeshBvh], tolerance: f64) -> Result<Vec<ContactPair>> {
     check_tolerance(tolerance)?;
-    let boxes: Vec<Option<&Aabb>> = meshes.iter().map(MeshBvh::root_aabb).collect();
-    let candidates = broad_phase(&boxes, tolerance);
-    let tol2 = tolerance * tolerance;
+    pairs_within(meshes, tolerance, 1.0)
+}
+
+/// [`contact_pairs`] on meshes scaled by `scale`, with `tolerance` and the distances in the
+/// unscaled units.
+fn pairs_within(meshes: &[MeshBvh], tolerance: f64, scale: f64) -> Result<Vec<ContactPair>> {
+    let boxes: Vec<Option<Aabb>> = meshes.iter().map(MeshBvh::root_aabb).collect();
+    let tol = tolerance * scale;
+    let candidates = broad_phase(&boxes, tol);
+    let tol2 = tol * tol;
     let narrow = |&(i, j): &(usize, usize)| {
-        let distance = min_distance2_within(&meshes[i], &meshes[j], tol2)?.sqrt();
+        let distance = min_distance2_within(&meshes[i], &meshes[j], tol2)?.sqrt() / scale;
         // Also guards against `tolerance²` overflowing to infinity.
         (distance <= tolerance).then_some(ContactPair { i, j, distance })
     };
@@ -508,20 +408,23 @@ fn check_tolerance(tolerance: f64) -> Result<()> {
     }
 }
 
-/// [`contact_pairs`] on validated meshes: builds the hierarchies (in parallel) first.
+/// [`contact_pairs`] on validated meshes: builds the hierarchies (in parallel) first, on
+/// coordinates scaled by one power of two (see the module documentation).
 ///
 /// # Errors
 ///
 /// As [`contact_pairs`].
 pub fn contact_pairs_of_meshes(meshes: &[TriMesh], tolerance: f64) -> Result<Vec<ContactPair>> {
     check_tolerance(tolerance)?;
+    let s = unit_scale(meshes);
     let total: usize = meshes.iter().map(TriMesh::n_faces).sum();
+    let build = |m: &TriMesh| MeshBvh::from_mesh_scaled(m, s);
     let bvhs: Vec<MeshBvh> = if total >= PARALLEL_MIN_TRIANGLES {
-        meshes.par_iter().map(MeshBvh::from_mesh).collect()
+        meshes.par_iter().map(build).collect()
     } else {
-        meshes.iter().map(MeshBvh::from_mesh).collect()
+        meshes.iter().map(build).collect()
     };
-    contact_pairs(&bvhs, tolerance)
+    pairs_within(&bvhs, tolerance, s)
 }
 
 // ---------------------------------------------------------------------------------------
@@ -823,20 +726,17 @@ mod tests {
             .map(|_| {
                 let c = rng.point(10.0);
                 let s = rng.point(1.0);
-                Aabb {
-                    mins: [c.x, c.y, c.z],
-                    maxs: [c.x + s.x, c.y + s.y, c.z + s.z],
-                }
+                Aabb::new(c, c + s.coords)
             })
             .collect();
         for &tol in &[0.0, 0.1, 0.7] {
-            let refs: Vec<Option<&Aabb>> = boxes.iter().map(Some).collect();
+            let refs: Vec<Option<Aabb>> = boxes.iter().copied().map(Some).collect();
             let mut got = broad_phase(&refs, tol);
             got.sort_unstable();
             let mut want = Vec::new();
             for i in 0..boxes.len() {
                 for j in i + 1..boxes.len() {
-                    if boxes[i].distance2(&boxes[j]) <= tol * tol {
+                    if box_distance2(&boxes[i], &boxes[j]) <= tol * tol {
                         want.push((i, j));
                     }
                 }
@@ -904,8 +804,11 @@ mod tests {
             let (a, b) = (bvh(&ma), bvh(&mb));
             let got = mesh_distance(&a, &b).expect("ok");
             let mut brute = f64::INFINITY;
-            for ta in &a.triangles {
-                for tb in &b.triangles {
+            let tris = |m: &MeshBvh| -> Vec<[Point3<f64>; 3]> {
+                m.triangles.iter().map(|t| t.0).collect()
+            };
+            for ta in &tris(&a) {
+                for tb in &tris(&b) {
                     brute = brute.min(triangle_distance2(ta, tb).sqrt());
                 }
             }
@@ -1013,5 +916,26 @@ mod tests {
             .expect_err("NaN")
             .to_string()
             .contains("meshes[3] vertices"));
+    }
+
+    #[test]
+    fn distances_are_scale_robust() {
+        let tri = |m: &(Vec<Point3<f64>>, Vec<[u32; 3]>), s: f64| {
+            let v = m.0.iter().map(|p| p * s).collect();
+            TriMesh::new(v, m.1.clone(), "m").expect("valid")
+        };
+        let a = cube([0.0; 3], [1.0; 3]);
+        let b = cube([1.5, 0.0, 0.0], [1.0; 3]);
+        for s in [1.0, 1e200, 1e-300, 1e300, 3e-310] {
+            let (ta, tb) = (tri(&a, s), tri(&b, s));
+            let d = mesh_distance_of_meshes(&ta, &tb).expect("ok");
+            assert!((d / (0.5 * s) - 1.0).abs() < 1e-9, "scale {s}: {d}");
+            let pairs = contact_pairs_of_meshes(&[ta.clone(), tb.clone()], 0.6 * s).expect("ok");
+            assert_eq!(pairs.len(), 1, "scale {s}");
+            assert!((pairs[0].distance / (0.5 * s) - 1.0).abs() < 1e-9);
+            assert!(contact_pairs_of_meshes(&[ta, tb], 0.4 * s)
+                .expect("ok")
+                .is_empty());
+        }
     }
 }

@@ -6,15 +6,14 @@
 //! motion refinement stage of Liu et al., *Semi-Weakly Supervised Object Kinematic Motion
 //! Prediction*, CVPR 2023, Sec. 3.3.
 //!
-//! Both point sets are indexed with a k-d tree (median split on the widest axis, bounding
-//! box per node), queried with early exit: cost `O((Na + Nb) log(Na + Nb))`.
+//! Both point sets are indexed with a `kiddo` k-d tree (nearest-neighbour queries, squared
+//! Euclidean distance): cost `O((Na + Nb) log(Na + Nb))`.
 
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use kiddo::SquaredEuclidean;
 use nalgebra::Point3;
 
 use crate::error::{GeometryError, Result};
-
-/// Most points in one leaf of a [`KdTree`].
-const LEAF_SIZE: usize = 8;
 
 /// Points of two parts near each other; see the module documentation.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,169 +29,12 @@ pub struct InteractionRegion {
     pub empty: bool,
 }
 
-/// Node of a [`KdTree`]: a leaf holds points `first..first + count` of the permuted array;
-/// an inner node has `count == 0` and children `first`, `first + 1`.
-#[derive(Clone, Copy, Debug)]
-struct KdNode {
-    mins: [f64; 3],
-    maxs: [f64; 3],
-    first: u32,
-    count: u32,
-}
+/// A `kiddo` k-d tree over one part's points (item: the point's index).
+type KdTree = ImmutableKdTree<f64, u32, 3, 32>;
 
-impl KdNode {
-    #[inline]
-    fn distance2(&self, q: &[f64; 3]) -> f64 {
-        let mut d2 = 0.0;
-        for ((lo, hi), x) in self.mins.iter().zip(&self.maxs).zip(q) {
-            let gap = (lo - x).max(x - hi);
-            if gap > 0.0 {
-                d2 += gap * gap;
-            }
-        }
-        d2
-    }
-}
-
-/// Static k-d tree over 3D points with per-node bounding boxes.
-#[derive(Clone, Debug)]
-struct KdTree {
-    /// Points in leaf order.
-    points: Vec<[f64; 3]>,
-    /// `index[k]`: original index of `points[k]`.
-    index: Vec<u32>,
-    nodes: Vec<KdNode>,
-}
-
-impl KdTree {
-    /// Build the tree; `points` must be non-empty and finite.
-    fn new(points: &[Point3<f64>]) -> KdTree {
-        let mut index: Vec<u32> = (0..points.len() as u32).collect();
-        let coords: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
-        let mut nodes = vec![KdNode {
-            mins: [0.0; 3],
-            maxs: [0.0; 3],
-            first: 0,
-            count: 0,
-        }];
-        let mut stack = vec![(0usize, 0usize, points.len())];
-        while let Some((node, lo, hi)) = stack.pop() {
-            let mut mins = [f64::INFINITY; 3];
-            let mut maxs = [f64::NEG_INFINITY; 3];
-            for &i in &index[lo..hi] {
-                let p = coords[i as usize];
-                for k in 0..3 {
-                    mins[k] = mins[k].min(p[k]);
-                    maxs[k] = maxs[k].max(p[k]);
-                }
-            }
-            nodes[node].mins = mins;
-            nodes[node].maxs = maxs;
-            let ext = [maxs[0] - mins[0], maxs[1] - mins[1], maxs[2] - mins[2]];
-            let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
-                0
-            } else if ext[1] >= ext[2] {
-                1
-            } else {
-                2
-            };
-            if hi - lo <= LEAF_SIZE || ext[axis] <= 0.0 {
-                nodes[node].first = lo as u32;
-                nodes[node].count = (hi - lo) as u32;
-                continue;
-            }
-            let mid = lo + (hi - lo) / 2;
-            index[lo..hi].select_nth_unstable_by(mid - lo, |&a, &b| {
-                coords[a as usize][axis].total_cmp(&coords[b as usize][axis])
-            });
-            let left = nodes.len();
-            nodes[node].first = left as u32;
-            nodes[node].count = 0;
-            let blank = nodes[node];
-            nodes.push(blank);
-            nodes.push(blank);
-            stack.push((left, lo, mid));
-            stack.push((left + 1, mid, hi));
-        }
-        let points = index.iter().map(|&i| coords[i as usize]).collect();
-        KdTree {
-            points,
-            index,
-            nodes,
-        }
-    }
-
-    /// Whether some point is within squared distance `r2` of `q`.
-    fn any_within(&self, q: &[f64; 3], r2: f64, stack: &mut Vec<u32>) -> bool {
-        stack.clear();
-        stack.push(0);
-        while let Some(n) = stack.pop() {
-            let node = &self.nodes[n as usize];
-            if node.distance2(q) > r2 {
-                continue;
-            }
-            if node.count > 0 {
-                let s = node.first as usize;
-                if self.points[s..s + node.count as usize]
-                    .iter()
-                    .any(|p| dist2(p, q) <= r2)
-                {
-                    return true;
-                }
-            } else {
-                stack.push(node.first);
-                stack.push(node.first + 1);
-            }
-        }
-        false
-    }
-
-    /// Nearest point to `q` strictly closer than `sqrt(bound2)`: `(original index, d²)`.
-    fn nearest(
-        &self,
-        q: &[f64; 3],
-        bound2: f64,
-        stack: &mut Vec<(u32, f64)>,
-    ) -> Option<(u32, f64)> {
-        let mut best: Option<(u32, f64)> = None;
-        let mut best2 = bound2;
-        stack.clear();
-        stack.push((0, self.nodes[0].distance2(q)));
-        while let Some((n, d2)) = stack.pop() {
-            if d2 >= best2 {
-                continue;
-            }
-            let node = &self.nodes[n as usize];
-            if node.count > 0 {
-                let s = node.first as usize;
-                for (k, p) in self.points[s..s + node.count as usize].iter().enumerate() {
-                    let e = dist2(p, q);
-                    if e < best2 {
-                        best2 = e;
-                        best = Some((self.index[s + k], e));
-                    }
-                }
-            } else {
-                let (a, b) = (node.first, node.first + 1);
-                let da = self.nodes[a as usize].distance2(q);
-                let db = self.nodes[b as usize].distance2(q);
-                let (near, far) = if da <= db {
-                    ((a, da), (b, db))
-                } else {
-                    ((b, db), (a, da))
-                };
-                stack.push(far);
-                stack.push(near);
-            }
-        }
-        best
-    }
-}
-
-#[inline]
-fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+fn kd_tree(points: &[Point3<f64>]) -> KdTree {
+    let coords: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    ImmutableKdTree::new_from_slice(&coords)
 }
 
 fn check_points(points: &[Point3<f64>], what: &str) -> Result<()> {
@@ -210,13 +52,43 @@ fn check_points(points: &[Point3<f64>], what: &str) -> Result<()> {
     Ok(())
 }
 
-/// Mask of the points of `query` within squared distance `r2` of a point of `tree`.
-fn mask_within(query: &[Point3<f64>], tree: &KdTree, r2: f64) -> Vec<bool> {
-    let mut stack = Vec::with_capacity(64);
+/// Mask of the points of `query` within squared distance `r2` of a point of `tree`, whose
+/// points have the bounding box `(lo, hi)`: points farther than that from the box are
+/// rejected without a tree query.
+fn mask_within(
+    query: &[Point3<f64>],
+    tree: &KdTree,
+    (lo, hi): (Point3<f64>, Point3<f64>),
+    r2: f64,
+) -> Vec<bool> {
     query
         .iter()
-        .map(|p| tree.any_within(&[p.x, p.y, p.z], r2, &mut stack))
+        .map(|p| {
+            let mut d2 = 0.0;
+            for k in 0..3 {
+                let gap = (lo[k] - p[k]).max(p[k] - hi[k]);
+                if gap > 0.0 {
+                    d2 += gap * gap;
+                }
+            }
+            d2 <= r2
+                && tree
+                    .nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z])
+                    .distance
+                    <= r2
+        })
         .collect()
+}
+
+/// Component-wise bounding box of a non-empty point set.
+fn bounds(points: &[Point3<f64>]) -> (Point3<f64>, Point3<f64>) {
+    points.iter().fold(
+        (
+            Point3::from([f64::INFINITY; 3]),
+            Point3::from([f64::NEG_INFINITY; 3]),
+        ),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    )
 }
 
 /// Interaction region of a moving part and its reference part.
@@ -245,16 +117,15 @@ pub fn interaction_region(
     check_points(moving, "moving")?;
     check_points(reference, "reference")?;
     let r2 = radius * radius;
-    let tree_ref = KdTree::new(reference);
-    let mask_moving = mask_within(moving, &tree_ref, r2);
+    let tree_ref = kd_tree(reference);
+    let mask_moving = mask_within(moving, &tree_ref, bounds(reference), r2);
     if !mask_moving.iter().any(|&m| m) {
         // Nothing within radius: midpoint of the closest pair.
-        let mut stack = Vec::with_capacity(64);
         let mut best: Option<(usize, u32, f64)> = None;
         for (i, p) in moving.iter().enumerate() {
-            let bound = best.map_or(f64::INFINITY, |b| b.2);
-            if let Some((j, d2)) = tree_ref.nearest(&[p.x, p.y, p.z], bound, &mut stack) {
-                best = Some((i, j, d2));
+            let nn = tree_ref.nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z]);
+            if best.is_none_or(|b| nn.distance < b.2) {
+                best = Some((i, nn.item, nn.distance));
             }
         }
         // Points are finite, so some pair has a finite distance; fall back to the first pair
@@ -268,8 +139,8 @@ pub fn interaction_region(
             empty: true,
         });
     }
-    let tree_mov = KdTree::new(moving);
-    let mask_reference = mask_within(reference, &tree_mov, r2);
+    let tree_mov = kd_tree(moving);
+    let mask_reference = mask_within(reference, &tree_mov, bounds(moving), r2);
     let mut sum = nalgebra::Vector3::zeros();
     let mut count = 0usize;
     for (pts, mask) in [(moving, &mask_moving), (reference, &mask_reference)] {
@@ -319,6 +190,11 @@ mod tests {
                 Point3::from(p)
             })
             .collect()
+    }
+
+    fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+        let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
     }
 
     fn brute_mask(a: &[Point3<f64>], b: &[Point3<f64>], r: f64) -> Vec<bool> {

@@ -151,9 +151,12 @@ pub fn check_finite(points: &[Point3<f64>], what: &str) -> Result<()> {
 /// Vertices are in the file's frame and units.
 ///
 /// # Errors
-/// [`GeometryError::Io`] naming the file when it is missing or unreadable;
-/// [`GeometryError::Parse`] naming the file when it does not parse, has a non-finite
-/// vertex, or a face index out of range.
+/// [`GeometryError::Io`] naming the file when it is missing, unreadable, not a regular
+/// file (a directory, a device such as `/dev/zero`, a FIFO) or larger than
+/// [`MAX_OBJ_BYTES`]; [`GeometryError::Parse`] naming the file when it does not parse, is
+/// a text file without any vertex whose lines are no OBJ statements, has a non-finite
+/// vertex or one beyond the float32 range, or a face index out of range. A leading UTF-8
+/// byte order mark is skipped; an empty or comment-only file is an empty mesh.
 pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
     let path = path.as_ref();
     let name = path.display().to_string();
@@ -171,7 +174,7 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let bytes = std::fs::read(path).map_err(|e| io(format!("cannot read: {e}")))?;
+    let bytes = read_bounded(path, MAX_OBJ_BYTES).map_err(io)?;
     if bytes.contains(&0) {
         return Err(parse(
             "binary data (NUL bytes): not a text OBJ file".to_string(),
@@ -179,6 +182,8 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
     }
     // Invalid UTF-8 (e.g. Latin-1 comments or group names) is replaced, not fatal.
     let text = String::from_utf8_lossy(&bytes);
+    // A UTF-8 byte order mark would hide the first statement.
+    let text = text.strip_prefix('\u{FEFF}').unwrap_or(&text);
     // Materials are never read: a missing or broken `.mtl` cannot fail the load.
     let (models, _materials) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |_| {
         Ok((Vec::new(), Default::default()))
@@ -186,6 +191,25 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
     .map_err(|e| parse(obj_error(&e)))?;
 
     let n_vertices: usize = models.iter().map(|m| m.mesh.positions.len() / 3).sum();
+    if n_vertices == 0 {
+        if let Some((line, word)) = first_foreign_statement(text) {
+            return Err(parse(format!(
+                "not an OBJ file: no vertex, and line {line} starts with '{word}', \
+                 which is no OBJ statement"
+            )));
+        }
+    }
+    let beyond_f32 = models
+        .iter()
+        .flat_map(|m| m.mesh.positions.iter())
+        .position(|x| x.is_finite() && x.abs() > f64::from(f32::MAX));
+    if let Some(index) = beyond_f32 {
+        return Err(parse(format!(
+            "vertex {} (counted in object order) has a coordinate beyond the float32 range \
+             (|x| > 3.4e38), which kinmo's float32 caches cannot hold",
+            index / 3
+        )));
+    }
     let n_faces: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
     let mut vertices = Vec::with_capacity(n_vertices);
     let mut faces = Vec::with_capacity(n_faces);
@@ -224,6 +248,98 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
         )),
         other => parse(other.to_string()),
     })
+}
+
+/// Largest OBJ file [`load_obj`] reads (4 GiB); larger files are refused before reading.
+pub const MAX_OBJ_BYTES: u64 = 1 << 32;
+
+/// Statement keywords of the OBJ format (Wavefront, *Object Files*, Appendix B1 of the
+/// Advanced Visualizer manual), vertex data, elements, grouping, display and free-form.
+const OBJ_KEYWORDS: &[&str] = &[
+    "v",
+    "vt",
+    "vn",
+    "vp",
+    "f",
+    "fo",
+    "l",
+    "p",
+    "o",
+    "g",
+    "s",
+    "mg",
+    "mtllib",
+    "usemtl",
+    "maplib",
+    "usemap",
+    "lod",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "shadow_obj",
+    "trace_obj",
+    "ctech",
+    "stech",
+    "cstype",
+    "deg",
+    "bmat",
+    "step",
+    "curv",
+    "curv2",
+    "surf",
+    "parm",
+    "trim",
+    "hole",
+    "scrv",
+    "sp",
+    "end",
+    "con",
+    "call",
+    "csh",
+];
+
+/// The first non-blank, non-comment line whose first word is no OBJ keyword:
+/// `(1-based line number, word)` (the word cut to 20 characters).
+fn first_foreign_statement(text: &str) -> Option<(usize, String)> {
+    text.lines().enumerate().find_map(|(i, line)| {
+        let word = line.split_whitespace().next()?;
+        if word.starts_with('#') || OBJ_KEYWORDS.contains(&word) {
+            return None;
+        }
+        Some((i + 1, word.chars().take(20).collect()))
+    })
+}
+
+/// Read a regular file of at most `limit` bytes; the error message (without the path)
+/// says why not: missing, not a regular file (a directory, `/dev/zero`, a FIFO), too
+/// large, or unreadable.
+fn read_bounded(path: &Path, limit: u64) -> std::result::Result<Vec<u8>, String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    if meta.is_dir() {
+        return Err("cannot read: is a directory".to_string());
+    }
+    if !meta.is_file() {
+        return Err("cannot read: not a regular file".to_string());
+    }
+    if meta.len() > limit {
+        return Err(format!(
+            "cannot read: file too large ({} bytes, the limit is {limit})",
+            meta.len()
+        ));
+    }
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    let mut bytes = Vec::new();
+    // `take`: a file that grows while being read still stops at the limit.
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    if bytes.len() as u64 > limit {
+        return Err(format!(
+            "cannot read: file too large (the limit is {limit} bytes)"
+        ));
+    }
+    Ok(bytes)
 }
 
 /// Read many OBJ files in parallel (rayon); same contract as [`load_obj`].
@@ -331,6 +447,16 @@ mod tests {
             ("inf_vertex.obj", "v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n"),
             ("zero_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"),
             ("binary.obj", "v 0 0 0\n\0\x01\x02\n"),
+            (
+                "readme.obj",
+                "This is a README, not a mesh.\nSee the docs.\n",
+            ),
+            ("json.obj", "{\"v\": [1, 2, 3]}\n"),
+            ("huge_vertex.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n"),
+            (
+                "very_huge_vertex.obj",
+                "v 0 0 0\nv 1 0 0\nv 0 -1e200 0\nf 1 2 3\n",
+            ),
         ] {
             let path = obj_file(name, text);
             match load_obj(&path) {
@@ -339,6 +465,32 @@ mod tests {
                 }
                 other => panic!("{name}: expected Parse, got {other:?}"),
             }
+        }
+    }
+
+    #[test]
+    fn bom_empty_and_special_files() {
+        let bom = obj_file("bom.obj", "\u{FEFF}v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        let m = load_obj(&bom).expect("a BOM is skipped");
+        assert_eq!((m.n_vertices(), m.n_faces()), (3, 1));
+        let empty = obj_file("empty.obj", "");
+        assert!(load_obj(&empty).expect("empty mesh").is_empty());
+        let comments = obj_file("comments.obj", "# exported by hand\n\n# nothing yet\n");
+        assert!(load_obj(&comments).expect("empty mesh").is_empty());
+        #[cfg(unix)]
+        for special in ["/dev/zero", "/dev/null"] {
+            match load_obj(special) {
+                Err(GeometryError::Io { path, message }) => {
+                    assert_eq!(path, special);
+                    assert!(message.contains("not a regular file"), "{message}");
+                }
+                other => panic!("{special}: expected Io, got {other:?}"),
+            }
+        }
+        let big = obj_file("big.obj", "v 0 0 0\n".repeat(10));
+        match read_bounded(&big, 16) {
+            Err(m) => assert!(m.contains("too large"), "{m}"),
+            Ok(_) => panic!("80 bytes read under a 16-byte limit"),
         }
     }
 

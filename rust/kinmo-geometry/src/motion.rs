@@ -105,13 +105,11 @@ pub fn motions(
     finite("translations", translations.iter().copied())?;
     (0..c)
         .map(|i| {
-            let norm = directions[i].norm();
-            if !(norm > 0.0 && norm.is_finite()) {
+            let Some(axis) = unit_direction(&directions[i]) else {
                 return Err(GeometryError::Degenerate(format!(
                     "directions[{i}]: zero-length axis direction of candidate {i}"
                 )));
-            }
-            let axis = Unit::new_unchecked(directions[i] / norm);
+            };
             Ok(Motion::about_axis(
                 &origins[i],
                 &axis,
@@ -120,6 +118,19 @@ pub fn motions(
             ))
         })
         .collect()
+}
+
+/// The unit vector along finite `d`, scale-robust: `d` is first divided by its largest
+/// magnitude, so neither `(1e300, 1e300, 0)` (whose squared norm overflows) nor
+/// `(1e-300, 0, 0)` (whose squared norm underflows) is taken for a zero vector. `None` only
+/// for the zero vector (or a non-finite one).
+pub fn unit_direction(d: &Vector3<f64>) -> Option<Unit<Vector3<f64>>> {
+    let m = d.amax();
+    if !(m > 0.0 && m.is_finite()) {
+        return None;
+    }
+    let s = d / m;
+    Some(Unit::new_unchecked(s / s.norm()))
 }
 
 /// Homogeneous matrices of C candidates as a flat row-major `(C, 4, 4)` buffer.
@@ -359,5 +370,28 @@ mod tests {
             .is_empty());
         let out = apply_motions(&[], &[p(0.0, 0.0, 0.0)], &[Vector3::z()], &[1.0], &[0.0]);
         assert!(out.expect("ok").is_empty());
+    }
+
+    #[test]
+    fn extreme_directions_are_unit_not_zero_length() {
+        for d in [
+            Vector3::new(1e300, 1e300, 0.0),
+            Vector3::new(-1e-300, 0.0, 0.0),
+            Vector3::new(f64::MAX, f64::MAX, f64::MAX),
+            Vector3::new(5e-324, 0.0, 5e-324),
+        ] {
+            let u = unit_direction(&d).expect("non-zero direction");
+            assert!((u.norm() - 1.0).abs() < 1e-15, "{d}: {}", u.norm());
+            assert!((u.dot(&d.map(f64::signum)) > 0.0), "{d}");
+        }
+        assert!(unit_direction(&Vector3::zeros()).is_none());
+        let m = motions(
+            &[Point3::origin()],
+            &[Vector3::new(1e300, 1e300, 0.0)],
+            &[0.0],
+            &[1.0],
+        )
+        .expect("a valid direction");
+        assert_eq!(m.len(), 1);
     }
 }

@@ -1,11 +1,11 @@
 //! Bindings of `kinmo_geometry::contact`: `contact_pairs`, `mesh_distance`.
 
-use kinmo_geometry::contact::{self, MeshBvh};
+use kinmo_geometry::contact;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 
 use crate::convert::{array1, array2, mesh_from_arrays, meshes_from_list};
-use crate::errors::to_py;
+use crate::errors::detach;
 
 type PairsAndDistances<'py> = (Bound<'py, PyArray2<i64>>, Bound<'py, PyArray1<f64>>);
 
@@ -23,9 +23,9 @@ fn contact_pairs<'py>(
     tolerance: f64,
 ) -> PyResult<PairsAndDistances<'py>> {
     let meshes = meshes_from_list(meshes, "meshes")?;
-    let pairs = py
-        .detach(|| contact::contact_pairs_of_meshes(&meshes, tolerance))
-        .map_err(to_py)?;
+    let pairs = detach(py, "contact_pairs", || {
+        contact::contact_pairs_of_meshes(&meshes, tolerance)
+    })?;
     let flat: Vec<i64> = pairs
         .iter()
         .flat_map(|p| [p.i as i64, p.j as i64])
@@ -48,11 +48,9 @@ fn mesh_distance(
 ) -> PyResult<f64> {
     let a = mesh_from_arrays(&vertices_a, &faces_a, "mesh_a")?;
     let b = mesh_from_arrays(&vertices_b, &faces_b, "mesh_b")?;
-    py.detach(|| {
-        let (ba, bb) = rayon::join(|| MeshBvh::from_mesh(&a), || MeshBvh::from_mesh(&b));
-        contact::mesh_distance(&ba, &bb)
+    detach(py, "mesh_distance", || {
+        contact::mesh_distance_of_meshes(&a, &b)
     })
-    .map_err(to_py)
 }
 
 /// Register this module's functions on `kinmo._core`.

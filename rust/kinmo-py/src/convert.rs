@@ -5,7 +5,9 @@
 //! argument (through [`crate::errors::to_py`]). Inputs may be non-contiguous (any strides);
 //! C-contiguous arrays take a fast path (checked with ndarray's `as_slice`, which requires
 //! standard layout: numpy's own `as_slice` also accepts Fortran order, in memory order).
-//! Outputs are built from flat `Vec`s without copying.
+//! Outputs are built from flat `Vec`s without copying, or allocated by numpy with
+//! [`zeros`]. Every array a binding copies or creates is first checked against
+//! [`MAX_VALUES`] by [`check_values`], the one size check of the bindings.
 
 // Shared toolbox: not every helper is used by every binding module.
 #![allow(dead_code)]
@@ -22,6 +24,58 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::errors::to_py;
+
+/// Most values (array elements) of one array that a binding copies or creates:
+/// `2**30` (8 GiB of float64). Checked before any copy or allocation, so a huge request
+/// (`n = 2**40`, a broadcast view of `2**31` rows) is a `ValueError` naming the argument,
+/// never an aborted process or a `PanicException`.
+pub const MAX_VALUES: usize = 1 << 30;
+
+/// Check that an array of shape `dims` (requested by argument `what`) has at most
+/// [`MAX_VALUES`] values; returns the number of values.
+///
+/// The one size check of the bindings: every input copy and every output allocation goes
+/// through it.
+///
+/// # Errors
+/// `ValueError` `"{what}: an array of shape (..) has N values, more than the limit of
+/// 1073741824 of kinmo._core"`.
+pub fn check_values(what: &str, dims: &[usize]) -> PyResult<usize> {
+    let n = dims
+        .iter()
+        .try_fold(1u128, |acc, &d| acc.checked_mul(d as u128));
+    match n {
+        Some(n) if n <= MAX_VALUES as u128 => Ok(n as usize),
+        _ => {
+            let shape: Vec<String> = dims.iter().map(usize::to_string).collect();
+            let count = n.map_or_else(|| "more than 2**128".to_string(), |n| n.to_string());
+            Err(PyValueError::new_err(format!(
+                "{what}: an array of shape ({}) has {count} values, more than the limit of \
+                 {MAX_VALUES} (8 GiB of float64) of kinmo._core",
+                shape.join(", ")
+            )))
+        }
+    }
+}
+
+/// A zero-filled numpy array of shape `dims`, checked with [`check_values`] (naming
+/// `what`) and allocated by numpy itself (`numpy.zeros`), so a failed allocation is a
+/// `MemoryError`, and large arrays get numpy's transparent-huge-page advice (cheap
+/// first-touch page faults when filled in place).
+///
+/// # Errors
+/// `ValueError` from [`check_values`]; `MemoryError` from numpy.
+pub fn zeros<'py, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    py: Python<'py>,
+    dims: &[usize],
+    what: &str,
+) -> PyResult<Bound<'py, numpy::PyArray<T, D>>> {
+    check_values(what, dims)?;
+    let np = py.import("numpy")?;
+    let shape = pyo3::types::PyTuple::new(py, dims)?;
+    let arr = np.getattr("zeros")?.call1((shape, T::get_dtype(py)))?;
+    Ok(arr.cast_into::<numpy::PyArray<T, D>>()?)
+}
 
 /// Shape error `what: expected shape {expected}, got (a, b, ...)`.
 fn shape_error(what: &str, expected: &str, got: &[usize]) -> PyErr {
@@ -52,6 +106,7 @@ pub fn points_from_array(
     if shape[1] != 3 {
         return Err(shape_error(what, "(N, 3)", shape));
     }
+    check_values(what, shape)?;
     let view = arr.as_array();
     let owned;
     let flat: &[f64] = match view.as_slice() {
@@ -87,6 +142,7 @@ pub fn faces_from_array(
     if shape[1] != 3 {
         return Err(shape_error(what, "(F, 3)", shape));
     }
+    check_values(what, shape)?;
     let view = arr.as_array();
     let owned;
     let flat: &[i64] = match view.as_slice() {
@@ -172,6 +228,7 @@ pub fn floats_from_array(
     len: Option<usize>,
     what: &str,
 ) -> PyResult<Vec<f64>> {
+    check_values(what, arr.shape())?;
     let view = arr.as_array();
     let values: Vec<f64> = match view.as_slice() {
         Some(s) => s.to_vec(),

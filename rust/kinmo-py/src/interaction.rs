@@ -5,7 +5,7 @@ use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
 use crate::convert::{array1, points_from_array};
-use crate::errors::to_py;
+use crate::errors::detach;
 
 type Region<'py> = (
     Bound<'py, PyArray1<bool>>,
@@ -28,9 +28,9 @@ fn interaction_region<'py>(
 ) -> PyResult<Region<'py>> {
     let a = points_from_array(&moving, "moving")?;
     let b = points_from_array(&reference, "reference")?;
-    let r = py
-        .detach(|| interaction::interaction_region(&a, &b, radius))
-        .map_err(to_py)?;
+    let r = detach(py, "interaction_region", || {
+        interaction::interaction_region(&a, &b, radius)
+    })?;
     let c = r.centroid;
     Ok((
         array1(py, r.mask_moving),

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyList;
 
 use crate::convert::{array2, faces_to_array};
-use crate::errors::to_py;
+use crate::errors::detach;
 
 type MeshArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
 
@@ -25,7 +25,7 @@ fn mesh_to_arrays(py: Python<'_>, m: TriMesh) -> MeshArrays<'_> {
 /// when it is missing, unreadable or malformed.
 #[pyfunction]
 fn load_obj(py: Python<'_>, path: std::path::PathBuf) -> PyResult<MeshArrays<'_>> {
-    let m = py.detach(|| mesh::load_obj(&path)).map_err(to_py)?;
+    let m = detach(py, "load_obj", || mesh::load_obj(&path))?;
     Ok(mesh_to_arrays(py, m))
 }
 
@@ -34,7 +34,7 @@ fn load_obj(py: Python<'_>, path: std::path::PathBuf) -> PyResult<MeshArrays<'_>
 /// The first failing file (in input order) raises `OSError` naming it.
 #[pyfunction]
 fn load_objs(py: Python<'_>, paths: Vec<std::path::PathBuf>) -> PyResult<Bound<'_, PyList>> {
-    let meshes = py.detach(|| mesh::load_objs(&paths)).map_err(to_py)?;
+    let meshes = detach(py, "load_objs", || mesh::load_objs(&paths))?;
     let items: Vec<MeshArrays<'_>> = meshes.into_iter().map(|m| mesh_to_arrays(py, m)).collect();
     PyList::new(py, items)
 }

@@ -5,8 +5,8 @@ use nalgebra::{Point3, Vector3};
 use numpy::{PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{array3, floats_from_array, points_from_array};
-use crate::errors::to_py;
+use crate::convert::{array3, check_values, floats_from_array, points_from_array, zeros};
+use crate::errors::{detach, to_py};
 
 /// The validated `(origins, directions, angles, translations)` of C candidates.
 type Candidates = (Vec<Point3<f64>>, Vec<Vector3<f64>>, Vec<f64>, Vec<f64>);
@@ -49,9 +49,10 @@ fn motion_transforms<'py>(
 ) -> PyResult<Bound<'py, PyArray3<f64>>> {
     let (o, d, a, t) = candidates(&origins, &directions, &angles, &translations)?;
     let c = o.len();
-    let flat = py
-        .detach(|| motion::motion_transforms(&o, &d, &a, &t))
-        .map_err(to_py)?;
+    check_values("origins", &[c, 4, 4])?;
+    let flat = detach(py, "motion_transforms", || {
+        motion::motion_transforms(&o, &d, &a, &t)
+    })?;
     Ok(array3(py, flat, (c, 4, 4)))
 }
 
@@ -72,12 +73,14 @@ fn apply_motions<'py>(
     let p = points_from_array(&points, "points")?;
     let (o, d, a, t) = candidates(&origins, &directions, &angles, &translations)?;
     let motions = motion::motions(&o, &d, &a, &t).map_err(to_py)?;
-    let out = PyArray3::<f64>::zeros(py, [o.len(), p.len(), 3], false);
+    let out: Bound<'py, PyArray3<f64>> =
+        zeros(py, &[o.len(), p.len(), 3], "origins x points (output)")?;
     {
         let mut rw = out.readwrite();
         let buf = rw.as_slice_mut()?;
-        py.detach(|| motion::apply_motions_into(&motions, &p, buf))
-            .map_err(to_py)?;
+        detach(py, "apply_motions", || {
+            motion::apply_motions_into(&motions, &p, buf)
+        })?;
     }
     Ok(out)
 }

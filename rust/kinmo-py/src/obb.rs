@@ -7,7 +7,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::convert::{array1, array2, array3, points_from_array};
-use crate::errors::to_py;
+use crate::errors::detach;
 
 type ObbArrays<'py> = (
     Bound<'py, PyArray1<f64>>,
@@ -62,7 +62,7 @@ fn fit_obb<'py>(
 ) -> PyResult<ObbArrays<'py>> {
     let pts = points_from_array(&points, "points")?;
     let p = params(volume_tolerance, up, symmetry);
-    let b = py.detach(|| obb::fit_obb_with(&pts, &p)).map_err(to_py)?;
+    let b = detach(py, "fit_obb", || obb::fit_obb_with(&pts, &p))?;
     Ok((
         array1(py, b.center.coords.iter().copied().collect()),
         array2(py, axes_flat(&b).to_vec(), 3, 3),
@@ -97,7 +97,7 @@ fn fit_obb_batch<'py>(
         sets.push(points_from_array(&arr, &name)?);
     }
     let p = params(volume_tolerance, up, symmetry);
-    let boxes = py.detach(|| obb::fit_obb_batch(&sets, &p)).map_err(to_py)?;
+    let boxes = detach(py, "fit_obb_batch", || obb::fit_obb_batch(&sets, &p))?;
     let n = boxes.len();
     let centers: Vec<f64> = boxes
         .iter()

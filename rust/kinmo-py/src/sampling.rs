@@ -5,8 +5,8 @@ use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use crate::convert::{mesh_from_arrays, meshes_from_list};
-use crate::errors::to_py;
+use crate::convert::{mesh_from_arrays, meshes_from_list, zeros};
+use crate::errors::detach;
 
 /// `(points (n, 3) float64, face_index (n,) int64)`.
 type Samples<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<i64>>);
@@ -40,18 +40,17 @@ fn sample_surface<'py>(
     let seed = self::seed(seed)?;
     let mesh = mesh_from_arrays(&vertices, &faces, "mesh")?;
     // Outputs are numpy arrays filled in place (no intermediate buffers).
-    let points = PyArray2::<f64>::zeros(py, [n, 3], false);
-    let face_index = PyArray1::<i64>::zeros(py, n, false);
+    let points: Bound<'py, PyArray2<f64>> = zeros(py, &[n, 3], "n")?;
+    let face_index: Bound<'py, PyArray1<i64>> = zeros(py, &[n], "n")?;
     {
         let mut p = points.readwrite();
         let mut f = face_index.readwrite();
         let (p, f) = (p.as_slice_mut()?, f.as_slice_mut()?);
-        py.detach(|| {
+        detach(py, "sample_surface", || {
             let sampler = AreaSampler::new(&[&mesh])?;
             sampler.fill(seed, p, Some(f));
-            Ok::<(), kinmo_geometry::GeometryError>(())
-        })
-        .map_err(to_py)?;
+            Ok(())
+        })?;
     }
     Ok((points, face_index))
 }
@@ -92,12 +91,13 @@ fn sample_surface_groups<'py>(
         .collect::<PyResult<Vec<_>>>()?;
     // Filled in place: numpy's allocator advises huge pages for large arrays, which makes
     // first-touch page faults of a large output far cheaper than a fresh Rust buffer.
-    let out = PyArray3::<f64>::zeros(py, [groups.len(), n, 3], false);
+    let out: Bound<'py, PyArray3<f64>> = zeros(py, &[groups.len(), n, 3], "n")?;
     {
         let mut rw = out.readwrite();
         let buf = rw.as_slice_mut()?;
-        py.detach(|| sampling::sample_surface_groups_into(&meshes, &groups, n, seed, buf))
-            .map_err(to_py)?;
+        detach(py, "sample_surface_groups", || {
+            sampling::sample_surface_groups_into(&meshes, &groups, n, seed, buf)
+        })?;
     }
     Ok(out)
 }

@@ -10,8 +10,10 @@
 //!
 //! To stay cheap, at most `max_samples` points are used: a permutation-independent
 //! subsample (the points with the smallest SplitMix64 hash of their coordinate bits),
-//! with a small static k-d tree for the nearest-neighbour queries.
+//! with a `kiddo` k-d tree for the nearest-neighbour queries.
 
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use kiddo::SquaredEuclidean;
 use nalgebra::{Point3, Vector3};
 
 /// SplitMix64 finaliser (Steele, Lea & Flood 2014) of one word.
@@ -22,59 +24,32 @@ fn mix(x: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// A static k-d tree over a few hundred points (implicit layout, median splits).
+/// The subsampled points with a `kiddo` k-d tree for nearest-neighbour queries.
 #[derive(Debug, Clone)]
 pub(crate) struct KdTree {
     pts: Vec<Point3<f64>>,
+    tree: ImmutableKdTree<f64, u32, 3, 32>,
 }
 
 impl KdTree {
-    /// Build the tree (reorders a copy of `pts`).
-    pub fn new(mut pts: Vec<Point3<f64>>) -> Self {
-        fn build(p: &mut [Point3<f64>], depth: usize) {
-            if p.len() <= 1 {
-                return;
-            }
-            let mid = p.len() / 2;
-            let ax = depth % 3;
-            p.select_nth_unstable_by(mid, |a, b| a[ax].total_cmp(&b[ax]));
-            let (l, r) = p.split_at_mut(mid);
-            build(l, depth + 1);
-            build(&mut r[1..], depth + 1);
-        }
-        build(&mut pts, 0);
-        KdTree { pts }
+    /// Build the tree over `pts`.
+    pub fn new(pts: Vec<Point3<f64>>) -> Self {
+        let coords: Vec<[f64; 3]> = pts.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let tree = ImmutableKdTree::new_from_slice(&coords);
+        KdTree { pts, tree }
     }
 
     /// Squared distance from `q` to the nearest point (infinity when empty).
     pub fn nearest_sq(&self, q: &Point3<f64>) -> f64 {
-        fn go(p: &[Point3<f64>], depth: usize, q: &Point3<f64>, best: &mut f64) {
-            if p.is_empty() {
-                return;
-            }
-            let mid = p.len() / 2;
-            let d = (p[mid] - q).norm_squared();
-            if d < *best {
-                *best = d;
-            }
-            let ax = depth % 3;
-            let diff = q[ax] - p[mid][ax];
-            let (near, far) = if diff < 0.0 {
-                (&p[..mid], &p[mid + 1..])
-            } else {
-                (&p[mid + 1..], &p[..mid])
-            };
-            go(near, depth + 1, q, best);
-            if diff * diff < *best {
-                go(far, depth + 1, q, best);
-            }
+        if self.pts.is_empty() {
+            return f64::INFINITY;
         }
-        let mut best = f64::INFINITY;
-        go(&self.pts, 0, q, &mut best);
-        best
+        self.tree
+            .nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z])
+            .distance
     }
 
-    /// The points (in tree order).
+    /// The points.
     pub fn points(&self) -> &[Point3<f64>] {
         &self.pts
     }
@@ -147,6 +122,16 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             assert_eq!(tree.nearest_sq(&q), brute);
         }
+        // Many duplicates (a coarse grid repeated) stay exact.
+        let dup: Vec<Point3<f64>> = (0..400)
+            .map(|i| Point3::new(f64::from(i % 3), 0.0, f64::from(i % 2)))
+            .collect();
+        let tree = KdTree::new(dup);
+        assert_eq!(tree.nearest_sq(&Point3::new(2.0, 0.5, 1.0)), 0.25);
+        assert_eq!(
+            KdTree::new(Vec::new()).nearest_sq(&Point3::origin()),
+            f64::INFINITY
+        );
     }
 
     #[test]
