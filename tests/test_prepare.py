@@ -242,6 +242,11 @@ def test_cli(dataset: Path, tmp_path: Path) -> None:
     assert r.exit_code == 2 and "not a folder" in r.output
     r = runner.invoke(app, ["prepare", str(dataset), "--contact-tolerance", "0.5"])
     assert r.exit_code == 2
+    # an absurd point count is refused up front, before any shape is tried (issue 14)
+    r = runner.invoke(app, ["prepare", str(dataset), "--out", str(tmp_path / "huge"),
+                            "--n-points", "10000000000000"])
+    assert r.exit_code == 2 and "--n-points" in r.output
+    assert not (tmp_path / "huge").exists()
 
 
 def test_default_cache_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -121,3 +121,27 @@ def apply_motions(
     """``(C, N, 3)``: every candidate motion applied to ``points (N, 3)``, parallel.
 
     ``ValueError`` naming ``origins x points`` when ``C * N * 3`` exceeds ``2**30``."""
+
+# --- sweep (rust/kinmo-py/src/sweep.rs) --------------------------------------------------
+
+def sweep_collisions(
+    moving_points: F64,
+    obstacle_vertices: F64,
+    obstacle_faces: I64,
+    origins: F64,
+    directions: F64,
+    kinds: I64,
+    ranges: F64,
+    n_steps: int = 16,
+    skin: float = 0.005,
+    hit_tolerance: float = 0.02,
+) -> tuple[F64, F64]:
+    """``(free_fraction (C, 2), colliding_fraction (C, 2))`` float64, column 0 the positive
+    sign: swept-collision feasibility of C candidate motions (``kinds (C,)``: 0 revolute, 1
+    prismatic; ``ranges (C,)`` radians / mesh units) of ``moving_points (P, 3)`` against one
+    obstacle mesh (``F = 0``: all free). Rule: :mod:`kinmo.geometry.sweep`. ``ValueError``
+    on bad input (``P = 0``, ``C = 0``, zero direction, bad kind/range/parameters)."""
+
+def line_mesh_distance(origins: F64, directions: F64, vertices: F64, faces: I64) -> F64:
+    """``(C,)`` float64: distance from each infinite line to the mesh surface (parry).
+    ``ValueError`` on bad input, a zero-length direction or a mesh without faces."""

@@ -47,6 +47,7 @@ __all__ = [
     "edges_json",
     "hierarchy_from_graph",
     "infer_edges",
+    "infer_edges_with_priors",
     "predict_dataset",
     "predict_graphs",
     "write_prediction",
@@ -55,7 +56,21 @@ __all__ = [
 
 @torch.no_grad()
 def infer_edges(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8) -> list[EdgePrediction]:
-    """Run the motion GNN on part graphs.
+    """Run the motion GNN on part graphs: the edge predictions of
+    :func:`infer_edges_with_priors` (same parameters), without the priors.
+
+    Returns
+    -------
+    list of EdgePrediction
+        One per graph (mesh frame).
+    """
+    return infer_edges_with_priors(run, graphs, batch_size)[0]
+
+
+@torch.no_grad()
+def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8
+                            ) -> tuple[list[EdgePrediction], list]:
+    """Run the motion GNN on part graphs; also return its raw outputs as refinement priors.
 
     Parameters
     ----------
@@ -68,12 +83,19 @@ def infer_edges(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8) -> l
 
     Returns
     -------
-    list of EdgePrediction
+    (list of EdgePrediction, list of kinmo.refine.selector.GNNPriors)
         One per graph, rows in ``graph.sibling_edges`` order; probabilities over the run's
-        type set; axes mapped back to each graph's mesh frame.
+        type set; axes mapped back to each graph's mesh frame. The priors hold the type
+        probabilities as predicted (before :func:`consistent_fine`) and the softmax of the
+        axis-candidate logits with the 10 candidate directions (``None`` for a model without
+        them).
     """
+    from kinmo.refine.selector import GNNPriors
+
     run.model.eval()
     out: list[EdgePrediction] = []
+    priors: list[GNNPriors] = []
+    names = tuple(run.config.model.type_names)
     tensors = [graph_tensors(g, run.vocab) for g in graphs]
     for t in tensors:  # labels are not needed at inference
         t.edge_fine = t.axis_origin = t.axis_direction = t.has_axis = None
@@ -91,7 +113,12 @@ def infer_edges(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8) -> l
             n = np.linalg.norm(dd, axis=1, keepdims=True)
             dd = np.where(n > 0, dd / np.where(n > 0, n, 1.0), np.array([0.0, 1.0, 0.0]))
             out.append(EdgePrediction(probs[s], dd, t.to_mesh(o[s])))
-    return out
+            ap = ad = None
+            if getattr(res, "axis_logits", None) is not None:
+                ap = torch.softmax(res.axis_logits[s].double(), dim=1).cpu().numpy()
+                ad = res.axis_candidates[s].double().cpu().numpy()
+            priors.append(GNNPriors(probs[s].copy(), names, ap, ad))
+    return out, priors
 
 
 @dataclass
@@ -105,12 +132,16 @@ class ShapePrediction:
     tree : MobilityTree
     type_names : tuple of str
         Names of the columns of ``edges.probs``.
+    priors : kinmo.refine.selector.GNNPriors or None
+        The GNN's raw outputs (types before :func:`consistent_fine`, axis-candidate
+        probabilities), the soft priors of the learned refinement.
     """
 
     graph: PartGraph
     edges: EdgePrediction
     tree: MobilityTree
     type_names: tuple[str, ...]
+    priors: object | None = None
 
     @property
     def shape_id(self) -> str:
@@ -169,12 +200,12 @@ def predict_graphs(run: Run, graphs: Sequence[PartGraph], options: TreeOptions =
     With ``consistent`` (default) fine types are made to agree with the predicted axes
     (:func:`consistent_fine`).
     """
-    preds = infer_edges(run, graphs, batch_size)
+    preds, priors = infer_edges_with_priors(run, graphs, batch_size)
     if consistent:
         preds = [consistent_fine(g, p) for g, p in zip(graphs, preds)]
     names = run.config.model.type_names
-    return [ShapePrediction(g, p, build_mobility_tree(g, p, options), names)
-            for g, p in zip(graphs, preds)]
+    return [ShapePrediction(g, p, build_mobility_tree(g, p, options), names, pr)
+            for g, p, pr in zip(graphs, preds, priors)]
 
 
 def hierarchy_from_graph(graph: PartGraph) -> PartHierarchy:
@@ -347,7 +378,9 @@ def predict_dataset(
     if axis_model is not None:
         from kinmo.refine.train import load_axis_model
 
-        axis_net = load_axis_model(axis_model, "cpu" if r.device.type == "cpu" else str(r.device))
+        if not (Path(axis_model).is_dir() and not (Path(axis_model) / "model.pt").is_file()
+                and getattr(refine_config, "selector", "paper") == "ranker"):
+            axis_net = load_axis_model(axis_model, "cpu" if r.device.type == "cpu" else str(r.device))
     folders = find_shapes(data)
     if not folders:
         raise KinmoDataError(data, "no shape folder found")
@@ -361,7 +394,7 @@ def predict_dataset(
                 sid = shape.id
                 graph = _graph_for(folder, data, shape, cache)
                 pred = predict_graphs(r, [graph], options)[0]
-                if axis_net is not None:
+                if axis_model is not None:
                     from kinmo.refine.refine import refine_shape_prediction
 
                     pred = refine_shape_prediction(pred, axis_net, refine_config, options)[0]

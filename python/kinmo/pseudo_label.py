@@ -203,6 +203,8 @@ def _file_digest(path: Path) -> str:
 def _models_fingerprint(gnn_run: Path, axis_run: Path) -> str:
     gnn = gnn_run / "model.pt" if gnn_run.is_dir() else gnn_run
     axis = axis_run / "model.pt" if axis_run.is_dir() else axis_run
+    if axis_run.is_dir() and not axis.is_file() and (axis_run / "ranker.json").is_file():
+        axis = axis_run / "ranker.json"  # a learned selector alone needs no axis network
     for p in (gnn, axis):
         if not p.is_file():
             raise KinmoDataError(p, "checkpoint is missing")
@@ -235,8 +237,10 @@ def _load_models(gnn_run: Path, axis_run: Path, device: str) -> _Models:
     from kinmo.train.gnn import load_run
 
     fp = _models_fingerprint(gnn_run, axis_run)
-    return _Models(load_run(gnn_run, device), load_axis_model(axis_run, device), fp,
-                   str(gnn_run), str(axis_run))
+    axis = None
+    if not (axis_run.is_dir() and not (axis_run / "model.pt").is_file()):
+        axis = load_axis_model(axis_run, device)
+    return _Models(load_run(gnn_run, device), axis, fp, str(gnn_run), str(axis_run))
 
 
 def _one_line(text: str) -> str:
@@ -338,7 +342,7 @@ def pseudo_label_shape(
     from kinmo.data.graph import PartGraph
     from kinmo.data.readers import HIERARCHY_FILES, read_shape
     from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
-    from kinmo.predict import consistent_fine, infer_edges
+    from kinmo.predict import consistent_fine, infer_edges, infer_edges_with_priors
     from kinmo.prepare import cache_key, source_fingerprint
     from kinmo.refine.refine import refine_predictions
 
@@ -357,12 +361,23 @@ def pseudo_label_shape(
                 graph = PartGraph.load(p)
         if graph is None:
             graph = build_graph(shape)
-        pred = infer_edges(models.run, [graph])[0]
+        prior = None
+        if config.refine.selector == "ranker":  # the GNN's raw outputs are its priors
+            preds, priors = infer_edges_with_priors(models.run, [graph])
+            pred, prior = preds[0], priors[0]
+        else:
+            pred = infer_edges(models.run, [graph])[0]
         if config.consistent:
             pred = consistent_fine(graph, pred)
-        refined = refine_predictions(graph, pred, models.axis, config.refine)
+        if models.axis is None and config.refine.selector != "ranker":
+            raise KinmoDataError(models.axis_path, "no axis network (model.pt) for the paper's "
+                                 "scoring; give a run of `kinmo train axis` or a ranker")
+        refined = refine_predictions(graph, pred, models.axis, config.refine, priors=prior)
         d = refined.axis_direction.copy()
         tree_pred = EdgePrediction(pred.probs, d, refined.axis_origin.copy())
+        if config.refine.selector == "ranker":  # the fine type follows the selected axis
+            tree_pred = consistent_fine(graph, tree_pred)
+        type_names = refined.type_names
         tree = build_mobility_tree(graph, tree_pred, TreeOptions(
             tuple(config.hinge_limit), config.slider_fraction))
         links = list(tree.links)
@@ -387,8 +402,8 @@ def pseudo_label_shape(
             joints.append({
                 "link": lk.id, "name": lk.name, "joint": lk.joint.type.value,
                 "rotates": bool(lk.joint.rotates),
-                "type": refined.types[k],
-                "type_prob": float(refined.type_prob[k, refined.type_index[k]]),
+                "type": type_names[int(np.argmax(tree_pred.probs[k]))],
+                "type_prob": float(np.max(tree_pred.probs[k])),
                 "moving_node": int(graph.node_ids[i]), "reference_node": int(graph.node_ids[j]),
                 "score": score, **terms,
             })
@@ -542,7 +557,9 @@ def pseudo_label_dataset(
     gnn_run : str or Path
         Run folder (or ``model.pt``) of ``kinmo train gnn``.
     axis_run : str or Path
-        Run folder (or ``model.pt``) of ``kinmo train axis``.
+        Run folder (or ``model.pt``) of ``kinmo train axis``; with the learned selector
+        (``config.refine.selector == "ranker"``) a folder holding only ``ranker.json`` will
+        do (the ranker then needs no network).
     out : str or Path
         Output folder.
     config : PseudoLabelConfig, optional

@@ -9,6 +9,7 @@ import typer
 
 from kinmo.cli._apps import eval_app
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
+from kinmo.cli._refine import PAPER_SELECTOR, RANKER
 
 
 @eval_app.command("pre-segmented")
@@ -24,6 +25,8 @@ def pre_segmented_cmd(
     keep_gnn: bool = KEEP_GNN,
     snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
     box_frames: str = BOX_FRAMES,
+    paper_selector: bool = PAPER_SELECTOR,
+    ranker: Optional[Path] = RANKER,  # noqa: UP007
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -37,7 +40,6 @@ def pre_segmented_cmd(
     console = Console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 11-column tables
         console = Console(width=max(console.width, 140))
-    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
     if not model:
         from kinmo.cli._errors import fail
         from kinmo.pipeline import DEFAULT_RUN
@@ -50,6 +52,8 @@ def pre_segmented_cmd(
         Console(stderr=True).print(
             f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
             highlight=False, soft_wrap=True)
+    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
+                       paper_selector, ranker)
     with cli_errors(1):
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,

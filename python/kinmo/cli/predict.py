@@ -9,6 +9,7 @@ import typer
 
 from kinmo.cli._apps import app
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
+from kinmo.cli._refine import PAPER_SELECTOR, RANKER
 
 
 @app.command("predict")
@@ -26,6 +27,8 @@ def predict_cmd(
     keep_gnn: bool = KEEP_GNN,
     snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
     box_frames: str = BOX_FRAMES,
+    paper_selector: bool = PAPER_SELECTOR,
+    ranker: Optional[Path] = RANKER,  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Predict the motion of every shape under DIR; write PartNet-Mobility files and URDFs.
@@ -40,7 +43,8 @@ def predict_cmd(
 
     console = Console()
     err = Console(stderr=True)
-    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
+    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
+                       paper_selector, ranker)
     with cli_errors(1):
         rows = predict_dataset(data, model, out, cache=cache, device=device,
                                options=TreeOptions((0.0, hinge_max), slider_fraction),

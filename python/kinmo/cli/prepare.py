@@ -24,7 +24,10 @@ def prepare(
         0, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."
     ),
     strict: bool = typer.Option(False, "--strict", help="Stop at the first failed shape."),
-    n_points: int = typer.Option(1024, "--n-points", min=1, help="Surface points per node."),
+    n_points: int = typer.Option(
+        1024, "--n-points", min=1, max=1 << 20,
+        help="Surface points per node (at most 1048576: the cache holds them all in memory).",
+    ),
     seed: int = typer.Option(0, "--seed", help="Sampling seed."),
     contact_tolerance: float = typer.Option(
         0.01, "--contact-tolerance", min=0.0,

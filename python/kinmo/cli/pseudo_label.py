@@ -9,13 +9,14 @@ import typer
 
 from kinmo.cli._apps import app
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
+from kinmo.cli._refine import PAPER_SELECTOR, RANKER
 
 
 @app.command("pseudo-label")
 def pseudo_label_cmd(
     data_dir: Path = typer.Argument(..., metavar="DIR", help="PartNet dataset folder (or one shape folder)."),
     model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
-    axis_model: Path = typer.Option(..., "--axis-model", "-a", help="Run folder of `kinmo train axis`."),
+    axis_model: Path = typer.Option(..., "--axis-model", "-a", help="Run folder of `kinmo train axis` (its ranker.json, when present, selects the axes), or a folder holding only a ranker.json."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: one PartNet-Mobility folder per kept shape."),
     threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, help="Minimum refinement score of every joint of a kept shape."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
@@ -24,6 +25,8 @@ def pseudo_label_cmd(
     keep_gnn: bool = KEEP_GNN,
     snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
     box_frames: str = BOX_FRAMES,
+    paper_selector: bool = PAPER_SELECTOR,
+    ranker: Optional[Path] = RANKER,  # noqa: UP007
     consistent: bool = typer.Option(False, "--consistent/--raw-types", help="Make the fine types agree with the GNN's axes before refining (as `kinmo eval` does; the threshold then rejects far fewer, and fewer wrong, shapes). Default: the paper's arg-max types."),
     sign: str = typer.Option("tree", "--sign", help="Direction of motion: tree (away from the reference part) or feasibility (the network's)."),
     copy: bool = typer.Option(False, "--copy", help="Copy meshes instead of linking them."),
@@ -51,7 +54,8 @@ def pseudo_label_cmd(
     )
 
     console = Console()
-    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames)
+    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
+                       paper_selector, ranker)
     with cli_errors(2, also=(ValueError,)):
         config = PseudoLabelConfig(
             threshold=threshold,

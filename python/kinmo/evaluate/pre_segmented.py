@@ -550,7 +550,11 @@ def run_evaluation(
         from kinmo.refine.refine import refine_shape_prediction
         from kinmo.refine.train import load_axis_model
 
-        net = load_axis_model(axis_model, "cpu" if runs[0].device.type == "cpu" else str(runs[0].device))
+        net = None  # a folder with only a ranker.json: the learned selector needs no network
+        if not (Path(axis_model).is_dir() and not (Path(axis_model) / "model.pt").is_file()
+                and getattr(refine_config, "selector", "paper") == "ranker"):
+            net = load_axis_model(axis_model,
+                                  "cpu" if runs[0].device.type == "cpu" else str(runs[0].device))
         for n in list(preds):
             preds[n.replace("GNN_", "OBB_", 1)] = [refine_shape_prediction(p, net, refine_config)[0]
                                                   for p in preds[n]]

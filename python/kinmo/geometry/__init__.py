@@ -10,6 +10,7 @@ the GIL released. Frames are those of the input; PartNet objects are y-up.
 - :mod:`kinmo.geometry.contact`: contact adjacency and mesh distances.
 - :mod:`kinmo.geometry.interaction`: interaction regions between two parts.
 - :mod:`kinmo.geometry.motion`: batched candidate motions.
+- :mod:`kinmo.geometry.sweep`: swept-collision feasibility and line-to-mesh distance.
 """
 
 from kinmo.geometry.contact import contact_pairs, mesh_distance
@@ -18,6 +19,7 @@ from kinmo.geometry.mesh import load_obj, load_objs
 from kinmo.geometry.motion import apply_motions, motion_transforms
 from kinmo.geometry.obb import OBB, fit_obb, fit_obb_batch
 from kinmo.geometry.sampling import sample_surface, sample_surface_groups
+from kinmo.geometry.sweep import line_mesh_distance, sweep_collisions
 
 __all__ = [
     "OBB",
@@ -27,10 +29,12 @@ __all__ = [
     "fit_obb",
     "fit_obb_batch",
     "interaction_region",
+    "line_mesh_distance",
     "load_obj",
     "load_objs",
     "mesh_distance",
     "motion_transforms",
     "sample_surface",
     "sample_surface_groups",
+    "sweep_collisions",
 ]

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES
@@ -71,6 +71,7 @@ __all__ = [
     "refine_edge",
     "refine_predictions",
     "refine_shape_prediction",
+    "select_edge",
 ]
 
 
@@ -120,6 +121,17 @@ class RefineConfig(BaseModel):
         diagonal) of an earlier box's line are merged into it.
     merge_angle_deg, merge_distance : float
         Tolerances of that merge.
+    selector : {"paper", "ranker"}
+        ``"paper"``: the weighted score of :mod:`kinmo.refine.scoring` over the candidates of
+        the predicted type (the options above apply). ``"ranker"`` (kinmo extension,
+        :mod:`kinmo.refine.selector`): candidates of every orientation in all three box
+        frames plus the GNN's line, scored by the learned ranker at ``ranker`` from soft GNN
+        priors and geometric terms; the confidence is the ranker's calibrated probability
+        that the selected line is right. ``scoring``, ``snap_angle_deg``, ``keep_gnn``,
+        ``box_frames`` and ``min_agreement`` do not apply to it.
+    ranker : str or None
+        Path of the ranker file (``ranker.json``, :func:`kinmo.refine.selector.load_ranker`);
+        required by ``selector="ranker"``.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -137,6 +149,14 @@ class RefineConfig(BaseModel):
     box_frames: tuple[Literal["moving", "reference", "shape"], ...] = Field(("moving",), min_length=1)
     merge_angle_deg: float = Field(2.0, ge=0, le=90)
     merge_distance: float = Field(0.02, ge=0)
+    selector: Literal["paper", "ranker"] = "paper"
+    ranker: str | None = None
+
+    @model_validator(mode="after")
+    def _ranker_path(self) -> RefineConfig:
+        if self.selector == "ranker" and not self.ranker:
+            raise ValueError("refine: selector 'ranker' needs a ranker file (ranker=...)")
+        return self
 
     @property
     def amounts(self) -> MotionAmounts:
@@ -270,10 +290,14 @@ class EdgeRefinement:
     origin: np.ndarray
     direction: np.ndarray
     abstained: bool = False
+    calibrated: float | None = None
 
     @property
     def confidence(self) -> float:
         """Score of the chosen candidate (NaN without candidates).
+
+        With the learned selector (:attr:`RefineConfig.selector` ``"ranker"``), the
+        calibrated probability that the chosen line is right (``calibrated``).
 
         When the GNN's own line won (:attr:`RefineConfig.keep_gnn`), the best score of the
         geometric candidates instead: the line's agreement with itself is 1 by construction
@@ -281,6 +305,8 @@ class EdgeRefinement:
         axis agrees with the GNN) and keeping the GNN's axis never changes which joints pass
         a pseudo-label threshold.
         """
+        if self.calibrated is not None:
+            return float(self.calibrated)
         b = self.scores.best
         if b < 0 or self.candidates.kinds[b] != "gnn":
             return self.scores.confidence
@@ -326,8 +352,6 @@ def refine_edge(
     -------
     EdgeRefinement
     """
-    import torch
-
     cfg = config or RefineConfig()
     rng = np.random.default_rng(cfg.seed if rng is None else rng)
     obb = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
@@ -358,6 +382,31 @@ def refine_edge(
         empty = CandidateScores(z, z, z, z, np.zeros(0, dtype=np.int64), -1)
         return EdgeRefinement(cands, empty, np.asarray(gnn_origin, dtype=np.float64).copy(), g,
                               abstained=True)
+    feas, sign = _network_feasibility(graph, moving, reference, cands, axis_model, cfg, rng)
+    scores = score_candidates(cands.origins, cands.directions, feas, gnn_direction, gnn_origin,
+                              diag, cands.motion != "P", cfg.scoring, sign)
+    b = scores.best
+    if cfg.min_agreement is not None and scores.direction[b] < cfg.min_agreement:
+        return EdgeRefinement(cands, scores, np.asarray(gnn_origin, dtype=np.float64).copy(),
+                              g, abstained=True)
+    return EdgeRefinement(cands, scores, *_chosen_line(graph, moving, cands, b, scores.sign[b]))
+
+
+def _chosen_line(graph: PartGraph, moving: int, cands: Candidates, b: int, sign: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Origin (nearest the moving OBB's centre) and signed direction of candidate ``b``."""
+    d = cands.directions[b] * sign
+    c = graph.obb_center[moving]
+    return cands.origins[b] + float(np.dot(c - cands.origins[b], d)) * d, d
+
+
+def _network_feasibility(graph: PartGraph, moving: int, reference: int, cands: Candidates,
+                         axis_model, cfg: RefineConfig, rng: np.random.Generator
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-network feasibility ``(C,)`` and better sign ``(C,)`` of each candidate line."""
+    import torch
+
+    obb = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
     mot = candidate_motions(cands, obb, cfg.amounts)
     n = cfg.n_points or axis_model.config.n_points
     frac = axis_model.config.context_fraction
@@ -368,17 +417,74 @@ def refine_edge(
     device = next(axis_model.parameters()).device
     s = axis_model.feasibility(torch.from_numpy(rest).to(device),
                                torch.from_numpy(moved).to(device), chunk=cfg.chunk).cpu().numpy()
-    feas, sign = line_feasibility(s, mot.line, mot.sign, len(cands))
-    scores = score_candidates(cands.origins, cands.directions, feas, gnn_direction, gnn_origin,
-                              diag, cands.motion != "P", cfg.scoring, sign)
-    b = scores.best
-    if cfg.min_agreement is not None and scores.direction[b] < cfg.min_agreement:
-        return EdgeRefinement(cands, scores, np.asarray(gnn_origin, dtype=np.float64).copy(),
-                              g, abstained=True)
-    d = cands.directions[b] * scores.sign[b]
-    c = graph.obb_center[moving]
-    o = cands.origins[b] + float(np.dot(c - cands.origins[b], d)) * d
-    return EdgeRefinement(cands, scores, o, d)
+    return line_feasibility(s, mot.line, mot.sign, len(cands))
+
+
+def select_edge(
+    graph: PartGraph,
+    edge: int,
+    motion_type: str,
+    gnn_direction: np.ndarray,
+    gnn_origin: np.ndarray,
+    priors,
+    ranker,
+    axis_model=None,
+    config: RefineConfig | None = None,
+    rng: np.random.Generator | int | None = None,
+    meshes=None,
+) -> EdgeRefinement:
+    """Refine one edge with the learned selector (:mod:`kinmo.refine.selector`).
+
+    Parameters
+    ----------
+    graph : PartGraph
+    edge : int
+        Row of ``graph.sibling_edges``.
+    motion_type : str
+        Predicted type (its coarse motion decides the candidates).
+    gnn_direction, gnn_origin : (3,) float
+        The GNN's axis (mesh frame).
+    priors : kinmo.refine.selector.GNNPriors
+    ranker : kinmo.refine.selector.Ranker
+    axis_model : AxisSelectionNet, optional
+        Queried only when the ranker uses the ``feasibility`` feature.
+    config : RefineConfig, optional
+    rng : numpy Generator or int, optional
+    meshes : kinmo.refine.selector.ShapeMeshes, optional
+        The shape's leaf meshes (swept-collision terms); see
+        :func:`kinmo.refine.selector.shape_meshes`.
+
+    Returns
+    -------
+    EdgeRefinement
+        ``scores.total`` holds the ranker's probabilities, ``scores.direction`` the ``|cos|``
+        with the GNN's axis, ``scores.position`` the position prior, ``calibrated`` the
+        confidence; the direction's sign is the one the collision proxy (or the network)
+        finds freer.
+    """
+    from kinmo.refine.selector import FEATURES, candidate_features, edge_candidates
+
+    cfg = config or RefineConfig()
+    rng = np.random.default_rng(cfg.seed if rng is None else rng)
+    i, j = (int(x) for x in graph.sibling_edges[edge])
+    cands, frames = edge_candidates(graph, i, j, motion_type, gnn_direction, gnn_origin,
+                                    interaction_radius=cfg.interaction_radius,
+                                    merge_angle_deg=cfg.merge_angle_deg,
+                                    merge_distance=cfg.merge_distance)
+    feas = None
+    net_sign = None
+    if "feasibility" in ranker.features and axis_model is not None:
+        feas, net_sign = _network_feasibility(graph, i, j, cands, axis_model, cfg, rng)
+    x, sign = candidate_features(graph, i, j, edge, cands, frames, priors, gnn_direction,
+                                 gnn_origin, feas, meshes, seed=cfg.seed)
+    p = ranker.probabilities(x)
+    b = int(np.argmax(p))
+    sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
+                                                sign, net_sign)
+    scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
+                             x[:, FEATURES.index("pos_prior")], p, np.asarray(sg, np.int64), b)
+    o, d = _chosen_line(graph, i, cands, b, int(sg[b]))
+    return EdgeRefinement(cands, scores, o, d, calibrated=ranker.confidence(float(p[b])))
 
 
 @dataclass
@@ -456,6 +562,7 @@ def refine_predictions(
     axis_model,
     config: RefineConfig | None = None,
     only: Sequence[int] | None = None,
+    priors=None,
 ) -> RefinedPredictions:
     """Refine the axes of every edge the GNN predicts moving (``OBB_fine`` / ``OBB_coarse``).
 
@@ -471,6 +578,10 @@ def refine_predictions(
     only : sequence of int, optional
         Refine only these edge indices (e.g. the joints of the final mobility tree); others
         keep the GNN's axes.
+    priors : kinmo.refine.selector.GNNPriors, optional
+        The GNN's raw outputs (:func:`kinmo.predict.infer_edges_with_priors`), used by the
+        learned selector; without them it takes the types of ``edge_predictions`` as type
+        priors and no axis-candidate prior.
 
     Returns
     -------
@@ -499,10 +610,28 @@ def refine_predictions(
     kind = [""] * e
     n_c = np.zeros(e, dtype=np.int64)
     details: dict[int, EdgeRefinement] = {}
+    ranker = None
+    if cfg.selector == "ranker":
+        from kinmo.refine.selector import GNNPriors, load_ranker
+
+        ranker = load_ranker(str(cfg.ranker))
+        if priors is None:
+            priors = GNNPriors(pred.type_prob, pred.type_names)
+        meshes = None
+        if moving.any() and any(f.startswith("sweep") or f == "attach_mesh"
+                                for f in ranker.features):
+            from kinmo.refine.selector import shape_meshes
+
+            meshes = shape_meshes(graph)
     for k in np.flatnonzero(moving):
         i, j = (int(x) for x in pred.edges[k])
-        r = refine_edge(graph, i, j, types[k], pred.axis_direction[k], pred.axis_origin[k],
-                        axis_model, cfg, rng=np.random.default_rng([cfg.seed, int(k)]))
+        if ranker is not None:
+            r = select_edge(graph, int(k), types[k], pred.axis_direction[k], pred.axis_origin[k],
+                            priors, ranker, axis_model, cfg,
+                            rng=np.random.default_rng([cfg.seed, int(k)]), meshes=meshes)
+        else:
+            r = refine_edge(graph, i, j, types[k], pred.axis_direction[k], pred.axis_origin[k],
+                            axis_model, cfg, rng=np.random.default_rng([cfg.seed, int(k)]))
         origin[k], direction[k] = r.origin, r.direction
         conf[k] = r.confidence
         feas[k] = r.scores.feasibility[r.scores.best] if r.scores.best >= 0 else np.nan
@@ -542,8 +671,15 @@ def refine_shape_prediction(
     from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
     from kinmo.predict import ShapePrediction
 
-    refined = refine_predictions(prediction.graph, prediction.edges, axis_model, config)
+    from kinmo.predict import consistent_fine
+
+    refined = refine_predictions(prediction.graph, prediction.edges, axis_model, config,
+                                 priors=getattr(prediction, "priors", None))
     edges = EdgePrediction(np.asarray(prediction.edges.probs), refined.axis_direction.copy(),
                            refined.axis_origin.copy())
+    if (config or RefineConfig()).selector == "ranker":
+        # the fine type follows the selected axis: H/V from its direction, C/S from its pivot
+        edges = consistent_fine(prediction.graph, edges)
     tree = build_mobility_tree(prediction.graph, edges, options or TreeOptions())
-    return ShapePrediction(prediction.graph, edges, tree, prediction.type_names), refined
+    return ShapePrediction(prediction.graph, edges, tree, prediction.type_names,
+                           getattr(prediction, "priors", None)), refined

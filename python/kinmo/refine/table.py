@@ -19,7 +19,7 @@ from typing import Any
 from kinmo.data.graph import PartGraph
 from kinmo.refine.refine import RefineConfig, refine_shape_prediction
 
-__all__ = ["PAPER_MEANS", "four_settings"]
+__all__ = ["FAILURE_KINDS", "PAPER_MEANS", "failure_kind", "failure_table", "four_settings"]
 
 #: Means of the paper's Table 1 quoted in kinmo's reports: axis angle error (degrees) and
 #: distance of its four settings where known.
@@ -66,3 +66,79 @@ def four_settings(
                                     for p in preds[f"GNN_{kind}"]]
     order = [m for m in ("GNN_coarse", "GNN_fine", "OBB_coarse", "OBB_fine") if m in preds]
     return evaluate_graphs(list(graphs), {m: preds[m] for m in order})
+
+
+#: Failure kinds of a refined (or GNN) axis on a truly moving edge, in the order checked.
+FAILURE_KINDS: tuple[str, ...] = ("orientation flip", "tilted box", "wrong parallel edge",
+                                  "sign", "ok")
+
+
+def failure_kind(direction, origin, true_direction, true_origin, scale: float, revolute: bool,
+                 *, angle_deg: float = 5.0, distance: float = 0.05) -> str:
+    """Classify one predicted axis against the truth (:data:`FAILURE_KINDS`).
+
+    - ``orientation flip``: the line is more than 45° off (the 90° errors of a wrong H/V);
+    - ``tilted box``: off by more than ``angle_deg`` but at most 45° (an OBB axis tilted from
+      the hinge, a wrong diagonal);
+    - ``wrong parallel edge``: direction right, a revolute line further than
+      ``distance * scale`` from the true one (another of the box's parallel edges);
+    - ``sign``: the line is right but its direction points against the true one (the part
+      would open the wrong way);
+    - ``ok``.
+
+    Parameters
+    ----------
+    direction, origin, true_direction, true_origin : (3,) float
+        Mesh frame.
+    scale : float
+        The shape's bounding-box diagonal.
+    revolute : bool
+        The true joint rotates (position matters).
+    """
+    import numpy as np
+
+    from kinmo.metrics.axis import axis_angle_deg, line_distance
+
+    a = float(axis_angle_deg(direction, true_direction))
+    if a > 45.0:
+        return "orientation flip"
+    if a > angle_deg:
+        return "tilted box"
+    if revolute and float(line_distance(origin, direction, true_origin, true_direction)) > distance * scale:
+        return "wrong parallel edge"
+    if float(np.dot(direction, true_direction)) < 0:
+        return "sign"
+    return "ok"
+
+
+def failure_table(predictions: dict[str, Sequence]) -> dict[str, dict[str, int]]:
+    """Counts of :data:`FAILURE_KINDS` per model over the truly moving edges predicted moving.
+
+    Parameters
+    ----------
+    predictions : dict of str to sequence of ShapePrediction
+        Per model, predictions of labelled graphs (mesh frame).
+
+    Returns
+    -------
+    dict of str to dict of str to int
+    """
+    import numpy as np
+
+    from kinmo.data.model import FINE_TYPES
+
+    out: dict[str, dict[str, int]] = {}
+    for name, preds in predictions.items():
+        counts = dict.fromkeys(FAILURE_KINDS, 0)
+        for p in preds:
+            g = p.graph
+            lab = np.argmax(p.edges.probs, axis=1)
+            for k in range(len(g.sibling_edges)):
+                t_true = FINE_TYPES[int(g.edge_fine[k])]
+                if t_true in ("Fixed", "None") or p.type_names[int(lab[k])] in ("Fixed", "None"):
+                    continue
+                counts[failure_kind(p.edges.direction[k], p.edges.origin[k],
+                                    g.edge_axis_direction[k], g.edge_axis_origin[k],
+                                    float(g.scale), not t_true.startswith("P_"))] += 1
+        out[name] = counts
+    return out

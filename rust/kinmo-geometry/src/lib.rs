@@ -13,5 +13,6 @@ pub mod mesh;
 pub mod motion;
 pub mod obb;
 pub mod sampling;
+pub mod sweep;
 
 pub use error::{GeometryError, Result};

@@ -14,7 +14,7 @@
 
 use kinmo_geometry::mesh::TriMesh;
 use kinmo_geometry::GeometryError;
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
@@ -171,6 +171,29 @@ pub fn faces_from_array(
         faces.push(tri);
     }
     Ok(faces)
+}
+
+/// Read `(C, 3)` float64 direction vectors, `C` fixed by `n_origins` (the lines' origins).
+///
+/// # Errors
+/// `ValueError` naming `what`: wrong shape or length, or the flat index of a NaN/inf.
+pub fn directions_from_array(
+    arr: &PyReadonlyArray2<'_, f64>,
+    n_origins: usize,
+    what: &str,
+) -> PyResult<Vec<Vector3<f64>>> {
+    let d: Vec<Vector3<f64>> = points_from_array(arr, what)?
+        .into_iter()
+        .map(|p| p.coords)
+        .collect();
+    if d.len() != n_origins {
+        return Err(to_py(GeometryError::Shape {
+            what: what.to_string(),
+            expected: format!("(C, 3) with C = {n_origins} (the number of origins)"),
+            got: format!("({}, 3)", d.len()),
+        }));
+    }
+    Ok(d)
 }
 
 /// Read a `(V, 3)` float64 / `(F, 3)` int64 pair as a validated [`TriMesh`].

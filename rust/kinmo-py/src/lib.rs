@@ -14,6 +14,7 @@ mod mesh;
 mod motion;
 mod obb;
 mod sampling;
+mod sweep;
 
 /// The native module.
 #[pymodule]
@@ -25,5 +26,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     contact::register(m)?;
     interaction::register(m)?;
     motion::register(m)?;
+    sweep::register(m)?;
     Ok(())
 }

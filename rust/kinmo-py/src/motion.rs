@@ -5,7 +5,9 @@ use nalgebra::{Point3, Vector3};
 use numpy::{PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{array3, check_values, floats_from_array, points_from_array, zeros};
+use crate::convert::{
+    array3, check_values, directions_from_array, floats_from_array, points_from_array, zeros,
+};
 use crate::errors::{detach, to_py};
 
 /// The validated `(origins, directions, angles, translations)` of C candidates.
@@ -19,17 +21,7 @@ fn candidates(
 ) -> PyResult<Candidates> {
     let o = points_from_array(origins, "origins")?;
     let c = o.len();
-    let d: Vec<Vector3<f64>> = points_from_array(directions, "directions")?
-        .into_iter()
-        .map(|p| p.coords)
-        .collect();
-    if d.len() != c {
-        return Err(to_py(kinmo_geometry::GeometryError::Shape {
-            what: "directions".to_string(),
-            expected: format!("(C, 3) with C = {c} (the number of origins)"),
-            got: format!("({}, 3)", d.len()),
-        }));
-    }
+    let d = directions_from_array(directions, c, "directions")?;
     let a = floats_from_array(angles, Some(c), "angles")?;
     let t = floats_from_array(translations, Some(c), "translations")?;
     Ok((o, d, a, t))

@@ -1,0 +1,712 @@
+"""A learned selector of candidate axes: soft GNN priors, geometric terms, a small ranker.
+
+kinmo extension of the refinement of Liu et al. 2023, Sec. 3.3. The paper scores the
+candidates of the *predicted* fine type by ``0.5 feasibility + 0.3 direction + 0.2 position``;
+a wrong orientation in the type (a door predicted ``R_H_S``) can then never be repaired, and
+the fixed weights let the agreement terms decide. Here instead:
+
+1. **Candidates of every orientation** (:func:`edge_candidates`): the lines of the predicted
+   *coarse* motion (``R``: OBB edges, centre and interaction-region lines of all three axes;
+   ``P``/``PR``: all three axes) of the moving part boxed in its own OBB, in its reference
+   part's OBB axes and in the shape frame, plus the GNN's own line; near-duplicates merged.
+2. **Soft priors from the GNN** (:class:`GNNPriors`, per candidate in
+   :func:`candidate_features`): the GNN's axis-candidate distribution (softmax over its 10
+   candidate directions, the mass of those parallel to the candidate), the horizontal /
+   vertical and centre / side probabilities of the fine types *before* any consistency step,
+   and the distance to the GNN's pivot.
+3. **Geometric terms**: the swept collision of the moving part's surface samples against the
+   meshes of every part not below it (:func:`kinmo.geometry.sweep_collisions`, parry in the
+   Rust core: free and colliding fraction of the range per sign), the attachment distance
+   (line to the reference part's mesh, :func:`kinmo.geometry.line_mesh_distance`, and to the
+   samples of the reference part and of any static part), and a cheaper point proxy of the
+   collision (the moving part's box moved by a few amounts in each sign; the fraction of the
+   other parts' samples it newly encloses). The meshes are read once per shape from the
+   graph's source folder (``graph.meta["source"]``, :func:`shape_meshes`); without it the
+   mesh terms take neutral constants (free 1, colliding 0, distance = the point attachment),
+   which drop out of the per-edge softmax, and the point terms remain.
+4. **A ranker** (:class:`Ranker`): a linear score ``w . x`` over the standardised features,
+   turned into a softmax over the candidates of one edge (listwise), fit on out-of-fold GNN
+   predictions of training objects (:func:`fit_ranker`), and a Platt calibration of the
+   winner's probability (:meth:`Ranker.confidence`): ``P(selected line within 5° and 0.05
+   of the shape's diagonal of the truth)``, the meaning of the pseudo-label threshold.
+
+Frames and units: mesh frame (y-up), mesh units; distance features divided by the moving
+part's OBB diagonal ``L``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from kinmo.data.graph import PartGraph
+from kinmo.data.labels import VERTICAL_COS, pivot_is_central
+from kinmo.data.model import COARSE_TYPES, FINE_TYPES
+from kinmo.refine.candidates import (
+    Candidates,
+    candidate_axes,
+    canonical_direction,
+    frame_box,
+    merge_candidates,
+)
+
+__all__ = [
+    "FEATURES",
+    "GNNPriors",
+    "ShapeMeshes",
+    "Ranker",
+    "candidate_features",
+    "candidate_labels",
+    "edge_candidates",
+    "fit_ranker",
+    "load_ranker",
+    "rotate_about",
+    "shape_meshes",
+]
+
+#: Names of the per-candidate features, in column order of :func:`candidate_features`.
+FEATURES: tuple[str, ...] = (
+    "dir_prior", "log_dir_prior", "cos_gnn", "orient_prior", "pivot_prior", "pos_prior",
+    "d_gnn", "attach_ref", "attach_any", "collide_min", "collide_max", "collide_rest",
+    "feasibility", "kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
+    "frame_moving", "frame_reference", "frame_shape", "shape_aligned", "ref_aligned",
+    "sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max", "attach_mesh",
+)
+_F = {n: k for k, n in enumerate(FEATURES)}
+#: Feature groups removed together in the ablation rows (``Ranker.drop``).
+FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
+    "direction_prior": ("dir_prior", "log_dir_prior", "cos_gnn"),
+    "orientation_prior": ("orient_prior",),
+    "pivot_prior": ("pivot_prior",),
+    "position_prior": ("pos_prior", "d_gnn"),
+    "attachment": ("attach_ref", "attach_any", "attach_mesh"),
+    "collision": ("collide_min", "collide_max", "collide_rest"),
+    "sweep": ("sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max"),
+    "feasibility": ("feasibility",),
+    "kind_frame": ("kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
+                   "frame_moving", "frame_reference", "frame_shape", "shape_aligned",
+                   "ref_aligned"),
+}
+_PARALLEL_COS = float(np.cos(np.radians(5.0)))
+
+
+@dataclass
+class GNNPriors:
+    """The GNN's raw outputs of one shape's sibling edges, before any consistency step.
+
+    Attributes
+    ----------
+    probs : (E, K) float64
+        Type probabilities over ``type_names`` as the type head gives them.
+    type_names : tuple of str
+        :data:`~kinmo.data.model.FINE_TYPES` or :data:`~kinmo.data.model.COARSE_TYPES`.
+    axis_prob : (E, 10) float64 or None
+        Softmax of the axis-candidate logits (:class:`kinmo.models.edge_gnn.EdgeHeads`).
+    axis_dirs : (E, 10, 3) float64 or None
+        The GNN's candidate directions (mesh frame = normalised frame orientation).
+    """
+
+    probs: np.ndarray
+    type_names: tuple[str, ...]
+    axis_prob: np.ndarray | None = None
+    axis_dirs: np.ndarray | None = None
+
+    def orientation(self, k: int) -> tuple[float, float]:
+        """``(P(H), P(V))`` of edge ``k`` among its moving fine types (0.5, 0.5 for coarse)."""
+        if tuple(self.type_names) != FINE_TYPES:
+            return 0.5, 0.5
+        p = self.probs[k]
+        h = sum(p[n] for n, t in enumerate(FINE_TYPES) if "_H" in t)
+        v = sum(p[n] for n, t in enumerate(FINE_TYPES) if "_V" in t)
+        s = h + v
+        return (0.5, 0.5) if s <= 0 else (float(h / s), float(v / s))
+
+    def pivot(self, k: int) -> tuple[float, float]:
+        """``(P(C), P(S))`` of edge ``k`` among its revolute fine types (0.5, 0.5 for coarse)."""
+        if tuple(self.type_names) != FINE_TYPES:
+            return 0.5, 0.5
+        p = self.probs[k]
+        c = sum(p[n] for n, t in enumerate(FINE_TYPES) if t.startswith("R_") and t.endswith("_C"))
+        s = sum(p[n] for n, t in enumerate(FINE_TYPES) if t.startswith("R_") and t.endswith("_S"))
+        return (0.5, 0.5) if c + s <= 0 else (float(c / (c + s)), float(s / (c + s)))
+
+    def direction_prior(self, k: int, directions: np.ndarray) -> np.ndarray:
+        """``(C,)``: the GNN's axis-candidate mass within 5° of each line (0.1 each without)."""
+        d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+        if self.axis_prob is None or self.axis_dirs is None:
+            return np.full(d.shape[0], 0.1)
+        g = self.axis_dirs[k] / np.maximum(np.linalg.norm(self.axis_dirs[k], axis=1,
+                                                          keepdims=True), 1e-12)
+        par = np.abs(d @ g.T) >= _PARALLEL_COS  # (C, 10)
+        return (par * self.axis_prob[k][None, :]).sum(axis=1)
+
+
+def _coarse_motion(type_name: str) -> str:
+    return type_name.split("_")[0]
+
+
+def edge_candidates(
+    graph: PartGraph,
+    moving: int,
+    reference: int,
+    motion_type: str,
+    gnn_direction: np.ndarray,
+    gnn_origin: np.ndarray,
+    *,
+    interaction_radius: float = 0.1,
+    merge_angle_deg: float = 2.0,
+    merge_distance: float = 0.02,
+    frames: tuple[str, ...] = ("moving", "reference", "shape"),
+    with_gnn: bool = True,
+) -> tuple[Candidates, tuple[str, ...]]:
+    """Candidate lines of every orientation for one moving edge.
+
+    Parameters
+    ----------
+    graph : PartGraph
+    moving, reference : int
+        Node indices of the edge ``(moving, reference)``.
+    motion_type : str
+        Predicted fine or coarse type; only its coarse motion (``R``, ``P``, ``PR``) is used.
+    gnn_direction, gnn_origin : (3,) float
+        The GNN's axis (mesh frame); its line is the last candidate (kind ``"gnn"``).
+    interaction_radius : float
+        As :func:`kinmo.refine.candidates.candidate_axes`.
+    merge_angle_deg, merge_distance : float
+        Lines within this angle and distance (fraction of the moving OBB's diagonal) of an
+        earlier line are merged into it.
+    frames : tuple of {"moving", "reference", "shape"}
+        Boxes of the moving part whose lines are candidates (in this order).
+    with_gnn : bool
+        Append the GNN's own line.
+
+    Returns
+    -------
+    (Candidates, tuple of str)
+        Candidates for the coarse motion, and the frame of each (``"gnn"`` for the GNN's).
+
+    Raises
+    ------
+    ValueError
+        A type without an axis, malformed geometry.
+    """
+    motion = _coarse_motion(str(motion_type))
+    diag = max(2.0 * float(np.linalg.norm(graph.obb_half_extents[moving])), 1e-12)
+    cands: Candidates | None = None
+    frame_of: list[str] = []
+    for frame in dict.fromkeys(frames):
+        if frame == "moving":
+            box = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
+        else:
+            axes = graph.obb_axes[reference] if frame == "reference" else np.eye(3)
+            box = frame_box(graph.points[moving], axes)
+        c = candidate_axes(box, motion, graph.points[moving], graph.points[reference],
+                           interaction_radius=interaction_radius)
+        before = 0 if cands is None else len(cands)
+        cands = c if cands is None else merge_candidates(
+            cands, c, angle_deg=merge_angle_deg, distance=merge_distance * diag)
+        frame_of += [frame] * (len(cands) - before)
+    if cands is None:
+        raise ValueError("frames: expected at least one of moving, reference, shape")
+    if with_gnn:
+        g = np.asarray(gnn_direction, dtype=np.float64)
+        if not (np.all(np.isfinite(g)) and np.linalg.norm(g) > 0):
+            g = np.array([0.0, 1.0, 0.0])
+        cands = Candidates(np.vstack([cands.origins, np.asarray(gnn_origin, float)[None]]),
+                           np.vstack([cands.directions, canonical_direction(g)[None]]),
+                           (*cands.kinds, "gnn"), cands.motion_type)
+        frame_of.append("gnn")
+    return cands, tuple(frame_of)
+
+
+def rotate_about(points: np.ndarray, origins: np.ndarray, directions: np.ndarray,
+                 angles: np.ndarray) -> np.ndarray:
+    """Rotate points about lines (Rodrigues), batched.
+
+    Parameters
+    ----------
+    points : (P, 3) float64
+    origins, directions : (M, 3) float64
+        Lines (directions unit).
+    angles : (M,) float64
+        Radians, right-handed about ``directions``.
+
+    Returns
+    -------
+    (M, P, 3) float64
+    """
+    p = points[None, :, :] - origins[:, None, :]
+    k = directions[:, None, :]
+    c = np.cos(angles)[:, None, None]
+    s = np.sin(angles)[:, None, None]
+    kxp = np.cross(np.broadcast_to(k, p.shape), p)
+    kdp = np.sum(k * p, axis=2, keepdims=True)
+    return p * c + kxp * s + k * kdp * (1 - c) + origins[:, None, :]
+
+
+def _subtree(graph: PartGraph, node: int) -> np.ndarray:
+    parent = np.asarray(graph.parent)
+    inside = np.zeros(graph.n_nodes, dtype=bool)
+    inside[node] = True
+    changed = True
+    while changed:
+        new = inside | ((parent >= 0) & inside[np.maximum(parent, 0)])
+        changed = bool((new != inside).any())
+        inside = new
+    return inside
+
+
+def _static_points(graph: PartGraph, moving: int, cap: int, rng: np.random.Generator) -> np.ndarray:
+    leaves = np.asarray(graph.is_leaf, dtype=bool) & ~_subtree(graph, moving)
+    pts = np.asarray(graph.points)[leaves].reshape(-1, 3)
+    if pts.shape[0] > cap:
+        pts = pts[rng.choice(pts.shape[0], cap, replace=False)]
+    return pts
+
+
+@dataclass
+class ShapeMeshes:
+    """The leaf meshes of a part graph (mesh frame), for the swept-collision terms.
+
+    Attributes
+    ----------
+    leaves : dict of int to (vertices (V, 3) float64, faces (F, 3) int64)
+        By graph node index (leaves only).
+    """
+
+    leaves: dict[int, tuple[np.ndarray, np.ndarray]]
+
+    def union(self, nodes) -> tuple[np.ndarray, np.ndarray]:
+        """One mesh of the given leaf nodes (faces re-indexed); empty arrays for none."""
+        vs, fs, off = [], [], 0
+        for n in nodes:
+            m = self.leaves.get(int(n))
+            if m is None:
+                continue
+            vs.append(m[0])
+            fs.append(m[1] + off)
+            off += m[0].shape[0]
+        if not vs:
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+        return np.vstack(vs), np.vstack(fs).astype(np.int64)
+
+
+def shape_meshes(graph: PartGraph) -> ShapeMeshes | None:
+    """Load the leaf meshes of ``graph`` from its source folder (``graph.meta["source"]``).
+
+    Every OBJ is read once with the Rust loader (:func:`kinmo.geometry.load_objs`).
+
+    Returns
+    -------
+    ShapeMeshes or None
+        None when the graph has no readable source folder or its parts do not match the
+        graph's node ids (the callers then fall back to the point terms).
+    """
+    from kinmo.errors import KinmoError
+
+    src = graph.meta.get("source") if isinstance(graph.meta, dict) else None
+    if not src or not Path(src).is_dir():
+        return None
+    try:
+        from kinmo.data.build import load_shape_meshes
+        from kinmo.data.readers import read_shape
+
+        shape = read_shape(src)
+        nodes = shape.hierarchy.nodes
+        leaves = [int(k) for k in np.flatnonzero(graph.is_leaf)]
+        objs: dict[str, int] = {}
+        for k in leaves:
+            for o in nodes[int(graph.node_ids[k])].objs:
+                objs.setdefault(o, len(objs))
+        meshes = load_shape_meshes([shape.mesh_path(o) for o in objs])
+        out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        for k in leaves:
+            idx = [objs[o] for o in nodes[int(graph.node_ids[k])].objs]
+            part = ShapeMeshes({n: (np.asarray(meshes[i][0], np.float64),
+                                    np.asarray(meshes[i][1], np.int64))
+                                for n, i in enumerate(idx)})
+            out[k] = part.union(range(len(idx)))
+        return ShapeMeshes(out)
+    except (KinmoError, OSError, ValueError, KeyError):
+        return None
+
+
+def _point_line(points: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """``(C,)`` minimum distance from each line to the points."""
+    if points.shape[0] == 0:
+        return np.full(origins.shape[0], np.inf)
+    w = points[None, :, :] - origins[:, None, :]
+    return np.linalg.norm(np.cross(w, directions[:, None, :]), axis=2).min(axis=1)
+
+
+def candidate_features(
+    graph: PartGraph,
+    moving: int,
+    reference: int,
+    edge: int,
+    cands: Candidates,
+    frames: tuple[str, ...],
+    priors: GNNPriors,
+    gnn_direction: np.ndarray,
+    gnn_origin: np.ndarray,
+    feasibility: np.ndarray | None = None,
+    meshes: ShapeMeshes | None = None,
+    *,
+    sweep_angle_deg: float = 60.0,
+    sweep_fraction: float = 0.5,
+    sweep_points: int = 256,
+    angles_deg: tuple[float, ...] = (30.0, 60.0),
+    fractions: tuple[float, ...] = (0.25, 0.5),
+    static_cap: int = 2048,
+    seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-candidate features (:data:`FEATURES`) and the less-colliding sign of each line.
+
+    Parameters
+    ----------
+    graph : PartGraph
+    moving, reference, edge : int
+        The edge's node indices and its row in ``graph.sibling_edges`` (for the priors).
+    cands : Candidates
+        From :func:`edge_candidates`; ``frames`` the frame of each.
+    priors : GNNPriors
+    gnn_direction, gnn_origin : (3,) float
+        The GNN's axis (mesh frame).
+    feasibility : (C,) float, optional
+        The axis-selection network's feasibility of each line (0.5 each without).
+    meshes : ShapeMeshes, optional
+        The shape's leaf meshes (:func:`shape_meshes`) for the swept-collision and mesh
+        attachment terms; without them those terms are neutral constants.
+    sweep_angle_deg, sweep_fraction : float
+        Range of the sweep: rotation (degrees) of revolute lines, translation (fraction of the
+        moving part's extent along the line) of prismatic ones.
+    sweep_points : int
+        Moving-part samples swept (the first ``sweep_points`` of the graph's).
+    angles_deg, fractions : tuple of float
+        Amounts of the collision proxy: rotations (degrees) of revolute motions, translations
+        (fraction of the moving part's extent along the line) of prismatic ones.
+    static_cap : int
+        At most this many static surface samples (random subset, ``seed``).
+    seed : int
+
+    Returns
+    -------
+    features : (C, len(FEATURES)) float64
+    sign : (C,) int64
+        ±1, the freer direction of motion: the sweep's (larger free fraction, then smaller
+        colliding fraction) with meshes, the point proxy's otherwise (+1 on ties).
+    """
+    rng = np.random.default_rng([seed, moving, reference])
+    c = len(cands)
+    x = np.zeros((c, len(FEATURES)))
+    o, d = cands.origins, cands.directions
+    half = np.asarray(graph.obb_half_extents[moving], dtype=np.float64)
+    centre = np.asarray(graph.obb_center[moving], dtype=np.float64)
+    axes = np.asarray(graph.obb_axes[moving], dtype=np.float64)
+    diag = max(2.0 * float(np.linalg.norm(half)), 1e-9)
+    revolute = cands.motion != "P"
+    g = np.asarray(gnn_direction, dtype=np.float64)
+    g = g / max(float(np.linalg.norm(g)), 1e-12)
+
+    dp = priors.direction_prior(edge, d)
+    x[:, _F["dir_prior"]] = dp
+    x[:, _F["log_dir_prior"]] = np.log(dp + 1e-3)
+    x[:, _F["cos_gnn"]] = np.abs(d @ g)
+    ph, pv = priors.orientation(edge)
+    vert = np.abs(d[:, 1]) > VERTICAL_COS
+    x[:, _F["orient_prior"]] = np.where(vert, pv, ph)
+    if revolute:
+        pc, ps = priors.pivot(edge)
+        central = np.array([pivot_is_central(o[n], d[n], centre, axes, half) for n in range(c)])
+        x[:, _F["pivot_prior"]] = np.where(central, pc, ps)
+        dist = np.linalg.norm(np.cross(np.asarray(gnn_origin, float) - o, d), axis=1) / diag
+        x[:, _F["d_gnn"]] = np.minimum(dist, 2.0)
+        x[:, _F["pos_prior"]] = np.exp(-dist / 0.25)
+        ref = np.asarray(graph.points[reference], dtype=np.float64)
+        x[:, _F["attach_ref"]] = np.minimum(_point_line(ref, o, d) / diag, 2.0)
+    else:
+        x[:, _F["pivot_prior"]] = 0.5
+        x[:, _F["pos_prior"]] = 1.0
+    static = _static_points(graph, moving, static_cap, rng)
+    if revolute:
+        x[:, _F["attach_any"]] = np.minimum(_point_line(static, o, d) / diag, 2.0)
+
+    # collision proxy: static samples newly inside the moving part's (slightly shrunk) box
+    sign = np.ones(c, dtype=np.int64)
+    if static.shape[0]:
+        shrink = np.maximum(half * 0.9, half - 0.02 * diag)
+        local0 = (static - centre) @ axes.T
+        rest = np.all(np.abs(local0) < shrink, axis=1)
+        x[:, _F["collide_rest"]] = rest.mean()
+        amounts = np.radians(angles_deg) if revolute else np.asarray(fractions)
+        a_n = len(amounts)
+        oo = np.repeat(o, 2 * a_n, axis=0)
+        dd = np.repeat(d, 2 * a_n, axis=0)
+        sg = np.tile(np.repeat([1.0, -1.0], a_n), c)
+        am = np.tile(np.tile(amounts, 2), c)
+        if revolute:
+            # inverse motion applied to the static samples: rotate by -s*a
+            moved = rotate_about(static, oo, dd, -sg * am)
+        else:
+            ext = np.ptp(np.asarray(graph.points[moving]) @ d.T, axis=0)  # (C,)
+            shift = (np.repeat(ext, 2 * a_n) * sg * am)[:, None] * dd
+            moved = static[None, :, :] - shift[:, None, :]
+        local = (moved - centre) @ axes.T
+        inside = np.all(np.abs(local) < shrink, axis=2) & ~rest[None, :]
+        frac = inside.mean(axis=1).reshape(c, 2, a_n).mean(axis=2)  # (C, 2)
+        x[:, _F["collide_min"]] = frac.min(axis=1)
+        x[:, _F["collide_max"]] = frac.max(axis=1)
+        sign = np.where(frac[:, 1] < frac[:, 0], -1, 1).astype(np.int64)
+    x[:, _F["sweep_free_min"]] = x[:, _F["sweep_free_max"]] = 1.0
+    x[:, _F["attach_mesh"]] = x[:, _F["attach_ref"]]
+    if meshes is not None:
+        from kinmo.geometry import line_mesh_distance, sweep_collisions
+
+        sub = _subtree(graph, moving)
+        static_leaves = np.flatnonzero(np.asarray(graph.is_leaf, bool) & ~sub)
+        ov, of = meshes.union(static_leaves)
+        mp = np.asarray(graph.points[moving], dtype=np.float64)[:sweep_points]
+        if revolute:
+            kinds = np.zeros(c, np.int64)
+            ranges = np.full(c, np.radians(sweep_angle_deg))
+        else:
+            kinds = np.ones(c, np.int64)
+            ranges = np.maximum(sweep_fraction * np.ptp(mp @ d.T, axis=0), 1e-9)
+        free, coll = sweep_collisions(mp, ov, of, np.ascontiguousarray(o),
+                                      np.ascontiguousarray(d), kinds, ranges, n_steps=8)
+        x[:, _F["sweep_free_min"]] = free.min(axis=1)
+        x[:, _F["sweep_free_max"]] = free.max(axis=1)
+        x[:, _F["sweep_coll_min"]] = coll.min(axis=1)
+        x[:, _F["sweep_coll_max"]] = coll.max(axis=1)
+        better = np.where(free[:, 1] != free[:, 0], free[:, 1] > free[:, 0], coll[:, 1] < coll[:, 0])
+        sign = np.where(better, -1, 1).astype(np.int64)
+        rv, rf = meshes.union(np.flatnonzero(np.asarray(graph.is_leaf, bool) & _subtree(graph, reference)))
+        if revolute and rf.shape[0]:
+            x[:, _F["attach_mesh"]] = np.minimum(
+                line_mesh_distance(np.ascontiguousarray(o), np.ascontiguousarray(d), rv, rf) / diag, 2.0)
+    x[:, _F["feasibility"]] = 0.5 if feasibility is None else np.asarray(feasibility, float)
+    for kind in ("edge", "center", "interaction", "axis", "gnn"):
+        x[:, _F[f"kind_{kind}"]] = [k == kind for k in cands.kinds]
+    for frame in ("moving", "reference", "shape"):
+        x[:, _F[f"frame_{frame}"]] = [f == frame for f in frames]
+    x[:, _F["shape_aligned"]] = np.abs(d).max(axis=1) >= _PARALLEL_COS
+    ra = np.asarray(graph.obb_axes[reference], dtype=np.float64)
+    x[:, _F["ref_aligned"]] = np.abs(d @ ra.T).max(axis=1) >= _PARALLEL_COS
+    return x, sign
+
+
+def candidate_labels(
+    cands: Candidates,
+    true_origin: np.ndarray,
+    true_direction: np.ndarray,
+    scale: float,
+    revolute: bool,
+    *,
+    angle_deg: float = 5.0,
+    distance: float = 0.05,
+) -> np.ndarray:
+    """``(C,) bool``: the line is within ``angle_deg`` and (revolute) ``distance * scale``.
+
+    ``scale`` is the shape's bounding-box diagonal (:attr:`PartGraph.scale`), the evaluation's
+    normaliser; the distance is the line-to-line distance
+    (:func:`kinmo.metrics.axis.line_distance`).
+    """
+    from kinmo.metrics.axis import line_distance
+
+    t = np.asarray(true_direction, dtype=np.float64)
+    t = t / np.linalg.norm(t)
+    ok = np.abs(cands.directions @ t) >= np.cos(np.radians(angle_deg)) - 1e-12
+    if revolute and len(cands):
+        dist = np.atleast_1d(line_distance(cands.origins, cands.directions,
+                                           np.broadcast_to(true_origin, cands.origins.shape),
+                                           np.broadcast_to(t, cands.origins.shape)))
+        ok &= dist <= distance * scale
+    return ok
+
+
+@dataclass
+class Ranker:
+    """Linear listwise ranker of candidate lines with a Platt-calibrated confidence.
+
+    ``p = softmax_c(w . (x_c - mean) / std)`` over the candidates of one edge; the selected
+    line is the arg-max; its confidence is ``sigmoid(a * logit(p_max) + b)``.
+
+    Attributes
+    ----------
+    features : tuple of str
+        Names of the used features (a subset of :data:`FEATURES`, in that order).
+    weights, mean, std : (F,) float64
+    platt : (float, float)
+        ``(a, b)``; ``(1, 0)`` leaves ``p_max`` unchanged.
+    meta : dict
+        How it was fit (data, folds, seed, validation numbers).
+    """
+
+    features: tuple[str, ...]
+    weights: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    platt: tuple[float, float] = (1.0, 0.0)
+    meta: dict = field(default_factory=dict)
+
+    def _x(self, x: np.ndarray) -> np.ndarray:
+        idx = [_F[n] for n in self.features]
+        return (np.asarray(x, dtype=np.float64)[:, idx] - self.mean) / self.std
+
+    def probabilities(self, x: np.ndarray) -> np.ndarray:
+        """``(C,)`` softmax over the candidates of one edge (features ``(C, len(FEATURES))``)."""
+        s = self._x(x) @ self.weights
+        s = s - s.max()
+        e = np.exp(s)
+        return e / e.sum()
+
+    def confidence(self, p_max: float) -> float:
+        """Calibrated probability that the selected line is right (Platt scaling)."""
+        p = min(max(float(p_max), 1e-6), 1 - 1e-6)
+        a, b = self.platt
+        return float(1.0 / (1.0 + np.exp(-(a * np.log(p / (1 - p)) + b))))
+
+    def to_json(self) -> dict:
+        """JSON-ready dict (:func:`load_ranker` reads it back)."""
+        return {"features": list(self.features), "weights": self.weights.tolist(),
+                "mean": self.mean.tolist(), "std": self.std.tolist(),
+                "platt": list(self.platt), "meta": self.meta}
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``path`` (JSON, atomic)."""
+        from kinmo.io import write_json
+
+        write_json(Path(path), self.to_json())
+        return Path(path)
+
+
+def load_ranker(path: str | Path) -> Ranker:
+    """Read a ranker written by :meth:`Ranker.save`.
+
+    Raises
+    ------
+    KinmoDataError
+        Unreadable file, unknown feature names or inconsistent lengths.
+    """
+    return _load_ranker_cached(str(Path(path).resolve()))
+
+
+@lru_cache(maxsize=8)
+def _load_ranker_cached(path: str) -> Ranker:
+    from kinmo.errors import KinmoDataError
+
+    try:
+        d = json.loads(Path(path).read_text())
+        feats = tuple(d["features"])
+        w, m, s = (np.asarray(d[k], dtype=np.float64) for k in ("weights", "mean", "std"))
+        platt = (float(d["platt"][0]), float(d["platt"][1]))
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
+        raise KinmoDataError(path, f"not a ranker file ({type(e).__name__}: {e})") from None
+    unknown = [f for f in feats if f not in _F]
+    if unknown or not (len(feats) == w.size == m.size == s.size):
+        raise KinmoDataError(path, f"ranker: unknown features {unknown} or inconsistent lengths")
+    return Ranker(feats, w, m, s, platt, d.get("meta", {}))
+
+
+def fit_ranker(
+    groups: list[tuple[np.ndarray, np.ndarray]],
+    *,
+    features: tuple[str, ...] = FEATURES,
+    l2: float = 1e-2,
+    seed: int = 0,
+    iters: int = 300,
+) -> Ranker:
+    """Fit a :class:`Ranker` by the listwise softmax loss on labelled candidate groups.
+
+    Parameters
+    ----------
+    groups : list of (x (C, len(FEATURES)) float64, y (C,) bool)
+        One group per moving edge; groups without a positive candidate are skipped
+        (they carry no ranking information).
+    features : tuple of str
+        The features used (ablations drop some).
+    l2 : float
+        Weight decay on the standardised weights.
+    seed : int
+        Torch seed (the fit is deterministic for a seed: full-batch L-BFGS from zeros).
+    iters : int
+        L-BFGS iterations.
+
+    Returns
+    -------
+    Ranker
+        ``platt`` is ``(1, 0)``; calibrate with :func:`calibrate`.
+
+    Raises
+    ------
+    ValueError
+        No group with a positive candidate.
+    """
+    import torch
+
+    idx = [_F[n] for n in features]
+    use = [(x[:, idx], y) for x, y in groups if len(y) and np.any(y)]
+    if not use:
+        raise ValueError("fit_ranker: no group with a positive candidate")
+    allx = np.vstack([x for x, _ in use])
+    mean = allx.mean(axis=0)
+    std = allx.std(axis=0)
+    std = np.where(std > 1e-9, std, 1.0)
+    torch.manual_seed(seed)
+    xs = torch.from_numpy((allx - mean) / std)
+    ys = torch.from_numpy(np.concatenate([y for _, y in use]).astype(bool))
+    sizes = [len(y) for _, y in use]
+    gid = torch.repeat_interleave(torch.arange(len(sizes)), torch.tensor(sizes))
+    w = torch.zeros(len(idx), dtype=torch.float64, requires_grad=True)
+    opt = torch.optim.LBFGS([w], lr=1.0, max_iter=iters, line_search_fn="strong_wolfe")
+    n_g = len(sizes)
+
+    def loss_fn() -> torch.Tensor:
+        opt.zero_grad()
+        s = xs @ w
+        mx = torch.zeros(n_g, dtype=s.dtype).scatter_reduce(0, gid, s, "amax", include_self=False)
+        e = torch.exp(s - mx[gid])
+        tot = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e)
+        pos = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e * ys)
+        loss = -(torch.log(pos.clamp_min(1e-300)) - torch.log(tot)).mean() + l2 * (w * w).sum()
+        loss.backward()
+        return loss
+
+    opt.step(loss_fn)
+    return Ranker(tuple(features), w.detach().numpy().copy(), mean, std)
+
+
+def calibrate(p_max: np.ndarray, correct: np.ndarray) -> tuple[float, float]:
+    """Platt scaling ``(a, b)``: ``P(correct) = sigmoid(a logit(p_max) + b)``.
+
+    Parameters
+    ----------
+    p_max : (N,) float
+        The ranker's winning probability on held-out edges.
+    correct : (N,) bool
+        Whether the winner was right.
+
+    Returns
+    -------
+    (float, float)
+        ``(1, 0)`` when the data cannot be fit (fewer than 2 edges or one class only).
+    """
+    from scipy.optimize import minimize
+
+    p = np.clip(np.asarray(p_max, dtype=np.float64), 1e-6, 1 - 1e-6)
+    y = np.asarray(correct, dtype=np.float64)
+    if p.size < 2 or y.min() == y.max():
+        return 1.0, 0.0
+    z = np.log(p / (1 - p))
+
+    def nll(ab: np.ndarray) -> float:
+        t = ab[0] * z + ab[1]
+        return float(np.sum(np.logaddexp(0, t) - y * t) + 1e-3 * (ab @ ab))
+
+    res = minimize(nll, np.array([1.0, 0.0]), method="Nelder-Mead",
+                   options={"xatol": 1e-6, "fatol": 1e-9, "maxiter": 2000})
+    return float(res.x[0]), float(res.x[1])

@@ -1,0 +1,114 @@
+//! Bindings of `kinmo_geometry::sweep`: `sweep_collisions`, `line_mesh_distance`.
+
+use kinmo_geometry::sweep::{self, MotionKind, SweepCandidate, SweepObstacle, SweepParams};
+use kinmo_geometry::GeometryError;
+use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+
+use crate::convert::{
+    array1, array2, directions_from_array, floats_from_array, mesh_from_arrays, points_from_array,
+};
+use crate::errors::{detach, to_py};
+
+type Fractions<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// Swept-collision feasibility of C candidate motions of one moving part, both signs.
+///
+/// Returns `(free_fraction (C, 2), colliding_fraction (C, 2))` float64, column 0 the
+/// positive sign. `kinds (C,)` int64: 0 revolute, 1 prismatic. See
+/// `kinmo_geometry::sweep` for the exact rule. `ValueError` on bad input.
+#[pyfunction]
+#[pyo3(signature = (
+    moving_points, obstacle_vertices, obstacle_faces, origins, directions, kinds, ranges,
+    n_steps=16, skin=0.005, hit_tolerance=0.02
+))]
+#[allow(clippy::too_many_arguments)]
+fn sweep_collisions<'py>(
+    py: Python<'py>,
+    moving_points: PyReadonlyArray2<'py, f64>,
+    obstacle_vertices: PyReadonlyArray2<'py, f64>,
+    obstacle_faces: PyReadonlyArray2<'py, i64>,
+    origins: PyReadonlyArray2<'py, f64>,
+    directions: PyReadonlyArray2<'py, f64>,
+    kinds: PyReadonlyArray1<'py, i64>,
+    ranges: PyReadonlyArray1<'py, f64>,
+    n_steps: i64,
+    skin: f64,
+    hit_tolerance: f64,
+) -> PyResult<Fractions<'py>> {
+    let points = points_from_array(&moving_points, "moving_points")?;
+    let obstacle = mesh_from_arrays(&obstacle_vertices, &obstacle_faces, "obstacle")?;
+    let o = points_from_array(&origins, "origins")?;
+    let c = o.len();
+    let d = directions_from_array(&directions, c, "directions")?;
+    let kind_view = kinds.as_array();
+    if kind_view.len() != c {
+        return Err(to_py(GeometryError::Shape {
+            what: "kinds".to_string(),
+            expected: format!("({c},)"),
+            got: format!("({},)", kind_view.len()),
+        }));
+    }
+    let kinds: Vec<MotionKind> = kind_view
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| MotionKind::from_code(k, i))
+        .collect::<Result<_, _>>()
+        .map_err(to_py)?;
+    let r = floats_from_array(&ranges, Some(c), "ranges")?;
+    let n_steps = usize::try_from(n_steps)
+        .ok()
+        .filter(|&n| n > 0 && n <= sweep::MAX_STEPS)
+        .ok_or_else(|| {
+            to_py(GeometryError::Invalid(format!(
+                "n_steps: {n_steps} is outside 1..={}",
+                sweep::MAX_STEPS
+            )))
+        })?;
+    let candidates: Vec<SweepCandidate> = (0..c)
+        .map(|i| SweepCandidate {
+            origin: o[i],
+            direction: d[i],
+            kind: kinds[i],
+            range: r[i],
+        })
+        .collect();
+    let params = SweepParams {
+        n_steps,
+        skin,
+        hit_tolerance,
+    };
+    let results = detach(py, "sweep_collisions", || {
+        sweep::sweep_collisions(&points, &obstacle, &candidates, &params)
+    })?;
+    let free: Vec<f64> = results.iter().flat_map(|x| x.free_fraction).collect();
+    let colliding: Vec<f64> = results.iter().flat_map(|x| x.colliding_fraction).collect();
+    Ok((array2(py, free, c, 2), array2(py, colliding, c, 2)))
+}
+
+/// Distance `(C,)` float64 from each infinite line to the surface of a mesh.
+///
+/// `ValueError` on bad input, a zero-length direction or a mesh without faces.
+#[pyfunction]
+fn line_mesh_distance<'py>(
+    py: Python<'py>,
+    origins: PyReadonlyArray2<'py, f64>,
+    directions: PyReadonlyArray2<'py, f64>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, i64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let o = points_from_array(&origins, "origins")?;
+    let d = directions_from_array(&directions, o.len(), "directions")?;
+    let mesh = mesh_from_arrays(&vertices, &faces, "mesh")?;
+    let dist = detach(py, "line_mesh_distance", || {
+        SweepObstacle::new(&mesh)?.line_distance(&o, &d)
+    })?;
+    Ok(array1(py, dist))
+}
+
+/// Register this module's functions on `kinmo._core`.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(sweep_collisions, m)?)?;
+    m.add_function(wrap_pyfunction!(line_mesh_distance, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,235 @@
+"""The learned candidate selector (kinmo.refine.selector): candidates of every orientation,
+soft GNN priors, geometric terms, the ranker fit and its calibration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from kinmo.data.model import FINE_INDEX, FINE_TYPES
+from kinmo.refine.refine import RefineConfig, refine_predictions
+from kinmo.refine.selector import (
+    FEATURES,
+    GNNPriors,
+    calibrate,
+    candidate_features,
+    candidate_labels,
+    edge_candidates,
+    fit_ranker,
+    load_ranker,
+)
+from kinmo.refine.table import failure_kind
+
+from motion_cabinet import cabinet_graph
+
+torch.set_num_threads(1)
+F = {n: k for k, n in enumerate(FEATURES)}
+
+
+def _door_edge(g):
+    return int(np.flatnonzero((g.sibling_edges[:, 0] == 2) & (g.sibling_edges[:, 1] == 1))[0])
+
+
+def _priors(g, k, fine: str, axis_mass: dict[int, float] | None = None):
+    e = len(g.sibling_edges)
+    probs = np.full((e, 10), 0.01)
+    probs[:, FINE_INDEX["None"]] = 0.91
+    probs[k] = 0.01
+    probs[k, FINE_INDEX[fine]] = 0.91
+    dirs = np.zeros((e, 10, 3))
+    dirs[:, :3] = np.eye(3)
+    dirs[:, 3:6] = np.eye(3)
+    dirs[:, 6:9] = np.eye(3)
+    dirs[:, 9] = [1.0, 0.0, 0.0]
+    ap = np.full((e, 10), 0.1)
+    if axis_mass:
+        ap[k] = 0.0
+        for a, m in axis_mass.items():
+            ap[k, a] = m
+    return GNNPriors(probs, FINE_TYPES, ap, dirs)
+
+
+def test_candidates_of_every_orientation_contain_the_hinge_for_a_flipped_gnn_axis():
+    g = cabinet_graph(n_points=64)
+    k = _door_edge(g)
+    # the GNN says "horizontal" (x) for the vertical door hinge
+    cands, frames = edge_candidates(g, 2, 1, "R_H_S", np.array([1.0, 0, 0]), g.obb_center[2])
+    assert len(frames) == len(cands) and frames[-1] == "gnn" and cands.kinds[-1] == "gnn"
+    vertical = np.abs(cands.directions[:, 1]) > 0.99
+    assert vertical.any() and (~vertical).any()
+    ok = candidate_labels(cands, g.edge_axis_origin[k], g.edge_axis_direction[k], g.scale, True)
+    assert ok.any() and not ok[-1]  # the truth is a candidate, the GNN's own line is not it
+
+
+def test_priors_direction_orientation_and_pivot():
+    g = cabinet_graph(n_points=64)
+    k = _door_edge(g)
+    pri = _priors(g, k, "R_H_S", {1: 0.7, 7: 0.2, 0: 0.1})  # y twice (part y, shape y)
+    dp = pri.direction_prior(k, np.array([[0, 1.0, 0], [1.0, 0, 0], [0, 0, 1.0]]))
+    np.testing.assert_allclose(dp, [0.9, 0.1, 0.0])
+    ph, pv = pri.orientation(k)
+    assert ph > 0.95 and abs(ph + pv - 1) < 1e-12
+    pc, ps = pri.pivot(k)
+    assert ps > 0.95
+    coarse = GNNPriors(np.full((len(g.sibling_edges), 5), 0.2), ("Fixed", "None", "P", "R", "PR"))
+    assert coarse.orientation(k) == (0.5, 0.5) and coarse.pivot(k) == (0.5, 0.5)
+    np.testing.assert_allclose(coarse.direction_prior(k, np.eye(3)), 0.1)
+
+
+def test_features_see_collision_and_attachment():
+    g = cabinet_graph(n_points=256)
+    k = _door_edge(g)
+    cands, frames = edge_candidates(g, 2, 1, "R", np.array([0, 1.0, 0]), g.obb_center[2])
+    x, sign = candidate_features(g, 2, 1, k, cands, frames, _priors(g, k, "R_V_S"),
+                                 np.array([0, 1.0, 0]), g.obb_center[2])
+    assert x.shape == (len(cands), len(FEATURES)) and np.all(np.isfinite(x))
+    assert set(np.unique(sign)) <= {-1, 1}
+    hinge = candidate_labels(cands, g.edge_axis_origin[k], g.edge_axis_direction[k], g.scale, True)
+    h = int(np.flatnonzero(hinge)[0])
+    # the true hinge lets the door swing out in one sign; the vertical edge at the door's
+    # other side (x = 0, at the body's front face) sweeps through the body in both signs
+    other = int(np.flatnonzero((np.abs(cands.directions[:, 1]) > 0.99)
+                               & (np.abs(cands.origins[:, 0]) < 1e-6)
+                               & (cands.origins[:, 2] < 0.31) & np.array([c == "edge" for c in cands.kinds]))[0])
+    assert x[h, F["collide_min"]] < x[other, F["collide_min"]]
+    assert x[h, F["attach_ref"]] < 0.05  # the hinge touches the body
+
+
+def test_ranker_fit_is_deterministic_and_learns_a_rule():
+    rng = np.random.default_rng(0)
+    groups = []
+    for _ in range(200):
+        c = int(rng.integers(3, 9))
+        x = rng.normal(size=(c, len(FEATURES)))
+        y = np.zeros(c, bool)
+        y[int(np.argmax(x[:, F["attach_ref"]] * -1.0))] = True  # the smallest attachment wins
+        groups.append((x, y))
+    r1 = fit_ranker(groups, seed=3)
+    r2 = fit_ranker(groups, seed=3)
+    np.testing.assert_array_equal(r1.weights, r2.weights)
+    assert r1.weights[F["attach_ref"]] < 0
+    assert abs(r1.weights[F["attach_ref"]]) == pytest.approx(np.abs(r1.weights).max())
+    hits = [bool(y[np.argmax(r1.probabilities(x))]) for x, y in groups]
+    assert np.mean(hits) > 0.9
+
+
+def test_calibration_matches_frequencies_and_roundtrip(tmp_path):
+    rng = np.random.default_rng(1)
+    p = rng.uniform(0.2, 0.99, size=4000)
+    true = 1 / (1 + np.exp(-(2.0 * np.log(p / (1 - p)) - 1.0)))
+    y = rng.uniform(size=p.size) < true
+    a, b = calibrate(p, y)
+    assert a == pytest.approx(2.0, abs=0.3) and b == pytest.approx(-1.0, abs=0.3)
+    assert calibrate(np.array([0.5, 0.6]), np.array([True, True])) == (1.0, 0.0)
+    groups = [(rng.normal(size=(4, len(FEATURES))), np.array([True, False, False, False]))
+              for _ in range(10)]
+    r = fit_ranker(groups)
+    r.platt = (a, b)
+    back = load_ranker(r.save(tmp_path / "ranker.json"))
+    np.testing.assert_allclose(back.weights, r.weights)
+    assert back.confidence(0.9) == pytest.approx(r.confidence(0.9))
+
+
+def test_selected_axis_repairs_a_flip_and_the_fine_type_follows(tmp_path):
+    from kinmo.mobility_tree import EdgePrediction
+    from kinmo.predict import consistent_fine
+
+    g = cabinet_graph(n_points=128)
+    k = _door_edge(g)
+    # a ranker that trusts the GNN's axis-candidate prior and the attachment
+    w = np.zeros(len(FEATURES))
+    w[F["log_dir_prior"]] = 2.0
+    w[F["attach_ref"]] = -3.0
+    w[F["collide_min"]] = -3.0
+    from kinmo.refine.selector import Ranker
+
+    r = Ranker(FEATURES, w, np.zeros(len(FEATURES)), np.ones(len(FEATURES)) * 0.1)
+    path = r.save(tmp_path / "ranker.json")
+    e = len(g.sibling_edges)
+    pri = _priors(g, k, "R_H_S", {1: 0.6, 0: 0.4})  # types say H, axis head leans to y
+    d = np.tile([0.0, 1.0, 0.0], (e, 1))
+    d[k] = [1.0, 0.0, 0.0]  # the GNN's chosen (flipped) direction
+    pred = EdgePrediction(pri.probs.copy(), d, np.tile(g.obb_center[2], (e, 1)))
+    cfg = RefineConfig(selector="ranker", ranker=str(path))
+    out = refine_predictions(g, pred, None, cfg, only=[k], priors=pri)
+    assert abs(out.axis_direction[k, 1]) > 0.99
+    assert failure_kind(out.axis_direction[k], out.axis_origin[k], g.edge_axis_direction[k],
+                        g.edge_axis_origin[k], g.scale, True) in ("ok", "sign")
+    assert 0.0 < out.confidence[k] < 1.0
+    fixed = consistent_fine(g, EdgePrediction(pred.probs, out.axis_direction, out.axis_origin))
+    assert FINE_TYPES[int(np.argmax(fixed.probs[k]))] == "R_V_S"
+
+
+def test_ranker_selector_needs_a_file():
+    with pytest.raises(ValueError, match="ranker"):
+        RefineConfig(selector="ranker")
+
+
+def test_failure_kinds():
+    o, t = np.zeros(3), np.array([0, 1.0, 0])
+    assert failure_kind(np.array([1.0, 0, 0]), o, t, o, 1.0, True) == "orientation flip"
+    assert failure_kind(np.array([0.2, 1.0, 0]), o, t, o, 1.0, True) == "tilted box"
+    assert failure_kind(t, o + [0.5, 0, 0], t, o, 1.0, True) == "wrong parallel edge"
+    assert failure_kind(-t, o, t, o, 1.0, True) == "sign"
+    assert failure_kind(t, o + [0.5, 0, 0], t, o, 1.0, False) == "ok"
+
+
+def test_fold_ids_stratified_and_seeded():
+    from kinmo.refine.fit_selector import fold_ids
+
+    ids = [f"s{n}" for n in range(12)]
+    cats = ["a"] * 6 + ["b"] * 4 + ["c"] * 2
+    f1 = fold_ids(ids, cats, 3, seed=0)
+    assert f1 == fold_ids(ids, cats, 3, seed=0)
+    assert sorted(f1[:6]) == [0, 0, 1, 1, 2, 2]  # each category spread over the folds
+    assert len(set(f1[10:])) == 2
+    with pytest.raises(ValueError):
+        fold_ids(ids, cats, 1)
+
+
+def test_collect_groups_and_fit_selector_on_oracle_predictions():
+    from motion_cabinet import oracle_prediction
+
+    from kinmo.mobility_tree import build_mobility_tree
+    from kinmo.predict import ShapePrediction
+    from kinmo.refine.fit_selector import collect_groups, fit_selector
+
+    preds = []
+    for s in range(6):
+        g = cabinet_graph(n_points=64, seed=s, jitter=0.2, shape_id=f"cab{s}")
+        e = oracle_prediction(g)
+        preds.append(ShapePrediction(g, e, build_mobility_tree(g, e), FINE_TYPES))
+    groups = collect_groups(preds)
+    assert len(groups.y) == 12  # door and drawer of each cabinet
+    assert all(y.any() for y in groups.y)  # the truth is always a candidate
+    assert all(y[-1] for y in groups.y)  # the oracle GNN's own line is right
+    ranker, st = fit_selector(groups, k=2)
+    assert st["recall"] == 1.0 and 0.0 <= st["oof_top1"] <= 1.0
+    assert ranker.meta["cv"]["groups"] == 12
+
+
+def test_sweep_terms_on_a_real_door_prefer_the_true_hinge(mobility_root):
+    from kinmo.data.build import build_graph
+    from kinmo.data.readers import read_shape
+    from kinmo.refine.selector import shape_meshes
+
+    folder = mobility_root / "45001"  # a cabinet with a hinged door
+    if not folder.is_dir():
+        folder = sorted(p for p in mobility_root.iterdir() if p.is_dir())[0]
+    g = build_graph(read_shape(folder), n_points=256)
+    meshes = shape_meshes(g)
+    assert meshes is not None and set(meshes.leaves) == set(np.flatnonzero(g.is_leaf).tolist())
+    hinges = [k for k, t in enumerate(g.edge_fine) if FINE_TYPES[int(t)].startswith("R_")]
+    assert hinges
+    k = hinges[0]
+    i, j = (int(x) for x in g.sibling_edges[k])
+    pri = GNNPriors(np.full((len(g.sibling_edges), 10), 0.1), FINE_TYPES)
+    d, o = g.edge_axis_direction[k], g.edge_axis_origin[k]
+    cands, frames = edge_candidates(g, i, j, "R", d, o)
+    x, sign = candidate_features(g, i, j, k, cands, frames, pri, d, o, None, meshes)
+    y = candidate_labels(cands, o, d, g.scale, True)
+    assert y.any() and (~y).any()
+    # the true hinge swings free in one sign; the wrong lines on average do not
+    assert x[y, F["sweep_free_max"]].max() > x[~y, F["sweep_free_max"]].mean()
+    assert x[y, F["attach_mesh"]].min() < x[~y, F["attach_mesh"]].mean()
