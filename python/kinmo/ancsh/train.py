@@ -601,6 +601,7 @@ def train_ancsh(
     init: str | Path | None = None,
     progress: bool = True,
     console: Any = None,
+    structure: KinematicStructure | None = None,
 ) -> TrainResult:
     """Train ANCSH on rendered scans of one category in one setting (module docstring).
 
@@ -630,6 +631,10 @@ def train_ancsh(
         Rich progress bars.
     console : rich.console.Console, optional
         Receives one-line status messages.
+    structure : KinematicStructure, optional
+        Train on the objects with this structure (one model per structure of a category with
+        several, :func:`kinmo.ancsh.structure.structure_groups`); default the category's most
+        common one.
 
     Returns
     -------
@@ -658,7 +663,7 @@ def train_ancsh(
     out = Path(out)
     dist_info, _ = distributed.setup(resolve_device((config or preset("quick")).device))
     main = dist_info.is_main  # torchrun: rank 0 writes the run folder
-    cat = scan_category(data, category)
+    cat = scan_category(data, category, structure)
     if cat.structure is None:
         raise KinmoError(f"{data}: no object of category {cat.category} can be expressed by ANCSH")
     structure = cat.structure
