@@ -52,9 +52,26 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinmo.data.graph import PartGraph
-from kinmo.data.model import COARSE_INDEX, FINE_TO_COARSE, FINE_TYPES, Joint, JointType, Link
+from kinmo.data.labels import is_vertical, pivot_is_central
+from kinmo.data.model import (
+    COARSE_INDEX,
+    FINE_INDEX,
+    FINE_TO_COARSE,
+    FINE_TYPES,
+    Joint,
+    JointType,
+    Link,
+)
 
-__all__ = ["EdgePrediction", "MobilityTree", "TreeOptions", "build_mobility_tree", "coarse_probs"]
+__all__ = [
+    "EdgePrediction",
+    "MobilityTree",
+    "ShapePrediction",
+    "TreeOptions",
+    "build_mobility_tree",
+    "coarse_probs",
+    "consistent_fine",
+]
 
 _P, _R, _PR, _FIXED, _NONE = (COARSE_INDEX[n] for n in ("P", "R", "PR", "Fixed", "None"))
 _MOVING = (_P, _R, _PR)
@@ -437,3 +454,72 @@ def _joint(k: int, lab: int, i: int, j: int, pred: EdgePrediction, center: np.nd
         rotates=lab == _PR,
         rotation_limit=None,
     )
+
+
+@dataclass
+class ShapePrediction:
+    """Predictions for one shape.
+
+    Attributes
+    ----------
+    graph : PartGraph
+    edges : EdgePrediction
+    tree : MobilityTree
+    type_names : tuple of str
+        Names of the columns of ``edges.probs``.
+    priors : kinmo.refine.selector.GNNPriors or None
+        The GNN's raw outputs (types before :func:`consistent_fine`, axis-candidate
+        probabilities), the soft priors of the learned refinement.
+    """
+
+    graph: PartGraph
+    edges: EdgePrediction
+    tree: MobilityTree
+    type_names: tuple[str, ...]
+    priors: object | None = None
+
+    @property
+    def shape_id(self) -> str:
+        """The shape's id."""
+        return self.graph.shape_id
+
+
+def consistent_fine(graph: PartGraph, pred: EdgePrediction) -> EdgePrediction:
+    """Make fine-type probabilities agree with the predicted axes.
+
+    The fine types refine the coarse ones by the axis: horizontal/vertical by its direction,
+    centre/side pivot by its position (:mod:`kinmo.data.labels`). The network predicts types
+    and axes with separate heads, which can disagree (``P_V`` with a horizontal axis). Here each
+    edge's probability mass of a coarse type (``P``, ``R``, ``PR``) goes entirely to the fine
+    type its own predicted axis implies, by the labelling rules
+    (:func:`~kinmo.data.labels.is_vertical`, :func:`~kinmo.data.labels.pivot_is_central` on the
+    moving part's OBB). ``Fixed``/``None`` are unchanged. On the shared PartNet-Mobility test
+    split this raises the type accuracy of moving edges (e.g. 0.652 -> 0.674 for one quick run).
+
+    Parameters
+    ----------
+    graph : PartGraph
+    pred : EdgePrediction
+        Fine-type predictions (mesh frame). Coarse predictions are returned unchanged.
+
+    Returns
+    -------
+    EdgePrediction
+        Same axes, adjusted probabilities (each row still sums to 1).
+    """
+    if pred.types != "fine":
+        return pred
+    cp = pred.coarse()
+    probs = np.zeros_like(pred.probs)
+    probs[:, FINE_INDEX["Fixed"]] = cp[:, COARSE_INDEX["Fixed"]]
+    probs[:, FINE_INDEX["None"]] = cp[:, COARSE_INDEX["None"]]
+    edges = np.asarray(graph.sibling_edges, dtype=np.int64).reshape(-1, 2)
+    for k, (i, _) in enumerate(edges):
+        d, o = pred.direction[k], pred.origin[k]
+        hv = "V" if is_vertical(d) else "H"
+        cs = "C" if pivot_is_central(o, d, graph.obb_center[i], graph.obb_axes[i],
+                                     graph.obb_half_extents[i]) else "S"
+        probs[k, FINE_INDEX[f"P_{hv}"]] += cp[k, COARSE_INDEX["P"]]
+        probs[k, FINE_INDEX[f"PR_{hv}"]] += cp[k, COARSE_INDEX["PR"]]
+        probs[k, FINE_INDEX[f"R_{hv}_{cs}"]] += cp[k, COARSE_INDEX["R"]]
+    return EdgePrediction(probs, pred.direction, pred.origin)

@@ -42,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json, write_text
+from kinmo.runs import DEFAULT_RUN, SYNTH_EXTRA_FILE
 
 __all__ = ["PipelineConfig", "PipelineResult", "StageTiming", "default_categories", "run_pipeline", "run_demo",
            "ANCSH_PLAN_FILE", "DEFAULT_RUN", "TINY", "CategoryRuns", "FoundData", "ancsh_plan", "category_runs",
@@ -476,7 +477,6 @@ def missing_data_message() -> str:
 
 
 #: Run folder of ``kinmo train all`` without ``--out``.
-DEFAULT_RUN = Path("runs") / "all"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -632,8 +632,6 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     return res
 
 
-#: File of a generated-shapes run (``out/synth-extra-*/``) describing it (read by the report).
-SYNTH_EXTRA_FILE = "synth_extra.json"
 
 
 @dataclasses.dataclass

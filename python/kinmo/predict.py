@@ -39,7 +39,13 @@ from kinmo.data.model import PartHierarchy, PartNode, Shape
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.features import collate, graph_tensors
 from kinmo.io import write_json, write_text
-from kinmo.mobility_tree import EdgePrediction, MobilityTree, TreeOptions, build_mobility_tree
+from kinmo.mobility_tree import (
+    EdgePrediction,
+    ShapePrediction,
+    TreeOptions,
+    build_mobility_tree,
+    consistent_fine,
+)
 from kinmo.train.gnn import Run, load_run
 
 __all__ = [
@@ -121,78 +127,6 @@ def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: i
                 ad = res.axis_candidates[s].double().cpu().numpy()
             priors.append(GNNPriors(probs[s].copy(), names, ap, ad))
     return out, priors
-
-
-@dataclass
-class ShapePrediction:
-    """Predictions for one shape.
-
-    Attributes
-    ----------
-    graph : PartGraph
-    edges : EdgePrediction
-    tree : MobilityTree
-    type_names : tuple of str
-        Names of the columns of ``edges.probs``.
-    priors : kinmo.refine.selector.GNNPriors or None
-        The GNN's raw outputs (types before :func:`consistent_fine`, axis-candidate
-        probabilities), the soft priors of the learned refinement.
-    """
-
-    graph: PartGraph
-    edges: EdgePrediction
-    tree: MobilityTree
-    type_names: tuple[str, ...]
-    priors: object | None = None
-
-    @property
-    def shape_id(self) -> str:
-        """The shape's id."""
-        return self.graph.shape_id
-
-
-def consistent_fine(graph: PartGraph, pred: EdgePrediction) -> EdgePrediction:
-    """Make fine-type probabilities agree with the predicted axes.
-
-    The fine types refine the coarse ones by the axis: horizontal/vertical by its direction,
-    centre/side pivot by its position (:mod:`kinmo.data.labels`). The network predicts types
-    and axes with separate heads, which can disagree (``P_V`` with a horizontal axis). Here each
-    edge's probability mass of a coarse type (``P``, ``R``, ``PR``) goes entirely to the fine
-    type its own predicted axis implies, by the labelling rules
-    (:func:`~kinmo.data.labels.is_vertical`, :func:`~kinmo.data.labels.pivot_is_central` on the
-    moving part's OBB). ``Fixed``/``None`` are unchanged. On the shared PartNet-Mobility test
-    split this raises the type accuracy of moving edges (e.g. 0.652 -> 0.674 for one quick run).
-
-    Parameters
-    ----------
-    graph : PartGraph
-    pred : EdgePrediction
-        Fine-type predictions (mesh frame). Coarse predictions are returned unchanged.
-
-    Returns
-    -------
-    EdgePrediction
-        Same axes, adjusted probabilities (each row still sums to 1).
-    """
-    from kinmo.data.labels import is_vertical, pivot_is_central
-    from kinmo.data.model import COARSE_INDEX, FINE_INDEX
-
-    if pred.types != "fine":
-        return pred
-    cp = pred.coarse()
-    probs = np.zeros_like(pred.probs)
-    probs[:, FINE_INDEX["Fixed"]] = cp[:, COARSE_INDEX["Fixed"]]
-    probs[:, FINE_INDEX["None"]] = cp[:, COARSE_INDEX["None"]]
-    edges = np.asarray(graph.sibling_edges, dtype=np.int64).reshape(-1, 2)
-    for k, (i, _) in enumerate(edges):
-        d, o = pred.direction[k], pred.origin[k]
-        hv = "V" if is_vertical(d) else "H"
-        cs = "C" if pivot_is_central(o, d, graph.obb_center[i], graph.obb_axes[i],
-                                     graph.obb_half_extents[i]) else "S"
-        probs[k, FINE_INDEX[f"P_{hv}"]] += cp[k, COARSE_INDEX["P"]]
-        probs[k, FINE_INDEX[f"PR_{hv}"]] += cp[k, COARSE_INDEX["PR"]]
-        probs[k, FINE_INDEX[f"R_{hv}_{cs}"]] += cp[k, COARSE_INDEX["R"]]
-    return EdgePrediction(probs, pred.direction, pred.origin)
 
 
 def predict_graphs(run: Run, graphs: Sequence[PartGraph], options: TreeOptions = TreeOptions(),

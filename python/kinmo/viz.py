@@ -16,7 +16,7 @@ import numpy as np
 from kinmo.io import atomic_path
 
 if TYPE_CHECKING:
-    from kinmo.predict import ShapePrediction
+    from kinmo.mobility_tree import ShapePrediction
 
 __all__ = ["render_prediction"]
 

@@ -47,6 +47,7 @@ from kinmo.ancsh.symmetry import align_about_axis
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.metrics.axis import axis_angle_deg, line_distance
 from kinmo.metrics.pose import box_iou_3d, rotation_error_deg
+from kinmo.paper import PAPER_TABLE2
 
 __all__ = [
     "FrameErrors",
@@ -808,11 +809,10 @@ def rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStr
 
 def paper_table(rows: Sequence[Table2Row], category: str) -> Any:
     """The category's Table 2 row of each setting next to the paper's means
-    (:data:`kinmo.report.collect.PAPER_TABLE2`), as a :class:`rich.table.Table` (rotation and
+    (:data:`kinmo.paper.PAPER_TABLE2`), as a :class:`rich.table.Table` (rotation and
     axis angle error, degrees)."""
     from rich.table import Table
 
-    from kinmo.report.collect import PAPER_TABLE2
 
     t = Table(title=f"Table 2 — {category} vs the paper (Liu et al. 2023, mean over its categories)")
     for c in ("setting", "test scans", "rotation (°)", "paper rotation (°)", "axis angle (°)", "paper axis angle (°)"):

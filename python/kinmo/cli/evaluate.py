@@ -42,7 +42,7 @@ def pre_segmented_cmd(
         console = Console(width=max(console.width, 140))
     if not model:
         from kinmo.cli._errors import fail
-        from kinmo.pipeline import DEFAULT_RUN
+        from kinmo.runs import DEFAULT_RUN
 
         model = [DEFAULT_RUN / f"gnn_{t}" for t in ("fine", "coarse") if (DEFAULT_RUN / f"gnn_{t}").is_dir()]
         if not model:

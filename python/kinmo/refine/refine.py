@@ -668,10 +668,13 @@ def refine_shape_prediction(
         The refined prediction (same graph and type names) and the refinement details
         (per-edge confidence, candidates and scores).
     """
-    from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
-    from kinmo.predict import ShapePrediction
-
-    from kinmo.predict import consistent_fine
+    from kinmo.mobility_tree import (
+        EdgePrediction,
+        ShapePrediction,
+        TreeOptions,
+        build_mobility_tree,
+        consistent_fine,
+    )
 
     refined = refine_predictions(prediction.graph, prediction.edges, axis_model, config,
                                  priors=getattr(prediction, "priors", None))

@@ -5,7 +5,7 @@ Sections, always present (a section whose artefacts are missing says so):
 1. **Overview**: what was found, what is missing (and which command makes it), unreadable files;
 2. **Table 1** (pre-segmented shapes): per evaluation CSV, the means next to the paper's
    (:data:`~kinmo.report.collect.PAPER_TABLE1`), per-model tables and bar charts per category;
-3. **Table 2** (partial scans): the same against :data:`~kinmo.report.collect.PAPER_TABLE2`;
+3. **Table 2** (partial scans): the same against :data:`~kinmo.paper.PAPER_TABLE2`;
 4. **Generated shapes: with vs without**: for a run of ``kinmo train all --synth-extra N``,
    Table 1 and Table 2 means on the real test objects without and with the generated shapes
    (the paper's study with generated DSG-Net shapes, Sec. 4.3);
@@ -26,7 +26,7 @@ from collections.abc import Callable
 from datetime import datetime, timezone
 from pathlib import Path
 
-from kinmo.report import charts
+import kinmo.report.charts as charts
 from kinmo.report.collect import (
     PAPER_TABLE1,
     PAPER_TABLE2,

@@ -49,7 +49,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from kinmo.errors import KinmoDataError
-from kinmo.pipeline import SYNTH_EXTRA_FILE  # the file of a generated-shapes run
+from kinmo.paper import PAPER_TABLE2
+from kinmo.runs import SYNTH_EXTRA_FILE  # the file of a generated-shapes run
 
 __all__ = [
     "ARTEFACTS",
@@ -105,14 +106,6 @@ TABLE1_METRICS: tuple[tuple[str, str, bool], ...] = _table1_metrics()
 #: setting (``GNN_fine``, ``GNN_coarse``, ``OBB_fine``).
 PAPER_TABLE1: dict[str, dict[str, float]] = _paper_table1()
 
-#: The paper's Table 2 means (ANCSH on partial scans, Liu et al. 2023): part rotation error
-#: and joint axis angle error (degrees) of ANCSH trained supervised, semi-supervised and
-#: semi-weakly supervised (the paper's method).
-PAPER_TABLE2: dict[str, dict[str, float]] = {
-    "supervised": {"rotation": 23.66, "angle": 3.25},
-    "semi": {"rotation": 24.76, "angle": 3.39},
-    "semi-weakly": {"rotation": 17.43, "angle": 2.62},
-}
 
 #: Columns of a Table 2 CSV naming the training setting, in order of preference.
 SETTING_COLUMNS: tuple[str, ...] = ("setting", "supervision", "training", "method", "model",

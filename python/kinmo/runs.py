@@ -1,0 +1,16 @@
+"""Names in a kinmo run folder that several stages share (the pipeline writes, the report and
+the CLI read), kept apart from :mod:`kinmo.pipeline` so readers need not import the pipeline.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["DEFAULT_RUN", "SYNTH_EXTRA_FILE"]
+
+#: Run folder of ``kinmo train all`` when ``--out`` is not given (relative to the working
+#: folder); ``kinmo eval`` looks for the last run there.
+DEFAULT_RUN = Path("runs") / "all"
+
+#: File of a generated-shapes run (``out/synth-extra-*/``) describing it (read by the report).
+SYNTH_EXTRA_FILE = "synth_extra.json"
