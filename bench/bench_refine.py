@@ -13,6 +13,13 @@ Sections (``--only NAME``):
   EdgeConv (``A x_j + B x_i``: per-point products, then a gather of the outputs) vs the
   textbook EdgeConv (gather ``[x_j - x_i, x_i]``, then a 1x1 convolution), same weights and
   the same outputs.
+- ``batched``: the network side of the refinement on real objects: the feasibility of every
+  candidate line of every labelled moving edge (its fine type's candidates, the paper's
+  ``±30/45/60/80°``), scored by :func:`kinmo.refine.feasibility.score_lines` once per
+  shape and once for all shapes together, against the per-edge loop the refinement used
+  (one rest cloud and :meth:`~kinmo.refine.axis_net.AxisSelectionNet.feasibility` in chunks
+  of 16 per edge, ``torch.no_grad``); candidate motions/s and shapes/s, max |diff| of the
+  scores (same sampled points).
 - ``shape``: refining every moving joint of real objects (candidates, interaction regions,
   motions, network, scores: :func:`kinmo.refine.refine.refine_predictions` with the labels as
   predictions), candidate motions scored per second, and the share of the time spent outside
@@ -20,7 +27,7 @@ Sections (``--only NAME``):
 
 Usage::
 
-    python bench/bench_refine.py [--quick] [--only apply,edgeconv,shape] [--cache DIR]
+    python bench/bench_refine.py [--quick] [--only apply,edgeconv,batched,shape] [--cache DIR]
         [--axis-model RUN]
 
 ``--cache``: a ``kinmo prepare`` cache of PartNet-Mobility (built in a temporary folder from
@@ -214,7 +221,82 @@ def bench_shape(bench: Bench) -> None:
                         f"(network {net_s[0]:.2f} s of {total:.2f} s, one thread)")
 
 
-SECTIONS = {"apply": bench_apply, "edgeconv": bench_edgeconv, "shape": bench_shape}
+def bench_batched(bench: Bench) -> None:
+    import torch
+
+    from kinmo.refine.candidates import candidate_axes
+    from kinmo.refine.feasibility import PAPER_ANGLES, LineRequest, score_lines
+    from kinmo.refine.motions import MotionAmounts, candidate_motions, edge_cloud, network_inputs
+    from kinmo.refine.train import load_graphs, moving_edges
+
+    torch.set_num_threads(1)
+    model = _model(bench.axis_model)
+    graphs = load_graphs(_cache(bench))
+    picked = graphs[:: max(1, len(graphs) // (8 if bench.quick else 24))]
+    amounts = MotionAmounts(PAPER_ANGLES)
+    per_shape: list[list[LineRequest]] = []
+    for g in picked:
+        reqs = []
+        for k, me in enumerate(moving_edges([g])):
+            obb = (g.obb_center[me.moving], g.obb_axes[me.moving], g.obb_half_extents[me.moving])
+            c = candidate_axes(obb, me.fine_type, g.points[me.moving], g.points[me.reference])
+            reqs.append(LineRequest(g, me.moving, me.reference, c, seed=(0, k)))
+        per_shape.append(reqs)
+    n_motions = sum(2 * len(r.candidates) * (len(amounts.angles_deg)
+                                             if r.candidates.motion != "P" else 1)
+                    for reqs in per_shape for r in reqs)
+
+    def per_edge_loop(model=model):  # the refinement's path before score_lines
+        out = []
+        for reqs in per_shape:
+            for r in reqs:
+                g = r.graph
+                obb = (g.obb_center[r.moving], g.obb_axes[r.moving], g.obb_half_extents[r.moving])
+                mot = candidate_motions(r.candidates, obb, amounts)
+                pair = edge_cloud(g, r.moving, r.reference, model.config,
+                                  np.random.default_rng(r.seed))
+                rest, moved = network_inputs(pair, mot.origins, mot.directions, mot.angles,
+                                             mot.translations)
+                out.append(model.feasibility(torch.from_numpy(rest), torch.from_numpy(moved),
+                                             chunk=16).numpy())
+        return out
+
+    def per_shape_batched():
+        return [lf for reqs in per_shape for lf in score_lines(model, reqs, amounts)]
+
+    def all_shapes_batched():
+        return score_lines(model, [r for reqs in per_shape for r in reqs], amounts)
+
+    ref = np.concatenate(per_edge_loop())
+    got = np.concatenate([lf.per_motion.reshape(-1) for lf in all_shapes_batched()])
+    err = float(np.abs(ref - got).max())
+    base = measure(per_edge_loop, bench.reps(3, 1))
+    n_shapes = len(picked)
+    for name, fn in (("score_lines per shape", per_shape_batched),
+                     ("score_lines all shapes", all_shapes_batched)):
+        row = bench.compare("batched", f"{name}: {n_shapes} objects, {n_motions} motions", fn,
+                            "per-edge loop", base, bench.reps(3, 1), unit="motions/s")
+        row.value = n_motions / row.wall_s
+        row.note = (f"{n_shapes / row.wall_s:.2f} shapes/s (per-edge loop "
+                    f"{n_motions / base.wall_s:.0f} motions/s, {n_shapes / base.wall_s:.2f} "
+                    f"shapes/s); max |diff| {err:.1e}; {model.config.n_points} points")
+    # before: the per-edge loop with the previous quick preset's 512-point network
+    from kinmo.refine.axis_net import AxisSelectionNet
+    from kinmo.refine.train import preset_config
+
+    torch.manual_seed(0)
+    old = AxisSelectionNet(preset_config("quick", net={"n_points": 512}).net).eval()
+    old_t = measure(lambda: per_edge_loop(old), bench.reps(3, 1))
+    row = bench.compare("batched", f"score_lines all shapes vs 512-point per-edge loop: "
+                        f"{n_shapes} objects", all_shapes_batched, "per-edge loop, 512 points",
+                        old_t, bench.reps(3, 1), unit="motions/s")
+    row.value = n_motions / row.wall_s
+    row.note = (f"{n_shapes / row.wall_s:.2f} shapes/s vs {n_shapes / old_t.wall_s:.2f} "
+                f"shapes/s ({n_motions / old_t.wall_s:.0f} motions/s) before")
+
+
+SECTIONS = {"apply": bench_apply, "edgeconv": bench_edgeconv, "batched": bench_batched,
+            "shape": bench_shape}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -165,10 +165,14 @@ def test_cli(data, runs, tmp_path, monkeypatch):
     res = CliRunner().invoke(app, [
         "pseudo-label", str(data), "--model", str(runs[0]), "--axis-model", str(runs[1]),
         "--out", str(out), "--threshold", "0", "--quiet", "--sign", "feasibility",
+        "--format", "semantics", "--format", "mjcf",
     ])
     assert res.exit_code == 0, res.output
     assert "kept" in res.output and f"{len(SHAPES)} kept" in res.output
     assert len(list(out.glob("*/mobility_v2.json"))) == len(SHAPES)
+    # --format: mobility_v2.json always, then the formats asked for (kinmo.export)
+    assert len(list(out.glob("*/mobility.xml"))) == len(SHAPES)
+    assert not list(out.glob("*/mobility.urdf"))
     bad = CliRunner().invoke(app, [
         "pseudo-label", str(data), "--model", str(tmp_path / "missing"), "--axis-model",
         str(runs[1]), "--out", str(out),
@@ -229,3 +233,18 @@ def test_one_run_per_output_folder(data, runs, tmp_path):
         with pytest.raises(KinmoError, match="another kinmo pseudo-label is writing"):
             pseudo_label_dataset(data / SHAPES[0], *runs, out, progress=False)
     assert (out / ".staging").is_dir() and not (out / "shapes.csv").exists()
+
+
+def test_ray_executor_gives_the_same_records(data, runs, tmp_path):
+    """``executor="ray"``: a local Ray of 2 CPUs is started for the call, each worker loads the
+    models once (the initializer), and the records are those of the in-process run."""
+    import ray
+
+    cfg = PseudoLabelConfig(threshold=0.0)
+    a = pseudo_label_dataset(data, *runs, tmp_path / "a", cfg, workers=1, progress=False)
+    b = pseudo_label_dataset(data, *runs, tmp_path / "b", cfg, workers=2, progress=False,
+                             executor="ray")
+    assert not ray.is_initialized()  # started and shut down by the call
+    key = [(r.id, r.status, r.n_moving, r.reason) for r in a.records]
+    assert [(r.id, r.status, r.n_moving, r.reason) for r in b.records] == key
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == sorted(p.name for p in (tmp_path / "a").iterdir())

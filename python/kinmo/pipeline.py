@@ -11,6 +11,8 @@ a finished result of the same configuration (a ``.done`` file with the configura
 JSON), so an interrupted run resumes where it stopped. Layout::
 
     out/pipeline.json            the PipelineConfig
+    out/split.json               train/test split by category and kinematic structure
+                                     (:func:`structure_split`), used by every model
     out/cache/{labeled,unlabeled}/   kinmo prepare
     out/gnn_fine/, out/gnn_coarse/   kinmo train gnn (split.json in gnn_fine)
     out/axis/                        kinmo train axis
@@ -41,7 +43,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json, write_text
 
-__all__ = ["PipelineConfig", "PipelineResult", "StageTiming", "default_categories", "run_pipeline", "run_demo"]
+__all__ = ["PipelineConfig", "PipelineResult", "StageTiming", "default_categories", "run_pipeline", "run_demo",
+           "ANCSH_PLAN_FILE", "DEFAULT_RUN", "TINY", "CategoryRuns", "FoundData", "ancsh_plan", "category_runs",
+           "find_data", "missing_data_message", "structure_split"]
 
 SETTINGS = ("supervised", "semi", "semi-weakly")
 
@@ -162,6 +166,7 @@ class PipelineResult(BaseModel):
     stages: dict[str, list[str]] = Field(default_factory=dict)
     categories: list[str] = Field(default_factory=list)
     skipped_categories: dict[str, str] = Field(default_factory=dict)
+    structures: dict[str, list[str]] = Field(default_factory=dict)
     report: Path | None = None
     timings: dict[str, StageTiming] = Field(default_factory=dict)
     synth_extra: Path | None = None
@@ -226,12 +231,135 @@ def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Calla
     return True
 
 
-def default_categories(labeled: Path, split_file: Path | None = None, min_train: int = 2) -> tuple[list[str], dict[str, str]]:
-    """Categories with enough data for ANCSH.
+def ancsh_plan(labeled: Path, split_file: Path | None = None, categories: list[str] | None = None,
+               min_train: int = 2) -> tuple[dict[str, list[Any]], dict[str, str]]:
+    """Which ANCSH models ``kinmo train all`` trains: one per category and kinematic structure.
 
-    A category qualifies when the objects fitting its most common kinematic structure
-    (:func:`kinmo.ancsh.structure.category_structure`) include at least ``min_train`` training
-    objects and one test object of the split.
+    ANCSH is category-level with one structure, so a category whose objects have several
+    structures (Refrigerator, StorageFurniture) gets one model per structure that has at least
+    ``min_train`` training objects and one test object of the split
+    (:func:`kinmo.ancsh.structure.structure_groups`); each test object is evaluated with the
+    model of its structure. With ``categories`` given (``--category``), only those are
+    planned, by the same rule; one that no structure qualifies gets one model anyway, of its
+    most common structure with a training and a test object, else with a training object
+    (evaluate that on other objects with ``kinmo eval --category C --data DIR``).
+
+    Parameters
+    ----------
+    labeled : Path
+        PartNet-Mobility dataset folder.
+    split_file : Path, optional
+        ``split.json`` whose ``test`` ids are held out (missing: every object is training).
+    categories : list of str, optional
+        Categories to plan, any spelling; default every category of ``labeled``.
+    min_train : int
+
+    Returns
+    -------
+    plan : dict of str to list of StructureGroup
+        Category (canonical name) → its structures to train, most common first; sorted.
+    skipped : dict of str to str
+        Category → why it gets no model (the counts of its most common structures).
+
+    Raises
+    ------
+    KinmoError
+        A named category has no object under ``labeled``.
+    """
+    from kinmo.ancsh.dataset import category_key
+    from kinmo.ancsh.structure import structure_groups
+    from kinmo.errors import KinmoError
+
+    per = _object_structures(labeled)
+    test: set[str] = set()
+    if split_file is not None and split_file.is_file():
+        test = set(json.loads(split_file.read_text()).get("test", []))
+    wanted = None
+    if categories:
+        names = {category_key(c): c for c in per}
+        wanted = set()
+        for c in categories:
+            if category_key(c) not in names:
+                raise KinmoError(f"{labeled}: no object of category {c!r} (categories: {', '.join(sorted(per))})")
+            wanted.add(names[category_key(c)])
+    plan: dict[str, list[Any]] = {}
+    skipped: dict[str, str] = {}
+    for cat, objs in sorted(per.items()):
+        if wanted is not None and cat not in wanted:
+            continue
+        kept, rest = structure_groups(objs, test, min_train=min_train)
+        if not kept and wanted is not None:  # named: the best structure there is
+            kept = ([g for g in rest if g.train and g.test] or [g for g in rest if g.train])[:1]
+            rest = [g for g in rest if g not in kept]
+        if kept:
+            plan[cat] = kept
+        elif not rest:
+            skipped[cat] = "no object with a revolute/prismatic structure"
+        else:
+            more = f"; {len(rest) - 3} more structures" if len(rest) > 3 else ""
+            skipped[cat] = "; ".join(g.describe() for g in rest[:3]) + more
+    return plan, skipped
+
+
+def _object_structures(labeled: Path) -> dict[str, dict[str, Any]]:
+    """Category → object id → its ANCSH parts (None: not expressible) of every readable
+    PartNet-Mobility object under ``labeled``."""
+    from kinmo.ancsh.structure import object_parts
+    from kinmo.data.readers import find_shapes, read_shape
+
+    per: dict[str, dict[str, Any]] = {}
+    for path in find_shapes(labeled):
+        try:
+            shape = read_shape(path)
+        except KinmoDataError:
+            continue
+        per.setdefault(shape.category, {})[shape.id] = object_parts(shape.links or [])
+    return per
+
+
+def structure_split(labeled: Path, test_fraction: float = 0.25, seed: int = 0) -> Any:
+    """The train/test split of ``kinmo train all``, stratified by category and kinematic structure.
+
+    :func:`kinmo.train.split.make_split` over strata ``<category>|<structure>`` for the
+    structures (:func:`kinmo.ancsh.structure.object_parts`) that at least two objects of the
+    category share, and ``<category>|other`` for the rest of the category (single structures,
+    objects ANCSH cannot express). So every structure with 3 or more objects has at least 2
+    training and 1 test object, and ANCSH can be trained and evaluated per structure
+    (:func:`ancsh_plan`); a plain category-stratified split can leave a category's test
+    objects all of structures without training objects (Refrigerator on the shared data).
+
+    Parameters
+    ----------
+    labeled : Path
+        PartNet-Mobility dataset folder.
+    test_fraction : float
+    seed : int
+
+    Returns
+    -------
+    kinmo.train.split.Split
+        Its ``categories`` are the real categories.
+    """
+    from collections import Counter
+
+    from kinmo.train.split import make_split
+
+    per = _object_structures(labeled)
+    key = {(c, i): (o.structure.signature() if o is not None else None) for c, objs in per.items()
+           for i, o in objs.items()}
+    count = Counter((c, s) for (c, _), s in key.items() if s is not None)
+    ids = [i for (_, i) in key]
+    strata = [f"{c}|{s}" if s is not None and count[(c, s)] >= 2 else f"{c}|other" for (c, _), s in key.items()]
+    sp = make_split(ids, strata, test_fraction, seed)
+    sp.categories = {i: c for (c, i) in key}
+    return sp
+
+
+def default_categories(labeled: Path, split_file: Path | None = None, min_train: int = 2) -> tuple[list[str], dict[str, str]]:
+    """Categories with enough data for ANCSH (:func:`ancsh_plan`).
+
+    A category qualifies when one of its kinematic structures has at least ``min_train``
+    training objects and one test object of the split.
 
     Returns
     -------
@@ -240,32 +368,195 @@ def default_categories(labeled: Path, split_file: Path | None = None, min_train:
     skipped : dict of str to str
         Category → reason it was left out.
     """
-    from kinmo.ancsh.structure import category_structure, object_parts
-    from kinmo.data.readers import find_shapes, read_shape
+    plan, skipped = ancsh_plan(labeled, split_file, min_train=min_train)
+    return sorted(plan), skipped
 
-    per: dict[str, dict] = {}
-    for path in find_shapes(labeled):
+
+#: File under ``OUT/ancsh/`` listing the trained categories with their structures and the
+#: categories left out with the reason (read by ``kinmo eval --category``).
+ANCSH_PLAN_FILE = "categories.json"
+
+
+@dataclasses.dataclass(frozen=True)
+class FoundData:
+    """The dataset folders ``kinmo train all`` uses (:func:`find_data`).
+
+    Attributes
+    ----------
+    labeled, unlabeled : Path or None
+        PartNet-Mobility (labelled) and PartNet (unlabelled) folders.
+    why_labeled, why_unlabeled : str
+        How each was found (one line).
+    """
+
+    labeled: Path | None
+    unlabeled: Path | None
+    why_labeled: str
+    why_unlabeled: str
+
+
+def _prepared_sources(cwd: Path) -> list[tuple[Path, Path, bool]]:
+    """``(source folder, cache folder, labelled)`` of every ``kinmo prepare`` cache under
+    ``cwd/cache`` whose source still exists, newest cache first."""
+    found = []
+    caches = [m.parent for m in (cwd / "cache").glob("*/manifest.json")] if (cwd / "cache").is_dir() else []
+    for cache in sorted(caches, key=lambda c: -(c / "manifest.json").stat().st_mtime):
         try:
-            shape = read_shape(path)
-        except KinmoDataError:
+            man = json.loads((cache / "manifest.json").read_text())
+            root = Path(man["root"])
+            sources = [Path(r["source"]) for r in man.get("shapes", [])]
+        except (OSError, ValueError, KeyError, TypeError):
             continue
-        per.setdefault(shape.category, {})[shape.id] = object_parts(shape.links or [])
-    test: set[str] = set()
-    if split_file is not None and split_file.is_file():
-        test = set(json.loads(split_file.read_text()).get("test", []))
-    keep, skipped = [], {}
-    for cat, objs in sorted(per.items()):
-        st, fitting = category_structure(objs)
-        if st is None:
-            skipped[cat] = "no object with a revolute/prismatic structure"
+        root = root if root.is_absolute() else cwd / root
+        if not root.is_dir():
             continue
-        n_test = sum(o in test for o in fitting)
-        n_train = len(fitting) - n_test
-        if n_train < min_train or n_test < 1:
-            skipped[cat] = f"{n_train} training and {n_test} test objects fit {st.signature()}"
-            continue
-        keep.append(cat)
-    return keep, skipped
+        labeled = any((src if src.is_absolute() else cwd / src).joinpath("mobility_v2.json").is_file()
+                      for src in sources)
+        found.append((root, cache, labeled))
+    return found
+
+
+def find_data(cwd: Path | None = None, env: dict[str, str] | None = None, labeled: Path | None = None,
+              unlabeled: Path | None = None) -> FoundData:
+    """The data of ``kinmo train all`` without options: one rule, for each of the labelled
+    (PartNet-Mobility) and unlabelled (PartNet) folders, the first that exists of
+
+    1. the folder given (``--labeled`` / ``--unlabeled``);
+    2. the source folder of a cache that ``kinmo prepare DIR`` wrote under ``./cache/`` (its
+       ``manifest.json`` remembers it): labelled when its shapes have ``mobility_v2.json``,
+       unlabelled otherwise (the newest cache of each kind);
+    3. ``./partnet-mobility`` / ``./partnet`` in the current folder;
+    4. ``$KINMO_DATA/partnet-mobility`` / ``$KINMO_DATA/partnet``.
+
+    No unlabelled folder: only the ``supervised`` setting is trained.
+
+    Parameters
+    ----------
+    cwd : Path, optional
+        The current folder (default ``Path.cwd()``).
+    env : dict, optional
+        Environment (default ``os.environ``).
+    labeled, unlabeled : Path, optional
+        Folders given on the command line.
+
+    Returns
+    -------
+    FoundData
+        ``labeled`` is None when nothing was found (:func:`missing_data_message`).
+    """
+    import os
+
+    cwd = Path.cwd() if cwd is None else cwd
+    env = dict(os.environ) if env is None else env
+    prepared = _prepared_sources(cwd)
+    root = env.get("KINMO_DATA")
+
+    def pick(given: Path | None, is_labeled: bool, local: str) -> tuple[Path | None, str]:
+        if given is not None:
+            return given, "given on the command line"
+        for src, cache, lab in prepared:
+            if lab == is_labeled:
+                return src, f"source of the cache {cache} that `kinmo prepare` wrote"
+        if (cwd / local).is_dir():
+            return cwd / local, f"./{local} in the current folder"
+        if root and (Path(root) / local).is_dir():
+            return Path(root) / local, f"$KINMO_DATA/{local}"
+        return None, "none found"
+
+    lab, why_l = pick(labeled, True, "partnet-mobility")
+    unl, why_u = pick(unlabeled, False, "partnet")
+    return FoundData(lab, unl, why_l, why_u)
+
+
+def missing_data_message() -> str:
+    """The one-line error of ``kinmo train all`` when :func:`find_data` finds no labelled data."""
+    return ("no labelled PartNet-Mobility data found: run `kinmo prepare partnet-mobility/` (or put it in "
+            "./partnet-mobility, set KINMO_DATA to a folder holding partnet-mobility/ and partnet/, or give "
+            "--labeled DIR)")
+
+
+#: Run folder of ``kinmo train all`` without ``--out``.
+DEFAULT_RUN = Path("runs") / "all"
+
+
+@dataclasses.dataclass(frozen=True)
+class CategoryRuns:
+    """Where ``kinmo eval --category C`` finds the ANCSH runs of a category (:func:`category_runs`).
+
+    Attributes
+    ----------
+    runs : Path or None
+        Folder holding the category's runs; None when there are none.
+    scans : Path or None
+        The run's render cache (``kinmo train all``'s ``scans/``) to reuse for the test scans.
+    message : str
+        Where the runs were found, or (``runs`` None) one line saying why there are none and
+        the command that would train them.
+    category : str
+        The category as the runs name it (the folder's name), else as given.
+    """
+
+    runs: Path | None
+    scans: Path | None
+    message: str
+    category: str = ""
+
+
+def category_runs(category: str, cwd: Path | None = None) -> CategoryRuns:
+    """The ANCSH runs of ``category`` without a path: those of the last ``kinmo train all`` in
+    the default run folder (``runs/all/ancsh/<Category>/``), else those of ``kinmo train ancsh``
+    (``runs/ancsh/<category>/``).
+
+    Parameters
+    ----------
+    category : str
+        Any spelling (``refrigerator``, ``Refrigerators``, ``storage_furniture``).
+    cwd : Path, optional
+        Current folder (default ``Path.cwd()``).
+
+    Returns
+    -------
+    CategoryRuns
+    """
+    from kinmo.ancsh.dataset import category_key
+
+    cwd = Path.cwd() if cwd is None else cwd
+    key = category_key(category)
+    keys = {key, key[:-1] if key.endswith("s") else key}  # plural: refrigerators
+    run = cwd / DEFAULT_RUN
+    ancsh = run / "ancsh"
+    if ancsh.is_dir():
+        for d in sorted(p for p in ancsh.iterdir() if p.is_dir()):
+            if category_key(d.name) in keys:
+                return CategoryRuns(d, run / "scans" if (run / "scans").is_dir() else None,
+                                    f"runs of `kinmo train all` in {d}", d.name)
+    single = cwd / "runs" / "ancsh"
+    if single.is_dir():
+        for d in sorted(p for p in single.iterdir() if p.is_dir()):
+            if category_key(d.name) in keys:
+                return CategoryRuns(d, None, f"runs of `kinmo train ancsh` in {d}", d.name)
+    plan_file = ancsh / ANCSH_PLAN_FILE
+    if plan_file.is_file():
+        try:
+            skipped = json.loads(plan_file.read_text()).get("skipped", {})
+        except (OSError, ValueError):
+            skipped = {}
+        for cat, why in skipped.items():
+            if category_key(cat) in keys:
+                return CategoryRuns(None, None, (
+                    f"{cat} was not trained by `kinmo train all` in {run}: {why} (a model needs 2 training "
+                    f"and 1 test object of one structure); `kinmo train all --category {cat}` trains it anyway"))
+    if run.is_dir():
+        return CategoryRuns(None, None, f"no ANCSH run of {category!r} in {run} (its ANCSH stage has not "
+                                        f"run yet?): run `kinmo train all`")
+    return CategoryRuns(None, None, f"no ANCSH run of {category!r} in ./runs: run `kinmo train all` first "
+                                    f"(or `kinmo train ancsh --category {category}`), or give --runs")
+
+
+#: ``--preset tiny`` of ``kinmo train all`` (and ``kinmo demo --tiny``): the quick preset cut to
+#: seconds per stage, to check that everything runs (tests, a first try); not for results.
+TINY = {"gnn_epochs": 25, "axis_epochs": 2, "ancsh_epochs": 1, "semi_epochs": 1, "ancsh_steps_per_epoch": 2,
+        "frames_per_object": 1}
 
 
 def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True,
@@ -356,7 +647,7 @@ class _Variant:
     graphs : Path or list
         Labelled part graphs for the motion GNN and the axis network (a cache or graphs).
     split : Path or None
-        Split file; None: the fine GNN makes one (``out/gnn_fine/split.json``).
+        Split file; None: :func:`structure_split` of the labelled data (``out/split.json``).
     labeled : Path
         PartNet-Mobility folder ANCSH renders its labelled objects from.
     unlabeled, unlabeled_cache : Path or None
@@ -390,6 +681,8 @@ class _Context:
     clock: _Clock
     console: Any
     progress: bool
+    #: ANCSH models per category (:func:`ancsh_plan`), set by the main run's ANCSH stage.
+    plan: dict[str, list[Any]] = dataclasses.field(default_factory=dict)
 
     def stage(self, folder: Path, key: dict[str, Any], run: Callable[[], Any], name: str) -> bool:
         return _stage(folder, key, run, self.console.print, name, self.clock)
@@ -408,23 +701,29 @@ class _Context:
         base = {"seed": cfg.seed, "preset": cfg.preset, **v.key}
         # the training graphs, loaded once and only if a stage runs (several caches: concatenated)
         graphs = functools.cache(functools.partial(_graphs, v.graphs))
+        if v.split is None:  # split by category and kinematic structure, for every model
+            import hashlib
+
+            split_file = out / "split.json"
+            structure_split(cfg.labeled, seed=cfg.seed).save(split_file)
+            base["split"] = hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]
+            v = dataclasses.replace(v, split=split_file)
 
         # 2. motion GNN, fine and coarse types (Sec. 3.1-3.2)
         from kinmo.train.config import preset as gnn_preset
         from kinmo.train.gnn import train_gnn
 
         gnn_runs: dict[str, Path] = {}
-        split_file = v.split or out / "gnn_fine" / "split.json"
+        split_file = v.split
         for types in ("fine", "coarse"):
             if f"gnn_{types}" in v.reuse:
                 gnn_runs[types] = v.reuse[f"gnn_{types}"]
                 continue
             run_dir = out / f"gnn_{types}"
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs)
-            split = split_file if (types == "coarse" or v.split is not None) else None
             self.stage(run_dir, {**base, "gnn": gcfg.model_dump()},
-                       lambda gcfg=gcfg, run_dir=run_dir, split=split: train_gnn(
-                           graphs(), run_dir, gcfg, split=split, progress=progress),
+                       lambda gcfg=gcfg, run_dir=run_dir: train_gnn(
+                           graphs(), run_dir, gcfg, split=split_file, progress=progress),
                        f"{v.prefix}train gnn ({types})")
             gnn_runs[types] = run_dir
         res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
@@ -478,12 +777,16 @@ class _Context:
         from kinmo.ancsh.train import train_ancsh
 
         if not v.prefix:
-            if cfg.categories:
-                res.categories, res.skipped_categories = list(cfg.categories), {}
-            else:
-                res.categories, res.skipped_categories = default_categories(cfg.labeled, split_file)
+            plan, res.skipped_categories = ancsh_plan(cfg.labeled, split_file, cfg.categories)
+            res.categories = sorted(plan)
+            res.structures = {c: [g.structure.signature() for g in gs] for c, gs in plan.items()}
             for cat, why in res.skipped_categories.items():
                 log(f"[dim]ANCSH: {cat} left out: {why}[/]")
+            write_json(out / "ancsh" / ANCSH_PLAN_FILE, {
+                "trained": {c: [{"structure": g.structure.signature(), "train": list(g.train), "test": list(g.test)}
+                                for g in gs] for c, gs in plan.items()},
+                "skipped": res.skipped_categories})
+            self.plan = plan
         settings = [s for s in cfg.settings if s == "supervised" or v.unlabeled is not None]
         scans = cfg.out / "scans"  # one render cache for every variant: scans of the same objects
         overrides = {
@@ -494,32 +797,48 @@ class _Context:
             "labeled_fraction": cfg.labeled_fraction, "seed": cfg.seed,
         }
         ac = ancsh_preset(cfg.preset, **{k: val for k, val in overrides.items() if val is not None})
+        from kinmo.ancsh.structure import structure_slug
+
         for cat in res.categories:
+            groups = self.plan[cat]
             runs: list[Path] = []
-            for setting in settings:
-                reused = v.reuse.get(f"ancsh/{cat}/{setting}")
-                if reused is not None:
-                    runs.append(reused)
-                    continue
-                run_dir = out / "ancsh" / cat / setting
-                # semi starts from the supervised run's weights: its supervised stage would
-                # reproduce them
-                init = runs[0] if setting == "semi" and runs and settings[0] == "supervised" else None
-                self.stage(run_dir, {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
-                                     **({"init": str(init)} if init is not None else {})},
-                           lambda run_dir=run_dir, setting=setting, cat=cat, init=init: train_ancsh(
-                               cat, setting, run_dir, ac, data=v.labeled, partnet=v.unlabeled,
-                               pseudo=pseudo if v.unlabeled is not None else None, split=split_file,
-                               scans=scans, init=init, progress=progress, console=console),
-                           f"{v.prefix}train ancsh {cat} ({setting})")
-                runs.append(run_dir)
+            for g in groups:
+                # one structure: ancsh/<Category>/<setting>; several: ancsh/<Category>/<structure>/<setting>
+                sub = structure_slug(g.structure) if len(groups) > 1 else ""
+                label = f"{cat} {g.structure.signature()}" if sub else cat
+                st = {"parents": list(g.structure.parents), "joint_types": list(g.structure.joint_types)}
+                group_runs: list[Path] = []
+                for setting in settings:
+                    reused = v.reuse.get(f"ancsh/{cat}/{sub + '/' if sub else ''}{setting}")
+                    if reused is not None:
+                        group_runs.append(reused)
+                        continue
+                    run_dir = out / "ancsh" / cat / sub / setting
+                    # semi starts from the supervised run's weights: its supervised stage would
+                    # reproduce them
+                    init = (group_runs[0] if setting == "semi" and group_runs and settings[0] == "supervised"
+                            else None)
+                    self.stage(run_dir, {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
+                                         **({"structure": st} if sub else {}),
+                                         **({"init": str(init)} if init is not None else {})},
+                               lambda run_dir=run_dir, setting=setting, cat=cat, init=init, g=g: train_ancsh(
+                                   cat, setting, run_dir, ac, data=v.labeled, partnet=v.unlabeled,
+                                   pseudo=pseudo if v.unlabeled is not None else None, split=split_file,
+                                   scans=scans, init=init, progress=progress, console=console,
+                                   structure=g.structure),
+                               f"{v.prefix}train ancsh {label} ({setting})")
+                    group_runs.append(run_dir)
+                runs += group_runs
+            res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
+            if not any(g.test for g in groups):
+                log(f"[dim]ANCSH: {cat}: no test object of a trained structure, no Table 2 row[/]")
+                continue
             ev = out / "eval" / cat
             self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
                        lambda runs=runs, ev=ev, cat=cat: evaluate_category(
                            cat, runs, data=cfg.labeled, out=ev, scans=scans, frames=cfg.frames_per_object,
                            seed=cfg.seed, progress=progress, console=console),
                        f"{v.prefix}eval {cat} (Table 2)")
-            res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
             res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
 
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
@@ -561,7 +880,12 @@ class _Context:
             ucache = vout / "cache" / "unlabeled"
             self.prepare(merged, ucache, prep, "synth-extra: prepare unlabelled")
             reuse = {"gnn_fine": cfg.out / "gnn_fine", "gnn_coarse": cfg.out / "gnn_coarse", "axis": cfg.out / "axis"}
-            reuse.update({f"ancsh/{c}/supervised": cfg.out / "ancsh" / c / "supervised" for c in res.categories})
+            from kinmo.ancsh.structure import structure_slug
+
+            for c, gs in self.plan.items():
+                subs = [structure_slug(g.structure) + "/" for g in gs] if len(gs) > 1 else [""]
+                reuse.update({f"ancsh/{c}/{sub}supervised": cfg.out / "ancsh" / c / sub / "supervised"
+                              for sub in subs})
             v = _Variant(out=vout, graphs=cache_l, split=cfg.out / "gnn_fine" / "split.json", labeled=cfg.labeled,
                          unlabeled=merged, unlabeled_cache=ucache, key=key, prefix="synth-extra: ", reuse=reuse)
         used_by = (["motion GNN"] + (["axis network"] if cfg.refine else [])
@@ -679,9 +1003,8 @@ def run_demo(
         data, unlabeled = lab, unl
     cfg = PipelineConfig(
         labeled=data, unlabeled=unlabeled, out=out / "run", preset="quick", seed=seed,
-        gnn_epochs=25, axis_epochs=2 if tiny else 8,
-        ancsh_epochs=1 if tiny else 16, semi_epochs=1 if tiny else 4,
-        ancsh_steps_per_epoch=2 if tiny else 15, frames_per_object=1 if tiny else 3,
+        **(TINY if tiny else {"gnn_epochs": 25, "axis_epochs": 8, "ancsh_epochs": 16, "semi_epochs": 4,
+                              "ancsh_steps_per_epoch": 15, "frames_per_object": 3}),
         categories=(["Laptop"] if tiny else None),
     )
     return run_pipeline(cfg, console=console, progress=progress, timings=timings)

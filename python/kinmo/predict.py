@@ -10,8 +10,10 @@ written as ``OUT/<id>/``:
   ``free``/``hinge``/``slider``/``static`` joints, axis origin and direction in the mesh
   frame, limits), readable by :func:`kinmo.data.readers.read_links`;
 - ``semantics.txt``: ``link_<id> <joint> <name>`` per link;
-- ``mobility.urdf``: the URDF (:func:`kinmo.urdf.write_urdf`), meshes referenced relative to
-  it, loadable in PyBullet with the predicted joints moving;
+- ``mobility.urdf``: the URDF (:mod:`kinmo.export.urdf`), meshes referenced relative to
+  it, convex collision pieces in ``collision/``, loadable in PyBullet with the predicted
+  joints moving;
+- with ``formats``: any other format of :mod:`kinmo.export` (MJCF, USD, glTF);
 - ``edges.json``: per sibling edge, the moving and reference node ids, the predicted type and
   probabilities of every type, and the predicted axis (mesh frame).
 
@@ -258,7 +260,8 @@ def edges_json(pred: ShapePrediction) -> dict:
     return {"shape_id": g.shape_id, "frame": "mesh (y-up)", "types": list(names), "edges": rows}
 
 
-def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | None = None) -> dict[str, Path]:
+def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | None = None,
+                     formats: Sequence[str] | None = None) -> dict[str, Path]:
     """Write one shape's outputs (module docstring) into ``out_dir``.
 
     Parameters
@@ -267,33 +270,33 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
     out_dir : str or Path
         Created if needed.
     shape : Shape, optional
-        The shape as read (:func:`kinmo.data.readers.read_shape`); needed for the URDF (its
-        meshes) and gives the part names. Without it no URDF is written.
+        The shape as read (:func:`kinmo.data.readers.read_shape`); needed for the formats
+        with geometry (URDF, MJCF, USD, glTF: its meshes) and gives the part names. Without
+        it only ``mobility_v2`` and ``semantics`` are written.
+    formats : sequence of str, optional
+        Export formats (:mod:`kinmo.export`); default
+        :data:`kinmo.export.DEFAULT_FORMATS` (``mobility_v2``, ``semantics``, ``urdf``).
 
     Returns
     -------
     dict of str to Path
-        ``mobility_v2``, ``semantics``, ``edges`` and (with a shape) ``urdf``.
+        Format name -> its main file (``mobility_v2``, ``semantics``, ``urdf``, ``mjcf``,
+        ``usd``, ``gltf`` as written) and ``edges``.
     """
-    from kinmo.data.writers import write_mobility_v2, write_semantics
+    from kinmo.data.model import ShapeFormat
+    from kinmo.export import DEFAULT_FORMATS, export
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    links = pred.tree.links
-    hier = shape.hierarchy if shape is not None else hierarchy_from_graph(pred.graph)
-    paths = {
-        "mobility_v2": write_mobility_v2(links, out_dir / "mobility_v2.json", hier),
-        "semantics": write_semantics(
-            links, out_dir / "semantics.txt",
-            {lk.id: "_".join(lk.name.split()) or f"link_{lk.id}" for lk in links},
-        ),
-    }
+    fmts = list(DEFAULT_FORMATS if formats is None else formats)
+    if shape is None:
+        fmts = [f for f in fmts if f in ("mobility_v2", "semantics")]
+        shape = Shape(pred.shape_id, "unknown", ShapeFormat.PARTNET, out_dir, out_dir,
+                      hierarchy_from_graph(pred.graph))
+    files = export(shape, out_dir, fmts, links=pred.tree.links, name=shape.id)
+    paths = {f: written[0] for f, written in files.items()}
     write_json(out_dir / "edges.json", edges_json(pred))
     paths["edges"] = out_dir / "edges.json"
-    if shape is not None:
-        from kinmo.urdf import write_urdf
-
-        paths["urdf"] = write_urdf(shape, out_dir / "mobility.urdf", links, name=shape.id)
     return paths
 
 
@@ -329,6 +332,7 @@ def predict_dataset(
     render: bool = False,
     axis_model: str | Path | None = None,
     refine_config=None,
+    formats: Sequence[str] | None = None,
 ) -> list[PredictRow]:
     """Predict every shape folder below ``data`` and write ``out/<id>/`` (module docstring).
 
@@ -354,6 +358,8 @@ def predict_dataset(
         :func:`kinmo.refine.refine.refine_shape_prediction`) before writing.
     refine_config : kinmo.refine.refine.RefineConfig, optional
         Options of that refinement (default: the paper's scoring).
+    formats : sequence of str, optional
+        Export formats per shape (:func:`write_prediction`).
 
     Returns
     -------
@@ -398,7 +404,7 @@ def predict_dataset(
                     from kinmo.refine.refine import refine_shape_prediction
 
                     pred = refine_shape_prediction(pred, axis_net, refine_config, options)[0]
-                paths = write_prediction(pred, out / sid, shape)
+                paths = write_prediction(pred, out / sid, shape, formats)
                 if render:
                     from kinmo.viz import render_prediction
 

@@ -60,8 +60,9 @@ from typing import Any
 
 from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError
+from kinmo.executor import map_unordered
 from kinmo.io import folder_lock, output_dir
-from kinmo.parallel import available_cpus, map_unordered, resolve_workers
+from kinmo.parallel import available_cpus, resolve_workers
 
 __all__ = [
     "MANIFEST_COLUMNS",
@@ -563,6 +564,7 @@ def prepare_dataset(
     force: bool = False,
     progress: bool = True,
     on_row: Callable[[ManifestRow], None] | None = None,
+    executor: str = "local",
 ) -> PrepareResult:
     """Prepare every shape under ``root`` into the cache folder ``out``.
 
@@ -583,6 +585,8 @@ def prepare_dataset(
         Show a rich progress bar (on stderr).
     on_row : callable, optional
         Called in this process with each row as it completes.
+    executor : str
+        ``local``, ``ray``, ``ray:auto`` or ``ray:ADDRESS`` (:mod:`kinmo.executor`).
 
     Returns
     -------
@@ -650,6 +654,7 @@ def prepare_dataset(
                     on_error=_worker_failed,
                     initializer=_init_worker,
                     initargs=(max(1, available_cpus() // n_workers),),
+                    executor=executor,
                 )
             finally:
                 _write_manifest(

@@ -30,7 +30,8 @@ PartNet-Mobility tools) exactly like a real object:
 - ``textured_objs/<name>.obj``: the shape's meshes, symbolic links to the source files (copies
   where links cannot be made, or with ``link="copy"``);
 - ``mobility_v2.json``, ``semantics.txt`` (:mod:`kinmo.data.writers`), ``mobility.urdf``
-  (:func:`kinmo.urdf.write_urdf`, meshes relative to it);
+  (meshes relative to it, convex collision pieces in ``collision/``) and any other format of
+  :mod:`kinmo.export` chosen with ``formats`` (through :func:`kinmo.export.export`);
 - ``scores.json``: the per-joint scores (refinement confidence, feasibility, direction and
   position agreement, type probability, candidate kind), the threshold and the models used.
 
@@ -67,7 +68,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.progress import CountingBar
 from kinmo.io import folder_lock, write_json, write_text
-from kinmo.parallel import map_unordered, resolve_workers
+from kinmo.executor import map_unordered, parse_executor
+from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
 
 __all__ = [
@@ -118,6 +120,9 @@ class PseudoLabelConfig(BaseModel):
         How meshes get into ``textured_objs/``.
     device : str
         Torch device of both networks.
+    formats : tuple of str
+        Export formats of a kept shape (:mod:`kinmo.export`); ``mobility_v2.json`` is always
+        written (it makes the folder a PartNet-Mobility object).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -130,6 +135,7 @@ class PseudoLabelConfig(BaseModel):
     consistent: bool = False
     link: Literal["symlink", "copy"] = "symlink"
     device: str = "cpu"
+    formats: tuple[str, ...] = ("mobility_v2", "semantics", "urdf")
 
 
 @dataclass
@@ -263,8 +269,7 @@ def _write_folder(
 ) -> None:
     """Assemble the PartNet-Mobility folder of a kept shape in ``stage``."""
     from kinmo.data.readers import read_shape
-    from kinmo.data.writers import write_mobility_v2, write_semantics
-    from kinmo.urdf import write_urdf
+    from kinmo.export import export
 
     stage.mkdir(parents=True)
     shutil.copyfile(hierarchy_file, stage / "result.json")
@@ -280,11 +285,9 @@ def _write_folder(
     names = {m for nid in shape.hierarchy.nodes for m in shape.hierarchy.nodes[nid].objs}
     for name in sorted(names):
         _link_or_copy(shape.mesh_path(name), tex / f"{name}.obj", config.link)
-    write_mobility_v2(links, stage / "mobility_v2.json", shape.hierarchy)
-    write_semantics(links, stage / "semantics.txt",
-                    {lk.id: "_".join(lk.name.split()) or f"link_{lk.id}" for lk in links})
+    export(shape, stage, ["mobility_v2"], links=links, name=shape.id)
     out_shape = read_shape(stage)  # the folder as kinmo reads it (validates the round trip)
-    write_urdf(out_shape, stage / "mobility.urdf", out_shape.links, name=shape.id)
+    export(out_shape, stage, [f for f in config.formats if f != "mobility_v2"], name=shape.id)
     write_json(stage / "scores.json", {
         "shape_id": shape.id,
         "category": shape.category,
@@ -547,6 +550,7 @@ def pseudo_label_dataset(
     force: bool = False,
     progress: bool = True,
     on_record: Callable[[ShapeRecord], None] | None = None,
+    executor: str = "local",
 ) -> PseudoLabelResult:
     """Pseudo-label every shape folder below ``data`` (module docstring).
 
@@ -573,6 +577,8 @@ def pseudo_label_dataset(
         Show a rich progress bar.
     on_record : callable, optional
         Called with every finished shape's record.
+    executor : str
+        ``local``, ``ray``, ``ray:auto`` or ``ray:ADDRESS`` (:mod:`kinmo.executor`).
 
     Returns
     -------
@@ -596,13 +602,13 @@ def pseudo_label_dataset(
     out.mkdir(parents=True, exist_ok=True)
     with folder_lock(out, "kinmo pseudo-label"):
         return _label_all(data, out, gnn_run, axis_run, folders, config, workers, cache, force,
-                          progress, on_record, t0)
+                          progress, on_record, t0, executor)
 
 
 def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: list[Path],
                config: PseudoLabelConfig, workers: int, cache: str | Path | None, force: bool,
-               progress: bool, on_record: Callable[[ShapeRecord], None] | None, t0: float
-               ) -> PseudoLabelResult:
+               progress: bool, on_record: Callable[[ShapeRecord], None] | None, t0: float,
+               executor: str = "local") -> PseudoLabelResult:
     """The body of :func:`pseudo_label_dataset`, run while holding ``out``'s lock."""
     shutil.rmtree(out / ".staging", ignore_errors=True)  # leftovers of an interrupted run
     models_fp = _models_fingerprint(gnn_run, axis_run)
@@ -631,7 +637,8 @@ def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: li
                 _write_tables(out, list(records.values()))
 
         if todo:
-            if workers == 1:  # in this process: map_unordered calls fn directly
+            local = parse_executor(executor).kind == "local"
+            if workers == 1 and local:  # in this process: map_unordered calls fn directly
                 models = _load_models(gnn_run, axis_run, config.device)
                 fn = partial(pseudo_label_shape, out=out, models=models, config=config,
                              cache=cache, root=data)
@@ -639,7 +646,7 @@ def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: li
                 fn = partial(_worker_run, out=str(out), config_json=config.model_dump(mode="json"),
                              cache=None if cache is None else str(cache), root=str(data))
             map_unordered(fn, todo, workers, record, _worker_failed, initializer=_worker_init,
-                          initargs=(str(gnn_run), str(axis_run), config.device))
+                          initargs=(str(gnn_run), str(axis_run), config.device), executor=executor)
     recs = sorted(records.values(), key=lambda r: r.id)
     _write_tables(out, recs)
     shutil.rmtree(out / ".staging", ignore_errors=True)

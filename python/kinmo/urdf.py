@@ -37,6 +37,13 @@ Frames and conventions
 - **Names.** Links ``base``, ``link_<id>``, ``link_<id>_helper``; joints ``joint_<id>`` (the
   joint that attaches ``link_<id>``, the prismatic one of a cylindrical joint, which attaches
   the helper) and ``joint_<id>_rotation`` (the revolute one of a cylindrical joint).
+- **Annotation.** Each ``joint_<id>`` carries a ``<mobility_v2>`` element (ignored by URDF
+  loaders) with what URDF cannot express: the link's name and joint label (``free``,
+  ``heavy``, ``static``, ``junk`` all become ``fixed``), the limits as annotated (order and
+  turn, ``noLimit``) and the rotation limit of a cylindrical joint, so that
+  :func:`kinmo.export.urdf.read_urdf` gives ``mobility_v2.json`` back losslessly.
+- **Collision.** By default each visual mesh is also a collision mesh; ``collision=`` gives
+  other files per link instead (e.g. convex pieces, :mod:`kinmo.export.urdf`).
 - Inertials are placeholders (unit mass, unit inertia at the link frame, PyBullet's own
   default, written out so loaders do not warn): the URDF describes kinematics and geometry,
   not mass properties. Visual elements are named ``<part name>-<part id>``.
@@ -47,7 +54,7 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
@@ -293,12 +300,25 @@ def _mesh_prefix(shape: Shape, mesh_root: str | os.PathLike[str] | None) -> Pure
     return PurePosixPath(Path(mesh_root).as_posix())
 
 
+def _annotation(link: Link) -> dict[str, str]:
+    """The ``<mobility_v2>`` attributes of a link (module docs: Annotation)."""
+    j = link.joint
+    att = {"joint": j.type.value, "name": link.name}
+    if j.is_moving:
+        att["limit"] = "none" if j.limit is None else " ".join(repr(float(v)) for v in j.limit)
+        if j.type is JointType.SLIDER and j.rotates:
+            r = j.rotation_limit
+            att["rotation_limit"] = "none" if r is None else repr(float(r))
+    return att
+
+
 def urdf_string(
     shape: Shape,
     links: Sequence[Link] | None = None,
     mesh_root: str | os.PathLike[str] | None = None,
     *,
     name: str | None = None,
+    collision: Mapping[int, Sequence[str]] | None = None,
 ) -> str:
     """The URDF of ``shape`` moving as ``links`` describe.
 
@@ -314,6 +334,9 @@ def urdf_string(
         written in the object folder.
     name : str, optional
         ``<robot name>``; default ``kinmo_<shape.id>``.
+    collision : mapping of int to sequence of str, optional
+        Link id -> collision mesh file names (as written, in the mesh frame) replacing the
+        visual meshes as collision geometry of that link.
 
     Returns
     -------
@@ -355,13 +378,18 @@ def urdf_string(
                                                 "the part hierarchy")
                 for mesh in shape.hierarchy.mesh_names(pid):
                     fname = str(prefix / f"{mesh}.obj")
-                    for tag in ("visual", "collision"):
+                    tags = ("visual",) if collision is not None else ("visual", "collision")
+                    for tag in tags:
                         el = ET.SubElement(child, tag)
                         if tag == "visual":
                             el.set("name", f"{node.name}-{pid}")
                         ET.SubElement(el, "origin", xyz=off)
                         geo = ET.SubElement(el, "geometry")
                         ET.SubElement(geo, "mesh", filename=fname)
+            for fname in (collision or {}).get(link.id, ()):
+                el = ET.SubElement(child, "collision")
+                ET.SubElement(el, "origin", xyz=off)
+                ET.SubElement(ET.SubElement(el, "geometry"), "mesh", filename=fname)
         je = ET.SubElement(robot, "joint", name=j.name, type=j.type)
         ET.SubElement(je, "parent", link=j.parent)
         ET.SubElement(je, "child", link=j.child)
@@ -371,6 +399,8 @@ def urdf_string(
         if j.type in ("revolute", "prismatic"):
             ET.SubElement(je, "limit", lower=repr(float(j.lower)), upper=repr(float(j.upper)),
                           effort=repr(_EFFORT), velocity=repr(_VELOCITY))
+        if j.name == f"joint_{j.link_id}":
+            ET.SubElement(je, "mobility_v2", _annotation(by_id[j.link_id]))
     ET.indent(robot, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
@@ -381,6 +411,7 @@ def write_urdf(
     links: Sequence[Link] | None = None,
     *,
     name: str | None = None,
+    collision: Mapping[int, Sequence[str]] | None = None,
 ) -> Path:
     """Write the URDF of ``shape`` to ``path`` atomically, meshes referenced relative to it.
 
@@ -395,6 +426,8 @@ def write_urdf(
         Default ``shape.links``.
     name : str, optional
         ``<robot name>``.
+    collision : mapping of int to sequence of str, optional
+        As :func:`urdf_string` (file names relative to ``path``'s folder).
 
     Returns
     -------
@@ -408,5 +441,5 @@ def write_urdf(
     """
     path = Path(path)
     rel = os.path.relpath(Path(shape.mesh_dir).resolve(), path.resolve().parent)
-    write_text(path, urdf_string(shape, links, mesh_root=rel, name=name))
+    write_text(path, urdf_string(shape, links, mesh_root=rel, name=name, collision=collision))
     return path

@@ -58,6 +58,7 @@ __all__ = [
     "frame_truth",
     "ground_truth_estimate",
     "ground_truth_predictions",
+    "paper_table",
     "summarize",
     "table2_markdown",
 ]
@@ -432,6 +433,37 @@ def find_runs(paths: Sequence[str | Path], category: str | None = None) -> list[
     return [d for _, _, d in sorted(found)]
 
 
+@dataclass
+class _StructureEval:
+    """The evaluation of the runs of one structure (:func:`_evaluate_structure`)."""
+
+    structure: KinematicStructure
+    runs: list[Any]
+    rows: list[Table2Row]
+    errors: list[list[FrameErrors]]  # per run, per frame
+    frame_lines: list[dict[str, Any]]
+    test_ids: list[str]
+    n_frames: int
+    failed: dict[str, str]
+    sym: dict[str, list[np.ndarray | None]]
+    notes: list[str]
+    refused: list[str]
+
+
+def _trained_ids(info: Mapping[str, Any]) -> set[str]:
+    return set(info.get("labeled_objects", [])) | set(info.get("pseudo_labeled_objects", [])) | set(
+        info.get("unlabeled_objects", []))
+
+
+def _same_folder(a: str | Path | None, b: str | Path | None) -> bool:
+    if a is None or b is None:
+        return False
+    try:
+        return Path(a).resolve() == Path(b).resolve()
+    except OSError:
+        return False
+
+
 def evaluate_category(
     category: str,
     runs: Sequence[str | Path],
@@ -448,6 +480,12 @@ def evaluate_category(
 ) -> tuple[list[Table2Row], dict[str, Path]]:
     """Table 2 for one category (module docstring).
 
+    Runs of several kinematic structures (``kinmo train all`` trains one model per structure
+    of a category with several, :func:`kinmo.pipeline.ancsh_plan`) are evaluated structure by
+    structure, each test object with the model of its structure; the category's row of each
+    setting is then the mean over all its test scans of the per-scan mean over parts (joints),
+    and ``table2.md`` adds one table per structure.
+
     Parameters
     ----------
     category : str
@@ -455,7 +493,11 @@ def evaluate_category(
     runs : sequence of path
         Run folders of ``kinmo train ancsh``, or folders holding them (:func:`find_runs`).
     data : str or Path, optional
-        PartNet-Mobility dataset folder; default: the one the first run trained on.
+        PartNet-Mobility dataset folder; default: the one the first run trained on, whose
+        test objects of the runs' split are evaluated. Another folder: every object there that
+        fits a run's structure and is not a training object of the runs (of their split, or
+        pseudo-labelled / unlabelled shapes they used) is evaluated; the others are left out
+        and listed.
     out : str or Path, optional
         Evaluation folder; default ``<first runs path>/eval-<category>``.
     scans : str or Path, optional
@@ -478,22 +520,22 @@ def evaluate_category(
     Returns
     -------
     rows : list of Table2Row
+        One per setting (several structures: rows whose per-part arrays hold the one mean).
     paths : dict of str to Path
         ``csv``, ``markdown``, ``frames``, ``json``.
 
     Raises
     ------
     KinmoError
-        No run of the category, runs with different structures, a test object a run trained
-        on, no test object.
+        No run of the category, two runs of one setting and structure, a test object a run
+        trained on, no test object.
     """
     import json
 
-    from kinmo.ancsh.dataset import category_key, scan_category
-    from kinmo.ancsh.train import _torch_threads, load_run, predict_scans, quiet_estimate, render_objects
+    from kinmo.ancsh.dataset import category_key
+    from kinmo.ancsh.structure import structure_slug
+    from kinmo.ancsh.train import load_run
     from kinmo.io import write_json, write_text
-    from kinmo.render.dataset import load_frame
-    from kinmo.train.split import Split
 
     t0 = time.perf_counter()
     if not runs:
@@ -503,36 +545,181 @@ def evaluate_category(
         raise KinmoError(f"no ANCSH run of category {category!r} under {', '.join(map(str, runs))} "
                          "(train one with `kinmo train ancsh`)")
     loaded = [load_run(d, device) for d in run_dirs]
-    structure = loaded[0].structure
-    for r in loaded[1:]:
-        if r.structure != structure:
-            raise KinmoError(f"{r.path}: structure {r.structure.signature()} differs from "
-                             f"{loaded[0].path}'s {structure.signature()}")
     infos = []
     for r in loaded:
         p = r.path / "data.json"
         infos.append(json.loads(p.read_text()) if p.is_file() else {})
+    own_data = infos[0].get("data")
     if data is None:
-        data = infos[0].get("data")
+        data = own_data
         if not data:
             raise KinmoError(f"{loaded[0].path}: no data.json naming the dataset; give --data")
     data = Path(data)
-    cat = scan_category(data, category, structure)
-    sp = Split.load(loaded[0].path / "split.json")
-    test_ids = [i for i in cat.fitting if i in set(sp.test)]
-    if not test_ids:
-        raise KinmoError(f"category {cat.category}: no test object of the split fits {structure.signature()}")
-    for r, info in zip(loaded, infos):
-        trained = set(info.get("labeled_objects", [])) | set(info.get("pseudo_labeled_objects", [])) | set(
-            info.get("unlabeled_objects", []))
-        leak = sorted(trained & set(test_ids))
-        if leak:
-            raise KinmoError(f"{r.path}: trained on test objects {leak}; evaluate with that run's split")
+    foreign = own_data is not None and not _same_folder(data, own_data)
+    # the runs of each structure, in order of appearance
+    by_structure: dict[KinematicStructure, list[int]] = {}
+    for i, r in enumerate(loaded):
+        by_structure.setdefault(r.structure, []).append(i)
+    for st, idx in by_structure.items():
+        settings = [loaded[i].setting for i in idx]
+        dup = sorted({x for x in settings if settings.count(x) > 1})
+        if dup:
+            raise KinmoError(f"several {', '.join(dup)} runs of structure {st.signature()}: "
+                             f"{', '.join(str(loaded[i].path) for i in idx if loaded[i].setting in dup)}; "
+                             "give --runs")
     cfg0 = loaded[0].config
     frames = frames or cfg0.test_frames_per_object
-    out = Path(out) if out is not None else Path(runs[0]) / f"eval-{category_key(cat.category)}"
+    out = Path(out) if out is not None else Path(runs[0]) / f"eval-{category_key(category)}"
     out.mkdir(parents=True, exist_ok=True)
     scans_dir = Path(scans) if scans is not None else out / "scans"
+    trained = set().union(*(_trained_ids(i) for i in infos))
+    multi = len(by_structure) > 1
+    evals: list[_StructureEval] = []
+    missing: list[str] = []
+    refused: list[str] = []
+    name = category
+    for st, idx in by_structure.items():
+        try:
+            ev, name = _evaluate_structure(
+                category, st, [loaded[i] for i in idx], [infos[i] for i in idx], data, foreign, trained,
+                out / structure_slug(st) if multi else out, scans_dir, frames, seed, workers, progress, symmetric)
+        except _NoTestObject as e:
+            if not multi:
+                raise KinmoError(str(e)) from None
+            missing.append(str(e))
+            refused += e.refused
+            continue
+        evals.append(ev)
+        refused += ev.refused
+    if not evals:
+        raise KinmoError("; ".join(missing))
+
+    paths = {"csv": out / "table2.csv", "markdown": out / "table2.md", "frames": out / "frames.csv",
+             "json": out / "eval.json"}
+    frame_lines = [{**ln, **({"structure": e.structure.signature()} if multi else {})}
+                   for e in evals for ln in e.frame_lines]
+    if not multi:
+        e = evals[0]
+        rows, structure = e.rows, e.structure
+        write_text(paths["csv"], _table2_csv(rows, structure.n_parts, structure.n_joints))
+        write_text(paths["markdown"], table2_markdown(rows, name, structure, e.notes))
+    else:
+        rows = _aggregate(evals)
+        write_text(paths["csv"], _table2_csv(rows, 1, 1))
+        md = [f"# Table 2 — {name} ({len(evals)} kinematic structures)", "",
+              "One ANCSH model per structure; each test object is evaluated with the model of its "
+              "structure. Category row: mean over all test scans of the per-scan mean over parts "
+              "(joints).", "",
+              "| setting | frames | rotation error (°) | translation error | 3D IoU | joint state error | "
+              "axis angle error (°) | axis distance |", "|---|---:|" + "---:|" * 6]
+        for r in rows:
+            md.append(f"| {r.setting} | {r.frames} | " + " | ".join(_cell(r, n, d) for n, _, d in _HEADERS) + " |")
+        md += ["", f"- structures: {'; '.join(f'{e.structure.signature()} ({len(e.test_ids)} test objects)' for e in evals)}"]
+        md += [f"- not evaluated: {m}" for m in missing]
+        for e in evals:
+            md += ["", table2_markdown(e.rows, name, e.structure, e.notes).replace("# Table 2", "## Table 2", 1)]
+        write_text(paths["markdown"], "\n".join(md) + "\n")
+    head = ["setting", "run", "id", "frame"]
+    cols = head + sorted({k for ln in frame_lines for k in ln} - set(head))
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
+    w.writeheader()
+    w.writerows(frame_lines)
+    write_text(paths["frames"], buf.getvalue())
+    test_ids = [i for e in evals for i in e.test_ids]
+    sym = {k: v for e in evals for k, v in e.sym.items()}
+    write_json(paths["json"], {
+        "category": name, "structure": "; ".join(e.structure.signature() for e in evals), "data": str(data),
+        "structures": {e.structure.signature(): e.test_ids for e in evals},
+        "objects": "runs' test split" if not foreign else "every fitting object no run trained on",
+        "refused_trained": sorted(refused),
+        "test_objects": test_ids, "scans": sum(e.n_frames for e in evals), "frames_per_object": frames,
+        "seed": seed, "render_failed": {k: v for e in evals for k, v in e.failed.items()},
+        "runs": [str(r.path) for e in evals for r in e.runs], "symmetry_aware": symmetric,
+        "symmetric_parts": {i: [None if a is None else [float(x) for x in a] for a in v] for i, v in sym.items()},
+        "seconds": round(time.perf_counter() - t0, 2),
+    })
+    if console is not None:
+        for e in evals if multi else []:
+            console.print(rich_table(e.rows, name, e.structure))
+        if multi:
+            console.print(rich_table(rows, name, None))
+        else:
+            console.print(rich_table(rows, name, evals[0].structure))
+    return rows, paths
+
+
+class _NoTestObject(Exception):
+    """No object to evaluate for one structure (``refused``: its objects a run trained on)."""
+
+    def __init__(self, message: str, refused: Sequence[str] = ()) -> None:
+        super().__init__(message)
+        self.refused = list(refused)
+
+
+def _aggregate(evals: Sequence[_StructureEval]) -> list[Table2Row]:
+    """One row per setting over the scans of every structure: per scan the mean over its parts
+    (joints), then the mean over scans (NaNs ignored)."""
+    settings = sorted({r.setting for e in evals for r in e.rows}, key=lambda x: SETTING_ORDER.get(x, 9))
+    rows = []
+    for setting in settings:
+        errs = [fe for e in evals for r, fes in zip(e.rows, e.errors) if r.setting == setting for fe in fes]
+        vals = {}
+        for n in _METRICS:
+            per = np.array([np.nanmean(v) if np.isfinite(v := np.asarray(getattr(fe, n), float)).any() else np.nan
+                            for fe in errs])
+            vals[n] = np.array([np.nanmean(per) if np.isfinite(per).any() else np.nan])
+        training: dict[str, Any] = {}
+        for e in evals:
+            for r in e.rows:
+                if r.setting == setting:
+                    for k, v in r.training.items():
+                        training[k] = training.get(k, 0) + v
+        rows.append(Table2Row(setting, ", ".join(r.run for e in evals for r in e.rows if r.setting == setting),
+                              len(errs), *(vals[n] for n in _METRICS), ("mean",), training))
+    return rows
+
+
+def _evaluate_structure(
+    category: str, structure: KinematicStructure, loaded: list[Any], infos: list[dict[str, Any]], data: Path,
+    foreign: bool, trained: set[str], out: Path, scans_dir: Path, frames: int, seed: int, workers: int,
+    progress: bool, symmetric: bool,
+) -> tuple[_StructureEval, str]:
+    """Evaluate the runs of one structure on its test objects (:func:`evaluate_category`).
+
+    Raises
+    ------
+    _NoTestObject
+        No object to evaluate.
+    KinmoError
+        A test object a run trained on.
+    """
+    from kinmo.ancsh.dataset import scan_category
+    from kinmo.ancsh.train import _torch_threads, predict_scans, quiet_estimate, render_objects
+    from kinmo.render.dataset import load_frame
+    from kinmo.train.split import Split
+
+    cat = scan_category(data, category, structure)
+    refused: list[str] = []
+    if foreign:  # the training objects of the runs' split count as trained on
+        trained = trained.union(*(Split.load(r.path / "split.json").train for r in loaded
+                                  if (r.path / "split.json").is_file()))
+        refused = [i for i in cat.fitting if i in trained]
+        test_ids = [i for i in cat.fitting if i not in trained]
+        if not test_ids:
+            raise _NoTestObject(f"category {cat.category}: no object under {data} fits {structure.signature()} "
+                                f"and was not trained on (trained on: {refused})", refused)
+    else:
+        sp = Split.load(loaded[0].path / "split.json")
+        test_ids = [i for i in cat.fitting if i in set(sp.test)]
+        if not test_ids:
+            raise _NoTestObject(f"category {cat.category}: no test object of the split fits {structure.signature()}")
+        for r, info in zip(loaded, infos):
+            leak = sorted(_trained_ids(info) & set(test_ids))
+            if leak:
+                raise KinmoError(f"{r.path}: trained on test objects {leak}; evaluate with that run's split")
+    cfg0 = loaded[0].config
+    out.mkdir(parents=True, exist_ok=True)
     rcfg = cfg0.model_copy(update={"seed": seed, "render_workers": workers})
     files, failed = render_objects({i: cat.folders[i] for i in test_ids}, out / "objects" / "test",
                                    scans_dir / "test", frames, rcfg, progress)
@@ -556,6 +743,7 @@ def evaluate_category(
     seeds = [zlib.crc32(f"{seed}:{fr['meta']['key']}:{fr['meta']['frame']}".encode()) for _, fr, _ in frames_data]
 
     rows: list[Table2Row] = []
+    all_errs: list[list[FrameErrors]] = []
     frame_lines: list[dict[str, Any]] = []
     for r, info in zip(loaded, infos):
         with _torch_threads(r.config.threads):
@@ -576,10 +764,14 @@ def evaluate_category(
         training.update({f"{k}_count": len(info.get(k, [])) for k in
                          ("labeled_objects", "pseudo_labeled_objects", "unlabeled_objects")})
         rows.append(summarize(r.setting, str(r.path), errs, structure.joint_types, training))
+        all_errs.append(errs)
 
-    notes = [f"test objects: {', '.join(test_ids)}; {len(frames_data)} scans "
+    source = "objects no run trained on" if foreign else "test objects"
+    notes = [f"{source}: {', '.join(test_ids)}; {len(frames_data)} scans "
              f"({frames} per object, render seed {seed})",
              f"runs: {', '.join(f'{r.setting} = {r.path}' for r in loaded)}"]
+    if refused:
+        notes.append(f"left out, training objects of the runs: {', '.join(refused)}")
     sym_parts = {i: [k for k, a in enumerate(v) if a is not None] for i, v in sym.items()}
     if not symmetric:
         notes.append("symmetry-aware errors off: every part's rotation is compared as is")
@@ -589,34 +781,17 @@ def evaluate_category(
                                                       for k in ks) for i, ks in sym_parts.items() if ks))
     else:
         notes.append("no test part is rotationally symmetric (symmetry-aware errors change nothing)")
-    paths = {"csv": out / "table2.csv", "markdown": out / "table2.md", "frames": out / "frames.csv",
-             "json": out / "eval.json"}
-    write_text(paths["csv"], _table2_csv(rows, structure.n_parts, structure.n_joints))
-    write_text(paths["markdown"], table2_markdown(rows, cat.category, structure, notes))
-    head = ["setting", "run", "id", "frame"]
-    cols = head + sorted({k for ln in frame_lines for k in ln} - set(head))
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
-    w.writeheader()
-    w.writerows(frame_lines)
-    write_text(paths["frames"], buf.getvalue())
-    write_json(paths["json"], {
-        "category": cat.category, "structure": structure.signature(), "data": str(data),
-        "test_objects": test_ids, "scans": len(frames_data), "frames_per_object": frames, "seed": seed,
-        "render_failed": failed, "runs": [str(r.path) for r in loaded], "symmetry_aware": symmetric,
-        "symmetric_parts": {i: [None if a is None else [float(x) for x in a] for a in v] for i, v in sym.items()},
-        "seconds": round(time.perf_counter() - t0, 2),
-    })
-    if console is not None:
-        console.print(rich_table(rows, cat.category, structure))
-    return rows, paths
+    return _StructureEval(structure, loaded, rows, all_errs, frame_lines, test_ids, len(frames_data), failed,
+                          sym, notes, refused), cat.category
 
 
-def rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStructure) -> Any:
-    """The rows as a :class:`rich.table.Table`."""
+def rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStructure | None) -> Any:
+    """The rows as a :class:`rich.table.Table` (``structure`` None: a category row over
+    several structures)."""
     from rich.table import Table
 
-    t = Table(title=f"Table 2 — {category} ({structure.signature()}), means over test scans",
+    what = structure.signature() if structure is not None else "all structures"
+    t = Table(title=f"Table 2 — {category} ({what}), means over test scans",
               caption="train scans: labelled + pseudo-labelled + pseudo-targets; cells: mean (per part / joint)")
     t.add_column("setting", no_wrap=True)
     t.add_column("frames", justify="right")
@@ -628,4 +803,23 @@ def rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStr
         t.add_row(r.setting, str(r.frames),
                   f"{tr.get('labeled_scans', 0)}+{tr.get('pseudo_labeled_scans', 0)}+{tr.get('pseudo_target_scans', 0)}",
                   *(_cell(r, n, d) for n, _, d in _HEADERS))
+    return t
+
+
+def paper_table(rows: Sequence[Table2Row], category: str) -> Any:
+    """The category's Table 2 row of each setting next to the paper's means
+    (:data:`kinmo.report.collect.PAPER_TABLE2`), as a :class:`rich.table.Table` (rotation and
+    axis angle error, degrees)."""
+    from rich.table import Table
+
+    from kinmo.report.collect import PAPER_TABLE2
+
+    t = Table(title=f"Table 2 — {category} vs the paper (Liu et al. 2023, mean over its categories)")
+    for c in ("setting", "test scans", "rotation (°)", "paper rotation (°)", "axis angle (°)", "paper axis angle (°)"):
+        t.add_column(c, justify="left" if c == "setting" else "right")
+    for r in rows:
+        ref = PAPER_TABLE2.get(r.setting)
+        t.add_row(r.setting, str(r.frames), _fmt(r.mean("rotation_deg"), 2),
+                  f"{ref['rotation']:.2f}" if ref else "–", _fmt(r.mean("angle_deg"), 2),
+                  f"{ref['angle']:.2f}" if ref else "–")
     return t

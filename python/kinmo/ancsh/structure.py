@@ -3,6 +3,12 @@
 ANCSH (Li et al. CVPR 2020) is category-level: every object of a category must share one
 kinematic structure, a fixed number of rigid parts and joints of fixed types. Part 0 is the
 base; joint ``j`` connects part ``j + 1`` (its child) to ``parents[j + 1]``.
+
+Categories whose objects have several structures (PartNet-Mobility refrigerators: one door,
+two doors, doors plus a freezer drawer) get one ANCSH model per structure with enough
+objects (:func:`category_structures`, :func:`structure_groups`); each test object is evaluated
+with the model of its own structure. ANCSH and Liu et al. (CVPR 2023, Sec. 4.3) instead pick
+categories (and objects) with a single structure per category.
 """
 
 from __future__ import annotations
@@ -148,10 +154,82 @@ def category_structure(objects: dict[str, ObjectParts | None]) -> tuple[Kinemati
     fitting : list of str
         Sorted ids of the objects with exactly that structure.
     """
-    from collections import Counter
+    every = category_structures(objects)
+    return every[0] if every else (None, [])
 
-    counts = Counter(o.structure for o in objects.values() if o is not None)
-    if not counts:
-        return None, []
-    best = min(counts, key=lambda s: (-counts[s], s.n_parts, s.signature()))
-    return best, sorted(i for i, o in objects.items() if o is not None and o.structure == best)
+
+def category_structures(objects: dict[str, ObjectParts | None]) -> list[tuple[KinematicStructure, list[str]]]:
+    """Every structure of a category with the objects that have it, most common first.
+
+    Parameters: as :func:`category_structure`.
+
+    Returns
+    -------
+    list of (KinematicStructure, list of str)
+        Most objects first; ties broken by fewer parts, then by signature text (the first
+        entry is :func:`category_structure`'s); ids sorted.
+    """
+    by: dict[KinematicStructure, list[str]] = {}
+    for i, o in objects.items():
+        if o is not None:
+            by.setdefault(o.structure, []).append(i)
+    order = sorted(by, key=lambda s: (-len(by[s]), s.n_parts, s.signature()))
+    return [(s, sorted(by[s])) for s in order]
+
+
+@dataclass(frozen=True)
+class StructureGroup:
+    """The objects of one category with one structure, split into training and test.
+
+    Attributes
+    ----------
+    structure : KinematicStructure
+    train, test : tuple of str
+        Sorted object ids on each side of the split.
+    """
+
+    structure: KinematicStructure
+    train: tuple[str, ...]
+    test: tuple[str, ...]
+
+    def describe(self) -> str:
+        """E.g. ``"3 training and 0 test objects fit 0<R-1"`` (long signatures shortened to
+        their first three joints and the joint count)."""
+        sig = self.structure.signature()
+        if self.structure.n_joints > 4:
+            sig = ",".join(sig.split(",")[:3]) + f",... ({self.structure.n_joints} joints)"
+        return f"{len(self.train)} training and {len(self.test)} test objects fit {sig}"
+
+
+def structure_groups(objects: dict[str, ObjectParts | None], test: set[str] | frozenset[str],
+                     min_train: int = 2, min_test: int = 1) -> tuple[list[StructureGroup], list[StructureGroup]]:
+    """The structures of a category that have enough objects for an ANCSH model.
+
+    The rule of ``kinmo train all``: a structure gets its own model when at least
+    ``min_train`` training objects and ``min_test`` test objects of the split have it.
+
+    Parameters
+    ----------
+    objects : dict of str to ObjectParts or None
+        Object id → its parts.
+    test : set of str
+        Test ids of the split (every other id is a training object).
+    min_train, min_test : int
+
+    Returns
+    -------
+    kept : list of StructureGroup
+        Most common structure first (:func:`category_structures`).
+    rest : list of StructureGroup
+        The structures with too few objects, same order.
+    """
+    kept, rest = [], []
+    for st, ids in category_structures(objects):
+        g = StructureGroup(st, tuple(i for i in ids if i not in test), tuple(i for i in ids if i in test))
+        (kept if len(g.train) >= min_train and len(g.test) >= min_test else rest).append(g)
+    return kept, rest
+
+
+def structure_slug(structure: KinematicStructure) -> str:
+    """A folder name for a structure: ``"0<R-1,0<P-2"`` → ``"0R1-0P2"``."""
+    return "-".join(f"{structure.parents[j + 1]}{t[0].upper()}{j + 1}" for j, t in enumerate(structure.joint_types))

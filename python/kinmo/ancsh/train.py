@@ -76,6 +76,7 @@ from kinmo.ancsh.model import ANCSH, ancsh_loss
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
+from kinmo.train import distributed
 
 __all__ = [
     "METRIC_COLUMNS",
@@ -470,7 +471,9 @@ def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, d
     rows: list[dict[str, Any]] = []
     step = 0
     model.to(device)
-    with _Progress(progress) as bar:
+    ddp = distributed.wrap(model)  # torchrun: DistributedDataParallel (kinmo.train.distributed)
+    dist_info = distributed.info()
+    with _Progress(progress and dist_info.is_main) as bar:
         task = bar.task(f"{config.category} {config.setting} [{stage}]", total)
         for epoch in range(epochs):
             model.train()
@@ -487,22 +490,29 @@ def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, d
                 lr = _lr_at(config, step, total, epoch)
                 for g in opt.param_groups:
                     g["lr"] = lr
-                batch = default_collate([dataset.sample(i, rng) for i in idx])
+                # every rank draws the whole global batch (same random stream), keeps its shard
+                items, weight = distributed.shard([dataset.sample(i, rng) for i in idx])
+                batch = default_collate(items)
                 batch = {k: v.to(device) for k, v in batch.items()}
-                pred = model(batch["xyz"])
+                pred = ddp(batch["xyz"])
                 terms = ancsh_loss(pred, batch)
                 opt.zero_grad(set_to_none=True)
-                terms["total"].backward()
+                (terms["total"] * weight).backward()
                 if config.grad_clip > 0:
                     torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
                 opt.step()
                 step += 1
+                share = weight / dist_info.world_size  # this rank's share of the global batch
                 for k in sums:
-                    sums[k] += float(terms[k].detach())
-                with torch.no_grad():
-                    correct += int((pred["seg_logits"].argmax(-1) == batch["seg"]).sum())
-                    seen += batch["seg"].numel()
+                    sums[k] += share * float(terms[k].detach())
+                if weight > 0:
+                    with torch.no_grad():
+                        correct += int((pred["seg_logits"].argmax(-1) == batch["seg"]).sum())
+                        seen += batch["seg"].numel()
                 bar.advance(task, float(terms["total"].detach()))
+            if dist_info.enabled:  # the epoch's figures over all ranks
+                *totals, correct, seen = distributed.all_sum([*sums.values(), correct, seen])
+                sums = dict(zip(sums, totals))
             row = {"stage": stage, "epoch": epoch + 1, "lr": round(lr, 8),
                    "loss": round(sums["total"] / steps, 6),
                    **{f"loss_{k}": round(sums[k] / steps, 6) for k in _TERMS},
@@ -591,6 +601,7 @@ def train_ancsh(
     init: str | Path | None = None,
     progress: bool = True,
     console: Any = None,
+    structure: KinematicStructure | None = None,
 ) -> TrainResult:
     """Train ANCSH on rendered scans of one category in one setting (module docstring).
 
@@ -620,6 +631,10 @@ def train_ancsh(
         Rich progress bars.
     console : rich.console.Console, optional
         Receives one-line status messages.
+    structure : KinematicStructure, optional
+        Train on the objects with this structure (one model per structure of a category with
+        several, :func:`kinmo.ancsh.structure.structure_groups`); default the category's most
+        common one.
 
     Returns
     -------
@@ -646,7 +661,9 @@ def train_ancsh(
     t_start = time.perf_counter()
     data = Path(data)
     out = Path(out)
-    cat = scan_category(data, category)
+    dist_info, _ = distributed.setup(resolve_device((config or preset("quick")).device))
+    main = dist_info.is_main  # torchrun: rank 0 writes the run folder
+    cat = scan_category(data, category, structure)
     if cat.structure is None:
         raise KinmoError(f"{data}: no object of category {cat.category} can be expressed by ANCSH")
     structure = cat.structure
@@ -669,7 +686,8 @@ def train_ancsh(
     else:
         ids, cats = _all_categories(data)
         sp = make_split(ids, cats, cfg.test_fraction, cfg.seed)
-    sp.save(out / "split.json")
+    if main:
+        sp.save(out / "split.json")
     test_ids = set(sp.test)
     train_fit = [i for i in cat.fitting if i in set(sp.train)]
     left_out = {i: cat.describe(i) for i in sorted(cat.folders) if i not in cat.fitting}
@@ -678,14 +696,16 @@ def train_ancsh(
         raise KinmoError(
             f"category {cat.category}: no training object fits its structure {structure.signature()} "
             f"(fitting: {cat.fitting}, test: {sorted(test_ids & set(cat.fitting))})")
-    write_json(out / "config.json", cfg.model_dump(mode="json"))
+    if main:
+        write_json(out / "config.json", cfg.model_dump(mode="json"))
     _say(console, f"{cat.category}: structure {structure.signature()}, {len(labeled_ids)} labelled "
                   f"training objects {labeled_ids}, test objects held out "
                   f"{sorted(test_ids & set(cat.folders))}")
 
     # labelled scans
-    files, failed = render_objects({i: cat.folders[i] for i in labeled_ids}, out / "objects" / "labeled",
-                                   scans_dir / "labeled", cfg.frames_per_object, cfg, progress)
+    with distributed.main_first():  # torchrun: rank 0 renders, the others then read
+        files, failed = render_objects({i: cat.folders[i] for i in labeled_ids}, out / "objects" / "labeled",
+                                       scans_dir / "labeled", cfg.frames_per_object, cfg, progress)
     samples, skipped = load_samples(files, {i: cat.parts[i] for i in labeled_ids}, structure,
                                     cfg.theta, cfg.cache_points, cfg.seed)
     info: dict[str, Any] = {
@@ -723,8 +743,9 @@ def train_ancsh(
             pparts[k] = p
         info["pseudo_labeled_found"] = len(pfolders)
         info["pseudo_labeled_ignored"] = ignored
-        pfiles, pfailed = render_objects({k: pfolders[k] for k in pparts}, out / "objects" / "pseudo-labeled",
-                                         scans_dir / "pseudo-labeled", cfg.frames_per_object, cfg, progress)
+        with distributed.main_first():
+            pfiles, pfailed = render_objects({k: pfolders[k] for k in pparts}, out / "objects" / "pseudo-labeled",
+                                             scans_dir / "pseudo-labeled", cfg.frames_per_object, cfg, progress)
         psamples, pskipped = load_samples(pfiles, pparts, structure, cfg.theta, cfg.cache_points, cfg.seed)
         for s in psamples:
             s.kind = "pseudo-labeled"
@@ -739,7 +760,7 @@ def train_ancsh(
         raise KinmoError(f"category {cat.category}: no usable training scan was rendered ({failed})")
 
     # model and training
-    device = resolve_device(cfg.device)
+    _, device = distributed.setup(resolve_device(cfg.device))
     with _torch_threads(cfg.threads):
         torch.manual_seed(cfg.seed)
         model = _build_model(cfg, structure).to(device)
@@ -747,8 +768,9 @@ def train_ancsh(
 
         def on_epoch(row: dict[str, Any]) -> None:
             history.append(row)
-            write_text(out / "metrics.csv", _metrics_csv(history))
-            save_checkpoint(out / "model.pt", model, cfg, structure, len(history))
+            if main:
+                write_text(out / "metrics.csv", _metrics_csv(history))
+                save_checkpoint(out / "model.pt", model, cfg, structure, len(history))
 
         ds = ANCSHFrames(samples, cfg.n_points, cfg.seed, cfg.jitter)
         if init is not None:
@@ -759,9 +781,11 @@ def train_ancsh(
             fit(model, ds, cfg, cfg.epochs, device, "train", 0, on_epoch, progress)
 
         if setting == "semi":
-            psamples, records = _semi_pseudo_targets(model, cat, structure, Path(partnet), test_ids,
-                                                     out, scans_dir, cfg, device, progress)
-            write_text(out / "pseudo_targets.csv", _records_csv(records))
+            with distributed.main_first():
+                psamples, records = _semi_pseudo_targets(model, cat, structure, Path(partnet), test_ids,
+                                                         out, scans_dir, cfg, device, progress)
+            if main:
+                write_text(out / "pseudo_targets.csv", _records_csv(records))
             info["unlabeled_objects"] = sorted({r["id"] for r in records})
             info["unlabeled_scans"] = len(records)
             info["pseudo_target_scans"] = len(psamples)
@@ -771,7 +795,8 @@ def train_ancsh(
             fit(model, ds, cfg, cfg.semi_epochs, device, "semi", 1, on_epoch, progress)
     info["seconds"] = round(time.perf_counter() - t_start, 2)
     info["training_scans"] = len(samples) + info["pseudo_target_scans"]
-    write_json(out / "data.json", info)
+    if main:
+        write_json(out / "data.json", info)
     return TrainResult(out, cfg, structure, history, info, info["seconds"])
 
 

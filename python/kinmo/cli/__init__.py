@@ -19,6 +19,8 @@ from kinmo.cli import pseudo_label as _pseudo_label  # noqa: F401,E402
 from kinmo.cli import ancsh as _ancsh  # noqa: F401,E402
 from kinmo.cli import report as _report  # noqa: F401,E402
 from kinmo.cli import pipeline as _pipeline  # noqa: F401,E402
+from kinmo.cli import export as _export  # noqa: F401,E402
+from kinmo.cli import view as _view  # noqa: F401,E402
 from kinmo.cli import ranker as _ranker  # noqa: F401,E402
 
 __all__ = ["app", "eval_app", "train_app"]

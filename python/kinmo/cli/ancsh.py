@@ -102,8 +102,8 @@ def train_ancsh_cmd(
 def eval_ancsh_cmd(
     ctx: typer.Context,
     category: Optional[str] = typer.Option(None, "--category", "-c", help="Category to evaluate ANCSH on (paper Table 2), any case or snake_case."),  # noqa: UP007
-    runs: Optional[list[Path]] = typer.Option(None, "--runs", "-r", help="ANCSH run folder(s), or folders holding them (default: runs/ancsh/<category>)."),  # noqa: UP007
-    data: Optional[Path] = typer.Option(None, "--data", "-d", help="PartNet-Mobility dataset folder (default: the runs' dataset)."),  # noqa: UP007
+    runs: Optional[list[Path]] = typer.Option(None, "--runs", "-r", help="ANCSH run folder(s), or folders holding them (default: those of the last `kinmo train all`, runs/all/ancsh/<Category>, else runs/ancsh/<category>)."),  # noqa: UP007
+    data: Optional[Path] = typer.Option(None, "--data", "-d", help="PartNet-Mobility dataset folder (default: the runs' dataset, its test objects); another folder: every fitting object there the runs did not train on."),  # noqa: UP007
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for table2.csv, table2.md, frames.csv (default: RUNS/eval-<category>)."),  # noqa: UP007
     scans: Optional[Path] = typer.Option(None, "--scans", help="Render cache of the test scans (default: OUT/scans)."),  # noqa: UP007
     frames: Optional[int] = typer.Option(None, "--frames", min=1, help="Scans per test object (default: the run's preset)."),  # noqa: UP007
@@ -115,24 +115,40 @@ def eval_ancsh_cmd(
 ) -> None:
     """Evaluate models. With --category: ANCSH on partial scans of the held-out objects, one
     row per training setting (paper Table 2): part rotation / translation errors, 3D IoU,
-    joint state, axis angle and axis distance errors."""
+    joint state, axis angle and axis distance errors, next to the paper's means. A category
+    with one model per kinematic structure: each object is evaluated with the model of its
+    structure and the row averages all of them."""
     if ctx.invoked_subcommand is not None:
         return
     _single_blas_thread()
     from rich.console import Console
 
     console = Console()
+    if not console.is_terminal:  # pipes and logs: do not squeeze the 9-column tables
+        console = Console(width=max(console.width, 140))
     if category is None:
         console.print(ctx.get_help())
         raise typer.Exit(0)
 
-    from kinmo.ancsh.evaluate import evaluate_category
+    from kinmo.ancsh.evaluate import evaluate_category, paper_table
     from kinmo.cli._errors import cli_errors, fail
 
-    run_paths = list(runs) if runs else [Path("runs") / "ancsh" / _snake(category)]
+    if runs:
+        run_paths = list(runs)
+    else:
+        from kinmo.pipeline import category_runs
+
+        found = category_runs(category)
+        if found.runs is None:
+            fail(found.message)
+        Console(stderr=True).print(f"{found.category}: {found.message}", highlight=False, soft_wrap=True)
+        run_paths, category = [found.runs], found.category
+        if scans is None and found.scans is not None and data is None:
+            scans = found.scans  # the test scans `kinmo train all` rendered
     with cli_errors(1):
         rows, paths = evaluate_category(category, run_paths, data=data, out=out, scans=scans, frames=frames,
                                         seed=seed, device=device, workers=workers, progress=not quiet,
                                         console=console, symmetric=symmetric)
+    console.print(paper_table(rows, category))
     console.print(f"wrote {paths['csv']}, {paths['markdown']} and {paths['frames']}", highlight=False,
                   soft_wrap=True)

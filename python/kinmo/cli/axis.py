@@ -23,6 +23,7 @@ def train_axis_cmd(
     n_points: Optional[int] = typer.Option(None, "--n-points", min=8, help="Points per cloud."),  # noqa: UP007
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:1 ..."),
     threads: int = typer.Option(0, "--threads", min=0, help="CPU threads for torch (0: default)."),
+    per_category: Optional[int] = typer.Option(None, "--per-category", min=0, help="Fine-tune a network per category with at least this many training objects, kept when it beats the global one on the category's validation objects (0: off; default: the preset's)."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Train the Siamese DGCNN that judges candidate motions (Liu et al. 2023, Sec. 3.3).
@@ -42,6 +43,8 @@ def train_axis_cmd(
     for key, val in (("epochs", epochs), ("batch_size", batch_size), ("lr", lr)):
         if val is not None:
             overrides[key] = val
+    if per_category is not None:
+        overrides["category_min_objects"] = per_category
     if n_points is not None:
         overrides["net"] = {"n_points": n_points}
     with cli_errors(2, also=(ValueError,)):
@@ -56,4 +59,7 @@ def train_axis_cmd(
         f"(chance {best['val_select_chance']:.3f}), val acc {best['val_acc']:.3f}",
         highlight=False, soft_wrap=True,
     )
+    kept = res.categories_kept
+    if kept:
+        console.print(f"per-category networks: {', '.join(kept)}", highlight=False)
     console.print(f"run folder: {res.run_dir}", highlight=False)

@@ -14,11 +14,11 @@ from kinmo.cli._refine import PAPER_SELECTOR, RANKER
 
 @eval_app.command("pre-segmented")
 def pre_segmented_cmd(
-    model: list[Path] = typer.Option(..., "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns."),
+    model: Optional[list[Path]] = typer.Option(None, "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns (default: the motion GNNs and axis network of the last `kinmo train all`, runs/all)."),  # noqa: UP007
     data: Path = typer.Option(..., "--data", "-d", help="Part-graph cache (`kinmo prepare`) or PartNet-Mobility dataset folder."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for table1.csv, table1.md, shapes.csv [default: first run folder/eval]."),  # noqa: UP007
-    split: Optional[Path] = typer.Option(None, "--split", help="Split file; default: the first run's split.json (its test ids)."),  # noqa: UP007
-    all_shapes: bool = typer.Option(False, "--all", help="Evaluate every labelled shape of DATA, ignoring the split."),
+    split: Optional[Path] = typer.Option(None, "--split", help="Split file; default: the first run's split.json. Shapes of DATA that are not its training ids are evaluated (the test split, or every new shape of another folder)."),  # noqa: UP007
+    all_shapes: bool = typer.Option(False, "--all", help="Evaluate every labelled shape of DATA, training shapes of the split included."),
     render: bool = typer.Option(False, "--render", help="Write a PNG per shape and model (OUT/renders/<model>/<id>.png)."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: add OBB_fine / OBB_coarse columns with refined axes."),  # noqa: UP007
     feasibility_only: bool = FEASIBILITY_ONLY,
@@ -30,7 +30,8 @@ def pre_segmented_cmd(
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
-    """Evaluate motion GNN(s) on the test split: type accuracy, mobile-part detection, axis errors."""
+    """Evaluate motion GNN(s) on the shapes they did not train on (the test split of their own
+    data, or every shape of another folder): type accuracy, mobile-part detection, axis errors."""
     from rich.console import Console
 
     from kinmo.cli._errors import cli_errors
@@ -39,6 +40,18 @@ def pre_segmented_cmd(
     console = Console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 11-column tables
         console = Console(width=max(console.width, 140))
+    if not model:
+        from kinmo.cli._errors import fail
+        from kinmo.pipeline import DEFAULT_RUN
+
+        model = [DEFAULT_RUN / f"gnn_{t}" for t in ("fine", "coarse") if (DEFAULT_RUN / f"gnn_{t}").is_dir()]
+        if not model:
+            fail(f"no --model given and no motion GNN of `kinmo train all` in {DEFAULT_RUN}")
+        if axis_model is None and (DEFAULT_RUN / "axis" / ".done").is_file():
+            axis_model = DEFAULT_RUN / "axis"
+        Console(stderr=True).print(
+            f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
+            highlight=False, soft_wrap=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
                        paper_selector, ranker)
     with cli_errors(1):

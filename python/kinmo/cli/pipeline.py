@@ -11,10 +11,11 @@ from kinmo.cli._apps import app, train_app
 
 @train_app.command("all")
 def train_all(
-    labeled: Path = typer.Option(..., "--labeled", help="PartNet-Mobility folders (labelled objects)."),
-    unlabeled: Path | None = typer.Option(None, "--unlabeled", help="PartNet folders to pseudo-label."),
+    labeled: Path | None = typer.Option(None, "--labeled", help="PartNet-Mobility folders (labelled objects); default: found as described above."),
+    unlabeled: Path | None = typer.Option(None, "--unlabeled", help="PartNet folders to pseudo-label; default: found as described above."),
     out: Path = typer.Option(Path("runs/all"), "--out", help="Run folder (resumes if it exists)."),
-    preset: str = typer.Option("quick", help="quick (2 CPU cores) or paper (GPU)."),
+    preset: str = typer.Option("quick", envvar="KINMO_PRESET",
+                               help="quick (2 CPU cores), paper (GPU) or tiny (seconds per stage: a check, not results)."),
     category: list[str] | None = typer.Option(None, "--category", help="ANCSH categories (repeatable)."),
     labeled_fraction: float = typer.Option(1.0, help="Share of labelled training objects for ANCSH."),
     seed: int = typer.Option(0),
@@ -33,6 +34,11 @@ def train_all(
     """Prepare, train the motion GNN and the axis network, pseudo-label, render and train
     ANCSH in three settings, evaluate (Tables 1 and 2) and write the report.
 
+    Data, without --labeled / --unlabeled: for each of PartNet-Mobility (labelled) and PartNet
+    (unlabelled), the source folder of a cache that `kinmo prepare DIR` wrote under ./cache/,
+    else ./partnet-mobility and ./partnet, else $KINMO_DATA/partnet-mobility and
+    $KINMO_DATA/partnet.
+
     With --synth-extra N, everything is trained and evaluated a second time, into
     OUT/synth-extra-<as>-<N>, with N procedurally generated objects (kinmo synth, of the labelled
     categories it supports) added as labelled training objects or as unlabelled shapes to
@@ -40,15 +46,23 @@ def train_all(
     shapes" says whether they helped."""
     from rich.console import Console
 
-    from kinmo.cli._errors import cli_errors
-    from kinmo.pipeline import PipelineConfig, run_pipeline
+    from kinmo.cli._errors import cli_errors, fail
+    from kinmo.pipeline import TINY, PipelineConfig, find_data, missing_data_message, run_pipeline
 
     console = Console(stderr=True)
+    found = find_data(labeled=labeled, unlabeled=unlabeled)
+    if found.labeled is None:
+        fail(missing_data_message())
+    console.print(f"data: labelled {found.labeled} ({found.why_labeled}); unlabelled "
+                  + (f"{found.unlabeled} ({found.why_unlabeled})" if found.unlabeled is not None
+                     else "none (no PartNet folder found: supervised ANCSH only)"), highlight=False, soft_wrap=True)
     with cli_errors(1, also=(ValueError,)):
         cfg = PipelineConfig(
-            labeled=labeled, unlabeled=unlabeled, out=out, preset=preset, categories=category or None,
+            labeled=found.labeled, unlabeled=found.unlabeled if (refine or unlabeled is not None) else None, out=out,
+            preset="quick" if preset == "tiny" else preset, categories=category or None,
             labeled_fraction=labeled_fraction, seed=seed, workers=workers, skip_ancsh=skip_ancsh,
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
+            **(TINY if preset == "tiny" else {}),
         )
         res = run_pipeline(cfg, console=console)
     console.print(f"[green]done[/]: report at {res.report}")

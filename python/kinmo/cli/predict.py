@@ -8,13 +8,14 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli.export import FORMAT_HELP, check_formats
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
 from kinmo.cli._refine import PAPER_SELECTOR, RANKER
 
 
 @app.command("predict")
 def predict_cmd(
-    data: Path = typer.Argument(..., metavar="DIR", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder."),
+    data: Path = typer.Argument(..., metavar="DIR|FILE", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder; or your own part-segmented asset: a GLB/glTF scene (a node per part), an OBJ with o/g groups, a folder of part meshes, or a URDF (a link per part)."),
     model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
@@ -30,8 +31,12 @@ def predict_cmd(
     paper_selector: bool = PAPER_SELECTOR,
     ranker: Optional[Path] = RANKER,  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
 ) -> None:
-    """Predict the motion of every shape under DIR; write PartNet-Mobility files and URDFs.
+    """Predict the motion of every shape under DIR (or of FILE); write PartNet-Mobility files and URDFs.
+
+    FILE (a GLB/glTF, OBJ with groups, folder of part meshes or URDF) becomes OUT/<name>/, a
+    complete PartNet-Mobility folder (see kinmo.user_input for the part hierarchy rule).
 
     Exit code 1 when any shape failed (listed at the end, and in OUT/predictions.csv).
     """
@@ -45,11 +50,16 @@ def predict_cmd(
     err = Console(stderr=True)
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
                        paper_selector, ranker)
+    check_formats(fmt)
     with cli_errors(1):
-        rows = predict_dataset(data, model, out, cache=cache, device=device,
-                               options=TreeOptions((0.0, hinge_max), slider_fraction),
-                               progress=not quiet, render=render, axis_model=axis_model,
-                               refine_config=rc)
+        from kinmo.user_input import is_user_input, predict_user_input
+
+        kw = dict(device=device, options=TreeOptions((0.0, hinge_max), slider_fraction),
+                  progress=not quiet, render=render, axis_model=axis_model, refine_config=rc)
+        if is_user_input(data):
+            rows = predict_user_input(data, model, out, formats=fmt or None, **kw)
+        else:
+            rows = predict_dataset(data, model, out, cache=cache, formats=fmt or None, **kw)
     ok = [r for r in rows if r.status == "ok"]
     bad = [r for r in rows if r.status != "ok"]
     console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {out}")

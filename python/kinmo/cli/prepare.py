@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli._executor import EXECUTOR
 
 
 @app.command("prepare")
@@ -42,6 +43,7 @@ def prepare(
     ),
     force: bool = typer.Option(False, "--force", help="Rebuild shapes whose cache is up to date."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    executor: str = EXECUTOR,
 ) -> None:
     """Build the part-graph cache of every shape under DIR (one .npz each + manifest.csv).
 
@@ -68,7 +70,7 @@ def prepare(
     with cli_errors(2):
         result = prepare_dataset(
             data_dir, out, config=config, workers=workers, strict=strict, force=force,
-            progress=not quiet,
+            progress=not quiet, executor=executor,
         )
 
     console.print(

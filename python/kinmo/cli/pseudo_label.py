@@ -8,6 +8,8 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli.export import FORMAT_HELP, check_formats
+from kinmo.cli._executor import EXECUTOR
 from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
 from kinmo.cli._refine import PAPER_SELECTOR, RANKER
 
@@ -33,6 +35,8 @@ def pseudo_label_cmd(
     device: str = typer.Option("cpu", "--device", help="Torch device of both networks."),
     force: bool = typer.Option(False, "--force", help="Redo shapes already processed with the same inputs."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf (mobility_v2 is always written)."),  # noqa: UP007
+    executor: str = EXECUTOR,
 ) -> None:
     """Predict and refine the motions of every shape under DIR; keep the confident ones.
 
@@ -56,15 +60,18 @@ def pseudo_label_cmd(
     console = Console()
     rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
                        paper_selector, ranker)
+    check_formats(fmt)
     with cli_errors(2, also=(ValueError,)):
         config = PseudoLabelConfig(
             threshold=threshold,
             refine=rc,
             sign=sign, consistent=consistent, link="copy" if copy else "symlink", device=device,
+            **({"formats": tuple(fmt)} if fmt else {}),
         )
     with cli_errors(2):
         res = pseudo_label_dataset(data_dir, model, axis_model, out, config, workers=workers,
-                                   cache=cache, force=force, progress=not quiet)
+                                   cache=cache, force=force, progress=not quiet,
+                                   executor=executor)
 
     table = Table(title=f"Pseudo-labels (threshold {threshold:g})")
     table.add_column("category")

@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from kinmo.cli._apps import app
+from kinmo.cli._executor import EXECUTOR
 
 
 @app.command("render")
@@ -32,6 +33,7 @@ def render(
     ),
     force: bool = typer.Option(False, "--force", help="Re-render frames that are up to date."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    executor: str = EXECUTOR,
 ) -> None:
     """Render random partial scans (random joint states and viewpoints) of every object.
 
@@ -52,7 +54,7 @@ def render(
         raise typer.BadParameter(str(e)) from None
     with cli_errors(2):
         result = render_dataset(data_dir, out, frames_per_object, config, workers=workers,
-                                force=force, progress=not quiet)
+                                force=force, progress=not quiet, executor=executor)
     console.print(
         f"{len(result.rows)} frames of {result.n_objects} objects in {result.seconds:.1f} s: "
         f"{result.count('ok')} rendered, {result.count('skipped')} skipped (up to date), "

@@ -494,11 +494,16 @@ def run_evaluation(
     out : str or Path, optional
         Output folder (default ``<first run>/eval``).
     split : str or Path, optional
-        Split file whose ``test`` ids are evaluated (default: the first run's ``split.json``).
+        Split file (default: the first run's ``split.json``): every labelled shape of ``data``
+        that is not one of its ``train`` ids is evaluated, i.e. the test split on the models'
+        own data and every new shape on another folder (as ``kinmo eval --category C --data
+        DIR``).
     all_shapes : bool
-        Evaluate every labelled graph of ``data``.
+        Evaluate every labelled graph of ``data``, training shapes included.
     render : bool
-        Write ``out/renders/<model>/<id>.png`` per shape.
+        Write ``out/renders/<model>/<id>.png`` per shape, and the predicted links as
+        ``out/viewers/<model>/<id>/`` (:func:`kinmo.view.write_view_links`) for the
+        report's interactive viewer.
     device : str
     progress : bool
     console : rich.console.Console, optional
@@ -531,10 +536,14 @@ def run_evaluation(
     runs = [load_run(m, device) for m in models]
     data = Path(data)
     graphs = [g for g in _load_graphs(data, progress) if g.has_labels and g.meta.get("links")]
-    if not all_shapes:
+    if not all_shapes:  # every shape the models did not train on (on their data: the test split)
         sp = Path(split) if split is not None else runs[0].path / "split.json"
-        test = set(Split.load(sp).test)
-        graphs = [g for g in graphs if g.shape_id in test]
+        train = set(Split.load(sp).train)
+        refused = sorted(g.shape_id for g in graphs if g.shape_id in train)
+        graphs = [g for g in graphs if g.shape_id not in train]
+        if not graphs:
+            raise KinmoDataError(data, f"no labelled shape the models did not train on ({len(refused)} training "
+                                       "shapes of the split left out; --all evaluates them too)")
     if not graphs:
         raise KinmoDataError(data, "no labelled test shape to evaluate")
     names = _model_names(runs)
@@ -557,9 +566,17 @@ def run_evaluation(
     if render:
         from kinmo.viz import render_prediction
 
+        from kinmo.view import write_view_links
+
         for n, plist in preds.items():
             for p in plist:
                 render_prediction(p, out / "renders" / n / f"{p.shape_id}.png")
+                if p.graph.meta.get("source") and Path(p.graph.meta["source"]).is_dir():
+                    try:  # the interactive gallery of the report (kinmo.view.gallery_page)
+                        write_view_links(out / "viewers" / n / p.shape_id, p.tree.links,
+                                         p.graph.meta["source"])
+                    except KinmoDataError:
+                        pass  # the source changed since the cache was built: no viewer
     if console is not None:
         print_report(report, console)
     return report, paths

@@ -64,6 +64,10 @@ class AxisNetConfig(BaseModel):
         Static points farther than ``crop`` times the moving part's size from it are left
         out (:func:`kinmo.refine.motions.pair_cloud`); None: the whole parts. Input format
         too.
+    input : {"pair", "shape"}
+        Static points from the reference part plus context (``"pair"``, kinmo) or from the
+        whole shape without the moving part (``"shape"``, the paper's code;
+        :func:`kinmo.refine.motions.edge_cloud`). Input format too.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -78,6 +82,7 @@ class AxisNetConfig(BaseModel):
     dynamic: bool = True
     context_fraction: float = Field(0.25, ge=0.0, lt=0.5)
     crop: float | None = Field(None, gt=0.0)
+    input: Literal["pair", "shape"] = "pair"
 
 
 class _ChannelNorm(nn.Module):
@@ -293,5 +298,40 @@ class AxisSelectionNet(nn.Module):
             fb = self.encode(before.reshape(1, *before.shape[-2:]))
             out = [self.head(fb, self.encode(a)) for a in after.split(max(chunk, 1))]
             return torch.sigmoid(torch.cat(out)) if out else after.new_zeros(0)
+        finally:
+            self.train(was_training)
+
+    def feasibility_batch(
+        self, before: torch.Tensor, after: torch.Tensor, owner: torch.Tensor, chunk: int = 256
+    ) -> torch.Tensor:
+        """Feasibility of ``M`` motions of ``R`` rest states in as few encoder calls as memory allows.
+
+        Every rest state is encoded once (one call for all ``R``), the moved clouds in chunks
+        of ``chunk``; the classifier runs once on all ``M`` pairs. Eval mode and
+        ``torch.inference_mode``; the same values as :meth:`feasibility` per rest state (up
+        to float rounding of batched matrix products).
+
+        Parameters
+        ----------
+        before : (R, N, 4) float32
+        after : (M, N, 4) float32
+        owner : (M,) int64
+            Rest state of each motion, in ``[0, R)``.
+        chunk : int
+            Moved clouds encoded per call (memory ``~ chunk * N * (N + k * C)`` floats).
+
+        Returns
+        -------
+        (M,) float32 in ``[0, 1]``.
+        """
+        if after.shape[0] == 0:
+            return after.new_zeros(0)
+        was_training = self.training
+        self.eval()
+        try:
+            with torch.inference_mode():
+                fb = self.encode(before)
+                fa = torch.cat([self.encode(a) for a in after.split(max(chunk, 1))])
+                return torch.sigmoid(self.head(fb[owner], fa))
         finally:
             self.train(was_training)

@@ -36,6 +36,7 @@ __all__ = [
     "MotionAmounts",
     "PairCloud",
     "candidate_motions",
+    "edge_cloud",
     "extent_along",
     "network_inputs",
     "pair_cloud",
@@ -339,3 +340,45 @@ def network_inputs(
     after[:, m:, :3] = base[m:]
     after[:, :, 3] = flags[:, 0]
     return before, after
+
+
+def edge_cloud(graph, moving: int, reference: int, net, rng: np.random.Generator | int = 0
+               ) -> PairCloud:
+    """The network's input points for the moving edge ``(moving, reference)`` of a part graph.
+
+    The input format is the network's (:class:`kinmo.refine.axis_net.AxisNetConfig`, saved
+    with every checkpoint, so training and refinement agree):
+
+    - ``input="pair"`` (kinmo): half moving points, the rest from the reference part and a
+      ``context_fraction`` share from the rest of the shape (:func:`pair_cloud`, optionally
+      cropped);
+    - ``input="shape"`` (the paper's code: the whole shape with the moving-part mask): half
+      moving points, the other half from the whole shape without the moving part
+      (:func:`shape_context` of ``graph.points[0]``, the root's samples); the reference part
+      is not singled out. Falls back to the reference part's points when nothing else is
+      left.
+
+    Parameters
+    ----------
+    graph : PartGraph
+        Needs ``points`` (per node, mesh frame; node 0 the whole shape).
+    moving, reference : int
+        Node indices.
+    net : AxisNetConfig
+        Gives ``n_points``, ``input``, ``context_fraction`` and ``crop``.
+    rng : numpy Generator or int
+
+    Returns
+    -------
+    PairCloud
+        Moving points first (``ceil(n_points / 2)`` of them), static points flagged 0.
+    """
+    mov = graph.points[moving]
+    if getattr(net, "input", "pair") == "shape":
+        rest = shape_context(graph.points[0], mov)
+        if len(rest) == 0:
+            rest = graph.points[reference]
+        return pair_cloud(mov, rest, net.n_points, rng, None, 0.0, net.crop)
+    frac = net.context_fraction
+    ctx = shape_context(graph.points[0], mov) if frac > 0 else None
+    return pair_cloud(mov, graph.points[reference], net.n_points, rng, ctx, frac, net.crop)

@@ -80,7 +80,7 @@ import numpy as np
 from kinmo.progress import CountingBar
 from kinmo.errors import KinmoDataError
 from kinmo.io import folder_lock
-from kinmo.parallel import map_unordered
+from kinmo.executor import map_unordered
 
 __all__ = [
     "FRAME_VERSION",
@@ -596,6 +596,7 @@ def render_dataset(
     force: bool = False,
     progress: bool = True,
     on_rows: Callable[[list[FrameRow]], None] | None = None,
+    executor: str = "local",
 ) -> RenderResult:
     """Render ``frames_per_object`` partial scans of every object under ``root``.
 
@@ -617,6 +618,8 @@ def render_dataset(
         Show a rich progress bar (stderr) counting frames.
     on_rows : callable, optional
         Called in this process with each object's rows as it completes.
+    executor : str
+        ``local``, ``ray``, ``ray:auto`` or ``ray:ADDRESS`` (:mod:`kinmo.executor`).
 
     Returns
     -------
@@ -670,6 +673,7 @@ def render_dataset(
                     jobs, workers,
                     on_result=lambda job, obj_rows: record(obj_rows, bar),
                     on_error=partial(_worker_failed, frames=frames_per_object),
+                    executor=executor,
                 )
             finally:
                 done = {r.id for r in rows}

@@ -9,6 +9,10 @@ gallery of renders) and writes, into ``RUN/report`` by default:
   embedded), so the single file can be mailed or archived (:mod:`kinmo.report.html`);
 - ``report.md``: the same content in Markdown, images referenced as ``img/<name>.png``
   (:mod:`kinmo.report.markdown`);
+- ``viewer.html``: when the run's evaluation wrote predicted links of its test shapes
+  (``eval/.../viewers/<model>/<id>/``, :func:`kinmo.view.write_view_links`), one
+  interactive viewer per test shape (:func:`kinmo.view.gallery_page`: a slider per joint,
+  moving parts coloured, predicted axes solid, true ones dashed), linked from the gallery;
 - ``img/``: the charts and the copied gallery images; images an earlier report wrote and
   this one does not are removed (listed in ``img/.kinmo-report-images``; no other file is
   ever deleted).
@@ -93,6 +97,7 @@ def write_report(run: str | Path, out: str | Path | None = None, max_images: int
         raise KinmoDataError(out, "the report folder cannot be the run folder itself")
     art = collect_run(run, exclude=[out], max_images=max_images)
     doc = build_document(art, title)
+    _viewer_page(run, out, doc)
     img = out / "img"
     manifest = img / MANIFEST
     previous: set[str] = set()
@@ -116,3 +121,34 @@ def write_report(run: str | Path, out: str | Path | None = None, max_images: int
     counts = art.counts()
     return ReportResult(out, out / "index.html", out / "report.md", written, counts,
                         [k for k, n in counts.items() if n == 0], list(art.problems))
+
+
+#: Models whose predictions the interactive gallery shows, by preference.
+_VIEWER_MODELS = ("OBB_fine", "GNN_fine", "OBB_coarse", "GNN_coarse")
+
+
+def _viewer_page(run: Path, out: Path, doc) -> Path | None:
+    """Write ``out/viewer.html`` from the run's ``viewers/<model>/<id>/`` folders, if any,
+    and say so in the gallery section of ``doc``."""
+    from kinmo.report.document import Note
+    from kinmo.view import SOURCE_FILE, gallery_page
+
+    if not run.is_dir():
+        return None
+    found: dict[str, list[Path]] = {}
+    for src in sorted(run.rglob(f"viewers/*/*/{SOURCE_FILE}")):
+        if out.resolve() in src.resolve().parents:
+            continue
+        found.setdefault(src.parent.parent.name, []).append(src.parent)
+    if not found:
+        return None
+    model = next((m for m in _VIEWER_MODELS if m in found), sorted(found)[0])
+    page, problems = gallery_page(found[model], out / "viewer.html",
+                                  title=f"kinmo: {model} predictions of the test shapes")
+    for s in doc.sections:
+        if s.id == "gallery":
+            s.blocks.insert(0, Note(
+                f"Interactive: viewer.html (next to this page) shows the {len(found[model])} "
+                f"test shapes with {model}'s joints on sliders"
+                + (f"; {len(problems)} could not be shown" if problems else "") + ".", "info"))
+    return page

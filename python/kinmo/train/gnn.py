@@ -18,6 +18,10 @@ Eq. 1-4 (:mod:`kinmo.models.losses`) and writes a **run folder**:
 
 Runs are reproducible: ``seed`` seeds torch, the batch order and the augmentation, and torch's
 deterministic algorithms are switched on for the duration of the run.
+
+Under ``torchrun`` (``torchrun --nproc-per-node N -m kinmo train gnn ...``) the run is
+data-parallel (:mod:`kinmo.train.distributed`): the same global batches of ``batch_size``
+graphs, each rank training on its shard, rank 0 writing the run folder.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from kinmo.features import GraphBatch, GraphTensors, SemanticVocab, collate, gra
 from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
 from kinmo.models.losses import MotionLoss, class_weights
 from kinmo.models.motion_gnn import ModelConfig, MotionGNN
+from kinmo.train import distributed
 from kinmo.train.config import TrainConfig, resolve_device
 from kinmo.train.split import Split, make_split
 
@@ -350,6 +355,22 @@ def _metrics_csv(rows: list[dict[str, float]]) -> str:
     return buf.getvalue()
 
 
+def _subsample(members: list[GraphTensors], n_points: int | None,
+               gen: torch.Generator) -> list[GraphTensors]:
+    """The random point subsets of :func:`~kinmo.features.collate` drawn for a whole global
+    batch (same draws, same order), so that a rank's shard of it holds the points a single
+    process would have used."""
+    from dataclasses import replace
+
+    out = []
+    for m in members:
+        if n_points is not None and m.points.shape[1] > n_points:
+            idx = torch.randperm(m.points.shape[1], generator=gen)[:n_points]
+            m = replace(m, points=m.points[:, idx])
+        out.append(m)
+    return out
+
+
 def _labelled(graphs: Sequence[PartGraph]) -> list[PartGraph]:
     return [g for g in graphs if g.has_labels and len(g.sibling_edges) > 0]
 
@@ -424,7 +445,8 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
            on_epoch: Callable[[dict[str, float]], None] | None) -> TrainResult:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    device = resolve_device(config.device)
+    dist_info, device = distributed.setup(resolve_device(config.device))
+    main = dist_info.is_main
     torch.manual_seed(config.seed)
     random.seed(config.seed)
     np.random.seed(config.seed % (2**32))
@@ -432,9 +454,10 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
     mdata = config.model.model_dump()
     mdata["vocab_size"] = len(vocab)
     config = config.model_copy(update={"model": ModelConfig.model_validate(mdata)})
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "config.json", config.model_dump())
-    split.save(out / "split.json")
+    if main:
+        out.mkdir(parents=True, exist_ok=True)
+        write_json(out / "config.json", config.model_dump())
+        split.save(out / "split.json")
 
     train_t = [graph_tensors(g, vocab) for g in train_g]
     test_t = [graph_tensors(g, vocab) for g in test_g]
@@ -446,6 +469,7 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
     weights = class_weights(counts) if config.class_weighting == "inv_sqrt" else None
 
     model = MotionGNN(config.model).to(device)
+    ddp = distributed.wrap(model)  # the model itself in a single process
     loss_fn = MotionLoss(config.model.types, weights, config.focal_gamma, config.w_dir,
                          config.w_pos, config.balance).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
@@ -462,7 +486,7 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
     c0 = time.process_time()
     columns = [TextColumn("[bold]train gnn[/]"), BarColumn(), MofNCompleteColumn(),
                TextColumn("{task.fields[info]}"), TimeElapsedColumn()]
-    with Progress(*columns, disable=not progress, transient=False) as bar:
+    with Progress(*columns, disable=not (progress and main), transient=False) as bar:
         task = bar.add_task("epochs", total=config.epochs, info="")
         for epoch in range(1, config.epochs + 1):
             model.train()
@@ -475,19 +499,30 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 if config.augment_yaw:
                     angles = torch.rand(len(members), generator=gen) * (2 * math.pi)
                     members = [m.rotated(yaw_rotation(float(a))) for m, a in zip(members, angles)]
+                if dist_info.enabled:  # the global batch's point draws, then this rank's shard
+                    members = _subsample(members, config.n_points, gen)
+                members, weight = distributed.shard(members)
                 batch = collate(members, n_points=config.n_points, generator=gen).to(device)
-                outp = model(batch)
+                outp = ddp(batch)
                 terms = loss_fn(outp, batch)
                 opt.zero_grad(set_to_none=True)
-                terms.total.backward()
+                (terms.total * weight).backward()
                 if config.grad_clip > 0:
                     torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
                 opt.step()
-                sums += [float(terms.total.detach()), float(terms.type.detach()),
-                         float(terms.direction.detach()), float(terms.position.detach())]
+                share = weight / dist_info.world_size  # n_rank / n_global (1: one process)
+                sums += [share * float(terms.total.detach()), share * float(terms.type.detach()),
+                         share * float(terms.direction.detach()),
+                         share * float(terms.position.detach())]
                 n_b += 1
-                acc = _merge(acc, edge_metrics(outp.logits.detach(), outp.direction.detach(),
-                                               outp.origin.detach(), batch, config.model.types))
+                if weight > 0:
+                    acc = _merge(acc, edge_metrics(outp.logits.detach(), outp.direction.detach(),
+                                                   outp.origin.detach(), batch, config.model.types))
+            if dist_info.enabled:  # the epoch's figures over all ranks
+                acc = acc or {"correct": 0, "n_edges": 0}
+                tot = distributed.all_sum([*sums, acc["correct"], acc["n_edges"]])
+                sums = np.asarray(tot[:4])
+                acc["correct"], acc["n_edges"] = int(tot[4]), int(tot[5])
             lr = opt.param_groups[0]["lr"]
             sched.step()
             row: dict[str, float] = {
@@ -496,7 +531,7 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 "loss_dir": sums[2] / n_b, "loss_pos": sums[3] / n_b,
                 "train_acc": _summary(acc)["acc"],
             }
-            if test_t:
+            if test_t and main:  # the test split is evaluated by rank 0 only
                 tacc, tloss = evaluate_edges(model, test_t, config, device, loss_fn)
                 s = _summary(tacc)
                 row.update(test_loss=tloss, test_acc=s["acc"],
@@ -508,7 +543,8 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                            test_pos_dist=float("nan"))
             row["seconds"] = time.perf_counter() - t0
             history.append(row)
-            write_text(out / "metrics.csv", _metrics_csv(history))
+            if main:
+                write_text(out / "metrics.csv", _metrics_csv(history))
             info = f"loss {row['loss']:.3f} acc {row['train_acc']:.3f}"
             if test_t:
                 info += f" | test acc {row['test_acc']:.3f} angle {row['test_angle_deg']:.1f}°"
@@ -517,6 +553,8 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 on_epoch(row)
     seconds = time.perf_counter() - t0
     cpu_seconds = time.process_time() - c0
+    if not main:  # rank 0 evaluates and writes the run folder
+        return TrainResult(out, config, split, history, seconds, {}, cpu_seconds)
     save_checkpoint(out / "model.pt", model, config, vocab, weights, config.epochs)
     names = config.model.type_names
     tr_acc, _ = evaluate_edges(model, train_t, config, device)

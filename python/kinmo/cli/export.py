@@ -1,0 +1,67 @@
+"""``kinmo export``: a PartNet-Mobility folder as URDF, MJCF, USD, glTF (:mod:`kinmo.export`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from kinmo.cli._apps import app
+
+#: Help of the repeatable ``--format`` option (shared by predict and pseudo-label).
+FORMAT_HELP = ("Output format, repeatable: mobility_v2, semantics, urdf, mjcf, usd, gltf "
+               "(see kinmo.export).")
+
+
+def check_formats(fmt: list[str] | None) -> None:
+    """Reject unknown ``--format`` values before any work (exit code 2, the known ones named)."""
+    from kinmo.export import formats
+
+    known = formats()
+    bad = [f for f in fmt or [] if f not in known]
+    if bad:
+        raise typer.BadParameter(f"unknown format(s) {', '.join(bad)}; known: {', '.join(known)}",
+                                 param_hint="--format")
+
+
+@app.command("export")
+def export_cmd(
+    src: Path = typer.Argument(..., metavar="SRC", help="A PartNet-Mobility-format folder (real, generated or predicted), or a folder of them."),
+    fmt: list[str] = typer.Option(..., "--format", "-f", help=FORMAT_HELP),
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder (OUT/<id>/ per object when SRC holds several)."),
+    source: Optional[Path] = typer.Option(None, "--source", "-s", help="For a `kinmo predict` output SRC (mobility_v2.json only): the shape folder it was predicted for (meshes)."),  # noqa: UP007
+) -> None:
+    """Write the articulated object(s) in SRC in each --format, loadable by its simulator.
+
+    urdf: PyBullet/SAPIEN/ROS (convex collision pieces); mjcf: MuJoCo; usd: Isaac Sim
+    (UsdPhysics joints); gltf: any 3D viewer, one animation per joint.
+    """
+    from rich.console import Console
+
+    from kinmo.cli._errors import cli_errors
+    from kinmo.data.readers import find_shapes
+    from kinmo.export import export_folder
+
+    check_formats(fmt)
+    console = Console()
+    with cli_errors(1):
+        if source is not None or not find_shapes(src):
+            if (src / "mobility_v2.json").is_file():  # one predicted folder
+                files = export_folder(src, out, fmt, source=source)
+                console.print(f"exported 1 object as {', '.join(dict.fromkeys(fmt))}: "
+                              f"{sum(len(v) for v in files.values())} file(s) -> {out}",
+                              highlight=False)
+                return
+        folders = find_shapes(src)
+        if not folders:
+            from kinmo.errors import KinmoDataError
+
+            raise KinmoDataError(src, "no PartNet-Mobility folder found")
+        single = len(folders) == 1 and folders[0].resolve() == src.resolve()
+        n = 0
+        for folder in folders:
+            files = export_folder(folder, out if single else out / folder.name, fmt)
+            n += sum(len(v) for v in files.values())
+    console.print(f"exported {len(folders)} object(s) as {', '.join(dict.fromkeys(fmt))}: "
+                  f"{n} file(s) -> {out}", highlight=False)

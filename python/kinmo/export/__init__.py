@@ -1,0 +1,220 @@
+"""Exporters of articulated objects: one module per format behind one registry.
+
+Every exporter takes an object in kinmo's model (a :class:`~kinmo.data.model.Shape`: part
+hierarchy and meshes, plus its :class:`~kinmo.data.model.Link` list: real, generated or
+predicted motion, Liu et al. 2023 Sec. 3) and writes one format into an output folder.
+``kinmo predict``, ``kinmo pseudo-label`` (``--format``, repeatable) and ``kinmo export``
+all go through :func:`export`, so a format added here is available to all three.
+
+========================  ==================  ============================================
+format                    files               loaded back by (tests)
+========================  ==================  ============================================
+``mobility_v2``           mobility_v2.json    :func:`kinmo.data.readers.read_links`
+``semantics``             semantics.txt       (text)
+``urdf``                  mobility.urdf,      PyBullet; :func:`kinmo.export.urdf.read_urdf`
+                          collision/          gives the links back losslessly
+                          link_<id>_<k>.obj
+``mjcf``                  mobility.xml,       MuJoCo (``mujoco.MjModel.from_xml_path``)
+                          meshes/*.stl
+``usd``                   mobility.usd        ``pxr`` (UsdPhysics joints)
+``gltf``                  mobility.glb        pygltflib / trimesh (one animation per joint)
+========================  ==================  ============================================
+
+What each format cannot express is documented in its module (:mod:`kinmo.export.urdf`,
+:mod:`kinmo.export.mjcf`, :mod:`kinmo.export.usd`, :mod:`kinmo.export.gltf`).
+
+Frames: every exporter keeps kinmo's mesh frame (y-up, mesh units) as its world frame; link
+frames sit on their joint axes at the rest pose (all joint values 0), as in
+:mod:`kinmo.urdf`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+from kinmo.data.model import Link, Shape
+from kinmo.errors import KinmoDataError
+
+__all__ = [
+    "DEFAULT_FORMATS",
+    "ExportContext",
+    "Exporter",
+    "EXPORTERS",
+    "export",
+    "export_folder",
+    "formats",
+    "register",
+]
+
+
+@dataclass
+class ExportContext:
+    """What an exporter gets: the object, its links, where to write, shared lazy data.
+
+    Attributes
+    ----------
+    shape : Shape
+        Hierarchy and meshes (``shape.mesh_dir``).
+    links : list of Link
+        The motion to export (axes in the mesh frame, hinge limits in degrees).
+    out_dir : Path
+        Output folder (created).
+    name : str
+        Object / robot name written into the files.
+    """
+
+    shape: Shape
+    links: list[Link]
+    out_dir: Path
+    name: str
+
+    @cached_property
+    def meshes(self):
+        """Per-link merged meshes (:func:`kinmo.export.kinematics.link_meshes`), loaded once."""
+        from kinmo.export.kinematics import link_meshes
+
+        return link_meshes(self.shape, self.links)
+
+
+@dataclass(frozen=True)
+class Exporter:
+    """One registered format.
+
+    Attributes
+    ----------
+    name : str
+        Format name used on the command line (``--format NAME``).
+    description : str
+        One line for ``--help``.
+    write : callable
+        ``write(ctx: ExportContext) -> list[Path]``: writes the files, returns their paths.
+    """
+
+    name: str
+    description: str
+    write: Callable[[ExportContext], list[Path]] = field(repr=False)
+
+
+#: Format name -> exporter, in registration order.
+EXPORTERS: dict[str, Exporter] = {}
+#: What ``kinmo predict`` and ``kinmo pseudo-label`` write without ``--format``.
+DEFAULT_FORMATS: tuple[str, ...] = ("mobility_v2", "semantics", "urdf")
+
+
+def register(name: str, description: str) -> Callable:
+    """Decorator registering ``write(ctx) -> list[Path]`` as format ``name``."""
+
+    def deco(fn: Callable[[ExportContext], list[Path]]):
+        EXPORTERS[name] = Exporter(name, description, fn)
+        return fn
+
+    return deco
+
+
+#: The format modules of kinmo, imported (so registered) on first use, in this order.
+_MODULES: tuple[str, ...] = ("partnet", "urdf", "mjcf", "usd", "gltf")
+
+
+def _load_all() -> None:
+    import importlib
+
+    for m in _MODULES:  # importing a format module registers it
+        importlib.import_module(f"kinmo.export.{m}")
+
+
+def formats() -> list[str]:
+    """Names of all registered formats: kinmo's own in a fixed order, then any added later."""
+    _load_all()
+    own = ["mobility_v2", "semantics", "urdf", "mjcf", "usd", "gltf"]
+    return [f for f in own if f in EXPORTERS] + [f for f in EXPORTERS if f not in own]
+
+
+def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORMATS,
+           links: Sequence[Link] | None = None, name: str | None = None) -> dict[str, list[Path]]:
+    """Write ``shape`` moving as ``links`` in each of ``fmts`` into ``out_dir``.
+
+    Parameters
+    ----------
+    shape : Shape
+    out_dir : str or Path
+        Created if needed.
+    fmts : iterable of str
+        Registered format names (:func:`formats`), written in the order given (duplicates
+        once).
+    links : sequence of Link, optional
+        Default ``shape.links``.
+    name : str, optional
+        Object name in the files; default the shape id.
+
+    Returns
+    -------
+    dict of str to list of Path
+        Format -> files written.
+
+    Raises
+    ------
+    KinmoDataError
+        An unknown format, no links, ``out_dir`` is a file, or a problem of the object
+        (message names the folder).
+    """
+    _load_all()
+    fmts = list(dict.fromkeys(fmts))
+    bad = [f for f in fmts if f not in EXPORTERS]
+    if bad:
+        raise KinmoDataError(out_dir, f"unknown export format(s) {', '.join(bad)}; known: "
+                                      f"{', '.join(EXPORTERS)}")
+    links = list(shape.links or [] if links is None else links)
+    if not links:
+        raise KinmoDataError(shape.path, "no kinematic links to export (mobility_v2.json or "
+                                         "predicted motion needed)")
+    from kinmo.io import output_dir
+
+    out_dir = output_dir(out_dir)
+    ctx = ExportContext(shape, links, out_dir, name or shape.id)
+    return {f: EXPORTERS[f].write(ctx) for f in fmts}
+
+
+def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
+                  source: str | Path | None = None) -> dict[str, list[Path]]:
+    """Export a PartNet-Mobility-format folder (real, generated or predicted) to ``out``.
+
+    Mesh references point back into the mesh folder (relative paths) where a format allows it.
+
+    Parameters
+    ----------
+    src : str or Path
+        A PartNet-Mobility folder; or a folder with only ``mobility_v2.json`` (a ``kinmo
+        predict`` output) whose shape folder (hierarchy, meshes) is ``source`` or named in
+        ``src/source.txt`` (:func:`kinmo.view.write_view_links`).
+    out : str or Path
+    fmts : iterable of str
+    source : str or Path, optional
+
+    Raises
+    ------
+    KinmoDataError
+        ``src`` is not a readable PartNet-Mobility folder (no ``mobility_v2.json``), or
+        without meshes and no ``source``, or as :func:`export`.
+    """
+    from kinmo.data.readers import read_links, read_shape
+
+    src = Path(src)
+    if source is None and (src / "source.txt").is_file():
+        source = (src / "source.txt").read_text(encoding="utf-8").strip()
+    if source is not None:
+        shape = read_shape(source)
+        if not (src / "mobility_v2.json").is_file():
+            raise KinmoDataError(src / "mobility_v2.json", "file is missing")
+        return export(shape, out, fmts, links=read_links(src / "mobility_v2.json",
+                                                         shape.hierarchy))
+    if not any((src / n).is_file() for n in ("result.json", "result_after_merging.json")) \
+            and (src / "mobility_v2.json").is_file():
+        raise KinmoDataError(src, "links without meshes (a `kinmo predict` output?): give the "
+                                  "shape folder they were predicted for with --source")
+    shape = read_shape(src)
+    if not shape.links:
+        raise KinmoDataError(src, "not a PartNet-Mobility folder: mobility_v2.json is missing")
+    return export(shape, out, fmts)

@@ -1,0 +1,317 @@
+"""Prediction on a user's own part-segmented mesh (``kinmo predict FILE``).
+
+kinmo predicts motion over a *part hierarchy* (Liu et al. 2023, Sec. 3.1: the GNN runs on the
+parts of a PartNet shape). A user's asset gives the parts in one of four ways; each becomes a
+PartNet folder (``result.json``, ``meta.json``, ``objs/part_<k>.obj``) that the unchanged
+prediction path (:func:`kinmo.predict.predict_dataset`: part graph, motion GNN, optional
+axis refinement) reads like any PartNet shape:
+
+==============================  ===========================================================
+input                           parts
+==============================  ===========================================================
+``.glb`` / ``.gltf`` scene      one part per scene node with a mesh (node transforms applied)
+``.obj`` with ``o`` / ``g``     one part per object / group (``trimesh``'s ``split_objects``
+                                and ``split_groups``; named ``<object>_<group>``, in
+                                trimesh's order)
+a folder of mesh files          one part per file (``.obj``, ``.stl``, ``.ply``, ``.off``,
+                                ``.glb``; each file merged into one part)
+``.urdf``                       one part per link with visual meshes, placed at the link's
+                                rest pose (joint origins, visual origins and ``scale``
+                                applied): re-labels an existing asset
+==============================  ===========================================================
+
+**Hierarchy rule.** A root node named after the file (its stem), with one leaf per part in
+input order (scene nodes, sorted file names, URDF link order), named after the node / group / file / link (``part_<k>`` when nameless; names
+sanitised to ``[A-Za-z0-9_]``). PartNet's own hierarchies are deeper; a flat one is what a
+user's segmentation tells, and the GNN's sibling edges then relate every pair of parts.
+
+Frames: coordinates are kept as given and read as kinmo's mesh frame (y-up, like glTF and
+PartNet; a z-up asset should be rotated first), in the file's units.
+
+Output (:func:`predict_user_input`): ``OUT/<stem>/`` becomes a complete PartNet-Mobility
+folder: ``result.json``, ``meta.json``, ``textured_objs/part_<k>.obj``, ``mobility_v2.json``,
+``edges.json`` and the chosen export formats (:mod:`kinmo.export`), the staged PartNet folder
+(``OUT/.staging/<stem>``) is removed afterwards. An unsegmented input (fewer than two parts)
+raises :class:`~kinmo.errors.KinmoDataError` saying what kinmo needs.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from kinmo.errors import KinmoDataError
+from kinmo.io import write_json
+
+__all__ = [
+    "MESH_SUFFIXES",
+    "Part",
+    "is_user_input",
+    "predict_user_input",
+    "read_parts",
+    "stage_partnet",
+]
+
+#: Mesh files taken as parts from a folder.
+MESH_SUFFIXES: tuple[str, ...] = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
+_NEEDS = ("kinmo needs the object split into its parts (at least 2): a GLB/glTF scene with "
+          "one node per part, an OBJ with one 'o'/'g' group per part, a folder with one mesh "
+          "file per part, or a URDF with one link per part")
+
+Part = tuple[str, np.ndarray, np.ndarray]
+"""A part: ``(name, vertices (V, 3) float64, faces (F, 3) int64)`` in the mesh frame."""
+
+
+def is_user_input(path: str | Path) -> bool:
+    """True for a mesh/URDF file, or a folder of mesh files that holds no shape folder."""
+    from kinmo.data.readers import find_shapes
+
+    path = Path(path)
+    if path.is_file():
+        return path.suffix.lower() in MESH_SUFFIXES + (".urdf",)
+    if not path.is_dir():
+        return False
+    if find_shapes(path):
+        return False
+    return any(p.suffix.lower() in MESH_SUFFIXES for p in path.iterdir() if p.is_file())
+
+
+def _clean(name: str, k: int) -> str:
+    s = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_")
+    return s or f"part_{k}"
+
+
+def _trimesh_parts(path: Path, **kw) -> list[Part]:
+    import trimesh
+
+    try:
+        loaded = trimesh.load(path, force="scene", process=False, **kw)
+    except Exception as e:  # trimesh raises many types on bad files
+        raise KinmoDataError(path, f"cannot read the mesh: {' '.join(str(e).split())}") from None
+    parts: list[Part] = []
+    for node in loaded.graph.nodes_geometry:
+        T, gname = loaded.graph[node]
+        g = loaded.geometry[gname]
+        if not isinstance(g, trimesh.Trimesh) or len(g.faces) == 0:
+            continue
+        v = np.asarray(g.vertices, dtype=np.float64) @ T[:3, :3].T + T[:3, 3]
+        parts.append((str(node), v, np.asarray(g.faces, dtype=np.int64)))
+    return parts
+
+
+def _merge(parts: list[Part], name: str) -> Part:
+    vs, fs, n = [], [], 0
+    for _, v, f in parts:
+        vs.append(v)
+        fs.append(f + n)
+        n += len(v)
+    return name, np.concatenate(vs), np.concatenate(fs)
+
+
+def _rpy(rpy: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_euler("xyz", rpy).as_matrix()  # URDF: fixed-axis roll, pitch, yaw
+
+
+def _origin(el: ET.Element | None, where: Path) -> np.ndarray:
+    T = np.eye(4)
+    if el is None:
+        return T
+    try:
+        xyz = np.array([float(x) for x in el.get("xyz", "0 0 0").split()])
+        rpy = np.array([float(x) for x in el.get("rpy", "0 0 0").split()])
+    except ValueError:
+        raise KinmoDataError(where, f"bad <origin> {el.attrib}") from None
+    if xyz.shape != (3,) or rpy.shape != (3,):
+        raise KinmoDataError(where, f"bad <origin> {el.attrib}")
+    T[:3, :3] = _rpy(rpy)
+    T[:3, 3] = xyz
+    return T
+
+
+def _urdf_parts(path: Path) -> list[Part]:
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as e:
+        raise KinmoDataError(path, f"not a readable URDF: {e}") from None
+    joints = {}
+    for j in root.findall("joint"):
+        c, p = j.find("child"), j.find("parent")
+        if c is not None and p is not None:
+            joints[c.get("link")] = (p.get("link"), _origin(j.find("origin"), path))
+    pose: dict[str, np.ndarray] = {}
+
+    def world(name: str, depth: int = 0) -> np.ndarray:
+        if name not in pose:
+            if depth > len(joints) or name not in joints:
+                pose[name] = np.eye(4)
+            else:
+                parent, T = joints[name]
+                pose[name] = world(parent, depth + 1) @ T
+        return pose[name]
+
+    parts: list[Part] = []
+    for link in root.findall("link"):
+        name = link.get("name", "")
+        pieces: list[Part] = []
+        for vis in link.findall("visual"):
+            m = vis.find("geometry/mesh")
+            if m is None:
+                continue
+            fname = re.sub(r"^(package|file)://", "", m.get("filename", ""))
+            mesh_path = (path.parent / fname) if not Path(fname).is_absolute() else Path(fname)
+            if not mesh_path.is_file():
+                raise KinmoDataError(path, f"link {name!r}: mesh {fname!r} not found")
+            T = world(name) @ _origin(vis.find("origin"), path)
+            scale = np.array([float(s) for s in m.get("scale", "1 1 1").split()])
+            for _, v, f in _trimesh_parts(mesh_path):
+                pieces.append((name, (v * scale) @ T[:3, :3].T + T[:3, 3], f))
+        if pieces:
+            parts.append(_merge(pieces, name))
+    return parts
+
+
+def read_parts(path: str | Path) -> list[Part]:
+    """The parts of a user's asset (module docs: which input gives which parts).
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.glb``/``.gltf``, ``.obj``, ``.urdf``, or a folder of mesh files.
+
+    Returns
+    -------
+    list of Part
+        In input order, vertices in the mesh frame (transforms applied).
+
+    Raises
+    ------
+    KinmoDataError
+        Unknown kind, unreadable file, a missing URDF mesh, or fewer than two parts (the
+        message says what kinmo needs).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+        parts = [_merge(ps, f.stem) for f in files if (ps := _trimesh_parts(f))]
+    elif suffix == ".urdf":
+        parts = _urdf_parts(path)
+    elif suffix == ".obj":
+        parts = _trimesh_parts(path, split_objects=True, split_groups=True, group_material=False)
+    elif suffix in MESH_SUFFIXES:
+        parts = _trimesh_parts(path)
+    else:
+        raise KinmoDataError(path, f"unknown input kind {suffix or '(folder)'!r}; {_NEEDS}")
+    if len(parts) < 2:
+        raise KinmoDataError(path, f"found {len(parts)} part(s): an unsegmented mesh; {_NEEDS}")
+    return parts
+
+
+def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown") -> Path:
+    """Write the parts of ``path`` as a PartNet shape folder (module docs: hierarchy rule).
+
+    Parameters
+    ----------
+    path : str or Path
+        The user's asset (:func:`read_parts`).
+    folder : str or Path
+        The shape folder to create (replaced if present).
+    category : str
+        ``model_cat`` written to ``meta.json`` (used only as the GNN's semantic context).
+
+    Returns
+    -------
+    Path
+        ``folder``, readable by :func:`kinmo.data.readers.read_shape`.
+
+    Raises
+    ------
+    KinmoDataError
+        As :func:`read_parts`.
+    """
+    from kinmo.export.kinematics import write_obj
+
+    path, folder = Path(path), Path(folder)
+    parts = read_parts(path)
+    if folder.exists():
+        shutil.rmtree(folder)
+    (folder / "objs").mkdir(parents=True)
+    leaves = []
+    for k, (name, v, f) in enumerate(parts):
+        write_obj(folder / "objs" / f"part_{k}.obj", v, f)
+        pname = _clean(name, k)
+        leaves.append({"id": k + 1, "name": pname, "text": name or pname, "objs": [f"part_{k}"]})
+    stem = _clean(path.stem, 0)
+    write_json(folder / "result.json", [{"id": 0, "name": stem, "text": path.name,
+                                          "children": leaves}])
+    write_json(folder / "meta.json", {"model_cat": category, "anno_id": stem,
+                                      "source": str(path)})
+    return folder
+
+
+def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence[str] | None = None,
+                       category: str = "unknown", **predict_kw):
+    """Predict the motion of a user's asset; write ``OUT/<stem>/`` (module docs).
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.glb``/``.gltf``, ``.obj`` with groups, ``.urdf`` or a folder of part meshes.
+    run : str, Path or Run
+        Motion GNN run folder (``kinmo train gnn``).
+    out : str or Path
+        Output folder.
+    formats : sequence of str, optional
+        Export formats (default :data:`kinmo.export.DEFAULT_FORMATS`); ``mobility_v2`` is
+        always written.
+    category : str
+        Category name given to the GNN.
+    **predict_kw
+        Passed to :func:`kinmo.predict.predict_dataset` (``axis_model``, ``options``,
+        ``device``, ``progress`` ...).
+
+    Returns
+    -------
+    list of PredictRow
+        One row (the asset), ``outputs`` naming every file written.
+
+    Raises
+    ------
+    KinmoDataError
+        As :func:`read_parts`, or the run cannot be loaded.
+    """
+    from kinmo.data.readers import read_shape
+    from kinmo.export import DEFAULT_FORMATS, export
+    from kinmo.predict import predict_dataset
+
+    path, out = Path(path), Path(out)
+    stem = _clean(path.stem, 0)
+    staging = out / ".staging"
+    shape_dir = stage_partnet(path, staging / stem, category)
+    fmts = list(dict.fromkeys(["mobility_v2", *(DEFAULT_FORMATS if formats is None else formats)]))
+    try:
+        rows = predict_dataset(staging, run, out, formats=["mobility_v2"], **predict_kw)
+        final = out / stem
+        for row in rows:
+            if row.status != "ok":
+                continue
+            tex = final / "textured_objs"
+            if tex.exists():
+                shutil.rmtree(tex)
+            shutil.move(str(shape_dir / "objs"), str(tex))
+            for name in ("result.json", "meta.json"):
+                shutil.copyfile(shape_dir / name, final / name)
+            shape = read_shape(final)
+            files = export(shape, final, fmts, name=stem)
+            row.outputs.update({f: written[0] for f, written in files.items()})
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return rows
