@@ -233,3 +233,26 @@ def test_sweep_terms_on_a_real_door_prefer_the_true_hinge(mobility_root):
     # the true hinge swings free in one sign; the wrong lines on average do not
     assert x[y, F["sweep_free_max"]].max() > x[~y, F["sweep_free_max"]].mean()
     assert x[y, F["attach_mesh"]].min() < x[~y, F["attach_mesh"]].mean()
+
+
+def test_hinge_lies_away_from_the_moving_parts_handle():
+    g = cabinet_graph(n_points=64)
+    k = _door_edge(g)
+    cands, frames = edge_candidates(g, 2, 1, "R", np.array([0, 1.0, 0]), g.obb_center[2])
+    args = (g, 2, 1, k, cands, frames, _priors(g, k, "R_V_S"), np.array([0, 1.0, 0]),
+            g.obb_center[2])
+    x, _ = candidate_features(*args)
+    assert np.all(x[:, F["d_child"]] == 0) and np.all(x[:, F["d_child_edge"]] == 0)  # no child
+    hinge = candidate_labels(cands, g.edge_axis_origin[k], g.edge_axis_direction[k], g.scale, True)
+    h = int(np.flatnonzero(hinge)[0])
+    other = int(np.flatnonzero((np.abs(cands.directions[:, 1]) > 0.99)
+                               & (np.abs(cands.origins[:, 0]) < 1e-6)
+                               & (cands.origins[:, 2] < 0.31) & np.array([c == "edge" for c in cands.kinds]))[0])
+    # give the door a handle at its free side (the edge opposite the hinge)
+    g.parent[5] = 2
+    rng = np.random.default_rng(0)
+    g.points[5] = cands.origins[other] + 0.01 * rng.standard_normal(np.shape(g.points[5]))
+    x, _ = candidate_features(*args)
+    assert x[h, F["d_child"]] > 0.5 > 0.05 > x[other, F["d_child"]]
+    np.testing.assert_allclose(x[:, F["d_child_edge"]],
+                               x[:, F["d_child"]] * x[:, F["kind_edge"]])

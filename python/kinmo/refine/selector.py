@@ -23,7 +23,11 @@ the fixed weights let the agreement terms decide. Here instead:
    other parts' samples it newly encloses). The meshes are read once per shape from the
    graph's source folder (``graph.meta["source"]``, :func:`shape_meshes`); without it the
    mesh terms take neutral constants (free 1, colliding 0, distance = the point attachment),
-   which drop out of the per-edge softmax, and the point terms remain.
+   which drop out of the per-edge softmax, and the point terms remain. The *handle side*
+   (revolute only): the distance from the line to the centroid of the moving part's own
+   children (handles, knobs; ``d_child``, 0 without children) and the same for OBB-edge lines
+   only (``d_child_edge``): a hinge lies at the side opposite the handle, which separates the
+   parallel edges of a door that sweep and attachment cannot tell apart.
 4. **A ranker** (:class:`Ranker`): a linear score ``w . x`` over the standardised features,
    turned into a softmax over the candidates of one edge (listwise), fit on out-of-fold GNN
    predictions of training objects (:func:`fit_ranker`), and a Platt calibration of the
@@ -75,6 +79,7 @@ FEATURES: tuple[str, ...] = (
     "feasibility", "kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
     "frame_moving", "frame_reference", "frame_shape", "shape_aligned", "ref_aligned",
     "sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max", "attach_mesh",
+    "d_child", "d_child_edge",
 )
 _F = {n: k for k, n in enumerate(FEATURES)}
 #: Feature groups removed together in the ablation rows (``Ranker.drop``).
@@ -87,6 +92,7 @@ FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
     "collision": ("collide_min", "collide_max", "collide_rest"),
     "sweep": ("sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max"),
     "feasibility": ("feasibility",),
+    "handle_side": ("d_child", "d_child_edge"),
     "kind_frame": ("kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
                    "frame_moving", "frame_reference", "frame_shape", "shape_aligned",
                    "ref_aligned"),
@@ -488,11 +494,18 @@ def candidate_features(
         if revolute and rf.shape[0]:
             x[:, _F["attach_mesh"]] = np.minimum(
                 line_mesh_distance(np.ascontiguousarray(o), np.ascontiguousarray(d), rv, rf) / diag, 2.0)
+    if revolute:  # hinges lie away from the moving part's own children (handles, knobs)
+        kids = np.flatnonzero(_subtree(graph, moving))
+        kids = kids[kids != moving]
+        if kids.size:
+            pc = np.vstack([np.asarray(graph.points[k], dtype=np.float64) for k in kids]).mean(0)
+            x[:, _F["d_child"]] = np.minimum(_point_line(pc[None], o, d) / diag, 2.0)
     x[:, _F["feasibility"]] = 0.5 if feasibility is None else np.asarray(feasibility, float)
     for kind in ("edge", "center", "interaction", "axis", "gnn"):
         x[:, _F[f"kind_{kind}"]] = [k == kind for k in cands.kinds]
     for frame in ("moving", "reference", "shape"):
         x[:, _F[f"frame_{frame}"]] = [f == frame for f in frames]
+    x[:, _F["d_child_edge"]] = x[:, _F["d_child"]] * x[:, _F["kind_edge"]]
     x[:, _F["shape_aligned"]] = np.abs(d).max(axis=1) >= _PARALLEL_COS
     ra = np.asarray(graph.obb_axes[reference], dtype=np.float64)
     x[:, _F["ref_aligned"]] = np.abs(d @ ra.T).max(axis=1) >= _PARALLEL_COS
