@@ -141,6 +141,25 @@ def test_pool_runs_the_initializer_in_each_worker(monkeypatch):
     assert got == ["3"] * 4
 
 
+def _pid_after(_item: int) -> int:
+    time.sleep(0.05)  # keep both workers busy, so each process really runs its share
+    return os.getpid()
+
+
+def test_pool_recycles_workers_after_max_tasks_per_child():
+    # kinmo render recycles its workers (PyBullet's process state grows per object): with
+    # max_tasks_per_child=2, 8 items on 2 workers need at least 4 distinct processes.
+    got: list[int] = []
+    map_unordered(_pid_after, list(range(8)), 2, lambda i, r: got.append(r),
+                  on_error=lambda i, e: pytest.fail(repr(e)), max_tasks_per_child=2)
+    assert len(got) == 8
+    assert len(set(got)) >= 4 and os.getpid() not in got
+    plain: list[int] = []
+    map_unordered(_pid_after, list(range(8)), 2, lambda i, r: plain.append(r),
+                  on_error=lambda i, e: pytest.fail(repr(e)))
+    assert len(set(plain)) <= 2
+
+
 def test_pool_keyboard_interrupt_shuts_the_pool_down():
     handed = []
 

@@ -111,6 +111,7 @@ def map_unordered(
     initializer: Callable[..., Any] | None = None,
     initargs: tuple[Any, ...] = (),
     in_flight_per_worker: int = IN_FLIGHT_PER_WORKER,
+    max_tasks_per_child: int | None = None,
     executor: str | ExecutorSpec = "local",
 ) -> bool:
     """Apply ``fn`` to every item on the chosen executor (module docstring).
@@ -118,7 +119,9 @@ def map_unordered(
     Parameters
     ----------
     fn, items, workers, on_result, on_error, initializer, initargs, in_flight_per_worker
-        As :func:`kinmo.parallel.map_unordered`. On Ray, ``workers`` is the number of CPUs
+    max_tasks_per_child
+        As :func:`kinmo.parallel.map_unordered` (on Ray: the task's ``max_calls``, after
+        which Ray replaces its worker process). On Ray, ``workers`` is the number of CPUs
         of a Ray started here (0: every CPU of this machine) or, on a cluster, the most
         tasks in flight per ``in_flight_per_worker`` (0: the cluster's CPU count); ``fn``,
         the items and the results travel by (cloud)pickle, and ``on_error`` is used for
@@ -141,7 +144,8 @@ def map_unordered(
     spec = parse_executor(executor)
     if spec.kind == "local":
         return _local_map(fn, items, workers, on_result, on_error, initializer=initializer,
-                          initargs=initargs, in_flight_per_worker=in_flight_per_worker)
+                          initargs=initargs, in_flight_per_worker=in_flight_per_worker,
+                          max_tasks_per_child=max_tasks_per_child)
     if not items:
         return False
     ray = _import_ray()
@@ -150,7 +154,7 @@ def map_unordered(
         n_cpus = workers if workers > 0 else max(1, int(ray.cluster_resources().get("CPU", 1)))
         n_cpus = resolve_workers(n_cpus, len(items))
         return _ray_map(ray, fn, items, n_cpus, on_result, on_error, initializer, initargs,
-                        max(1, in_flight_per_worker))
+                        max(1, in_flight_per_worker), max_tasks_per_child)
     finally:
         if started:
             ray.shutdown()
@@ -208,10 +212,11 @@ def _run_task(fn: Callable[[Any], Any], item: Any, initializer: Callable[..., An
 def _ray_map(ray: Any, fn: Callable[[T], R], items: Sequence[T], n_cpus: int,
              on_result: Callable[[T, R], bool | None], on_error: Callable[[T, Exception], R],
              initializer: Callable[..., Any] | None, initargs: tuple[Any, ...],
-             in_flight_per_worker: int) -> bool:
+             in_flight_per_worker: int, max_tasks_per_child: int | None = None) -> bool:
     import uuid
 
-    task = ray.remote(num_cpus=1, max_retries=0)(_run_task)
+    recycle = {"max_calls": max_tasks_per_child} if max_tasks_per_child else {}
+    task = ray.remote(num_cpus=1, max_retries=0, **recycle)(_run_task)
     fn_ref = ray.put(fn)  # shared by every task: shipped to the object store once
     init_key = uuid.uuid4().bytes  # a new key per call: the initializer runs again
     max_in_flight = in_flight_per_worker * n_cpus

@@ -191,6 +191,7 @@ def map_unordered(
     initializer: Callable[..., Any] | None = None,
     initargs: tuple[Any, ...] = (),
     in_flight_per_worker: int = IN_FLIGHT_PER_WORKER,
+    max_tasks_per_child: int | None = None,
 ) -> bool:
     """Apply ``fn`` to every item, in worker processes, handing results over as they come.
 
@@ -225,6 +226,11 @@ def map_unordered(
         Picklable arguments of ``initializer``.
     in_flight_per_worker : int
         Items submitted at a time per worker (bounded submission; >= 1).
+    max_tasks_per_child : int, optional
+        Replace a worker process by a fresh one after it has run this many items (and
+        run ``initializer`` again there): bounds the memory of libraries whose
+        process-wide state grows with every item (PyBullet in ``kinmo render``). None: a
+        worker lives as long as the pool. Needs Python >= 3.11 (ignored before).
 
     Returns
     -------
@@ -258,11 +264,14 @@ def map_unordered(
 
     max_in_flight = max(1, in_flight_per_worker) * n_workers
     with _sigterm_raises() as sigterm:
+        recycle = ({"max_tasks_per_child": max_tasks_per_child}
+                   if max_tasks_per_child is not None and sys.version_info >= (3, 11) else {})
         ex = ProcessPoolExecutor(
             max_workers=n_workers,
             mp_context=get_context("spawn"),
             initializer=_start_worker,
             initargs=(os.getpid(), initializer, initargs),
+            **recycle,
         )
         return _run_pool(ex, fn, items, on_result, on_error, max_in_flight, sigterm)
 

@@ -106,6 +106,10 @@ MANIFEST_COLUMNS: tuple[str, ...] = (
 )
 _STATUSES = ("ok", "skipped", "failed")
 MANIFEST_INTERVAL_S = 2.0
+#: Objects a render worker process renders before it is replaced by a fresh one: PyBullet's
+#: process-wide state grows with every object loaded (89 -> 297 MB after 100 -> 3,000 objects
+#: in one process, ``docs/results/scaling.md``), so workers are recycled to keep memory flat.
+RECYCLE_WORKERS_AFTER = 200
 
 
 @dataclass(frozen=True)
@@ -673,6 +677,7 @@ def render_dataset(
                     jobs, workers,
                     on_result=lambda job, obj_rows: record(obj_rows, bar),
                     on_error=partial(_worker_failed, frames=frames_per_object),
+                    max_tasks_per_child=RECYCLE_WORKERS_AFTER,
                     executor=executor,
                 )
             finally:
