@@ -19,6 +19,7 @@ import ray  # in the test extra: CI always has it
 
 from kinmo.errors import KinmoError
 from kinmo.executor import ExecutorSpec, map_unordered, parse_executor
+from pool_helpers import collect
 
 
 @pytest.fixture(scope="module")
@@ -31,20 +32,7 @@ def local_ray():
     ray.shutdown()
 
 
-def _collect(fn, items, workers, **kw):
-    results: dict = {}
-    errors: dict = {}
-
-    def on_result(item, result):
-        assert item not in results
-        results[item] = result
-
-    def on_error(item, e):
-        errors[item] = e
-        return "failed"
-
-    stopped = map_unordered(fn, items, workers, on_result, on_error, **kw)
-    return stopped, results, errors
+_collect = partial(collect, map_unordered)
 
 
 def test_parse_executor():

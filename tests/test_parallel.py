@@ -19,22 +19,10 @@ import pytest
 import kinmo.parallel
 from kinmo.parallel import available_cpus, map_unordered, resolve_workers
 from kinmo.prepare import _init_worker
+from pool_helpers import collect
 
 
-def _collect(fn, items, workers, **kw):
-    results: dict = {}
-    errors: dict = {}
-
-    def on_result(item, result):
-        assert item not in results
-        results[item] = result
-
-    def on_error(item, e):
-        errors[item] = e
-        return "failed"
-
-    stopped = map_unordered(fn, items, workers, on_result, on_error, **kw)
-    return stopped, results, errors
+_collect = partial(collect, map_unordered)
 
 
 # ----------------------------------------------------------------------------- worker count
