@@ -7,7 +7,9 @@ category, seeded), a motion GNN is trained on ``k - 1`` folds (the same preset) 
 the held-out fold; the predictions of all folds are the out-of-fold (OOF) predictions. Every
 edge the OOF GNN predicts moving that truly moves gives one group: its candidates
 (:func:`~kinmo.refine.selector.edge_candidates`), their features and labels (within 5° and
-0.05 of the shape's diagonal of the true axis). The ranker is fit on those groups; its
+0.05 of the shape's diagonal of the true axis). The semantic direction prior
+(:mod:`~kinmo.refine.semantic_prior`) is built from the same training objects, each shape left
+out of its own features. The ranker is fit on those groups; its
 calibration (Platt scaling of the winner's probability) is fit on ranker predictions that are
 themselves out-of-fold over the same folds. The test split is never touched.
 
@@ -35,6 +37,7 @@ from kinmo.refine.selector import (
     fit_ranker,
     shape_meshes,
 )
+from kinmo.refine.semantic_prior import SemanticPrior
 
 __all__ = ["DEFAULT_FEATURES", "EdgeGroups", "collect_groups", "fit_selector", "fold_ids",
            "oof_predictions", "select_groups", "train_ranker"]
@@ -155,8 +158,8 @@ class EdgeGroups:
                 features=np.array(FEATURES))
 
 
-def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = True
-                   ) -> EdgeGroups:
+def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = True,
+                   semantic: SemanticPrior | None = None) -> EdgeGroups:
     """Candidate groups of every truly moving edge that a prediction calls moving.
 
     Parameters
@@ -167,6 +170,9 @@ def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = 
     with_meshes : bool
         Load each shape's meshes for the swept-collision terms
         (:func:`~kinmo.refine.selector.shape_meshes`).
+    semantic : SemanticPrior, optional
+        The training objects' direction prior; each shape is left out of its own
+        (``exclude``), so the ``sem_prior`` features are out-of-fold like the GNN's.
 
     Returns
     -------
@@ -192,7 +198,7 @@ def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = 
                                             p.edges.origin[k])
             x, _ = candidate_features(g, int(i), int(j), k, cands, frames, pri,
                                       p.edges.direction[k], p.edges.origin[k], None, meshes,
-                                      seed=seed)
+                                      seed=seed, semantic=semantic, exclude=g.shape_id)
             to, td = g.edge_axis_origin[k], g.edge_axis_direction[k]
             rev = not t_true.startswith("P_")
             y = candidate_labels(cands, to, td, float(g.scale), rev)
@@ -324,16 +330,18 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     graphs = [g for g in load_cache(data) if g.shape_id in train and g.has_labels]
     if not graphs:
         raise KinmoDataError(data, "no labelled graph of the split's training ids")
+    semantic = SemanticPrior.from_graphs(graphs)
     parts = []
     for t in types:
         preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,
                                 seed=seed, threads=threads, progress=progress)
-        parts.append(collect_groups(list(preds.values()), seed=seed))
+        parts.append(collect_groups(list(preds.values()), seed=seed, semantic=semantic))
     groups = EdgeGroups(*[[v for p in parts for v in getattr(p, f)]
                           for f in EdgeGroups.__dataclass_fields__])
     if not groups.y:
         raise KinmoDataError(data, "no moving edge predicted moving in the out-of-fold predictions")
     ranker, stats = fit_selector(groups, features=DEFAULT_FEATURES, k=folds, seed=seed)
+    ranker.semantic = semantic
     ranker.meta["trained_on"] = {"data": str(data), "split": str(split), "types": list(types),
                                  "preset": preset, "folds": folds}
     groups.save(out / "oof_groups.npz")

@@ -476,7 +476,7 @@ def select_edge(
     if "feasibility" in ranker.features and axis_model is not None:
         feas, net_sign = _network_feasibility(graph, i, j, cands, axis_model, cfg, rng)
     x, sign = candidate_features(graph, i, j, edge, cands, frames, priors, gnn_direction,
-                                 gnn_origin, feas, meshes, seed=cfg.seed)
+                                 gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic)
     p = ranker.probabilities(x)
     b = int(np.argmax(p))
     sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,

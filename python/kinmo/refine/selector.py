@@ -27,7 +27,11 @@ the fixed weights let the agreement terms decide. Here instead:
    (revolute only): the distance from the line to the centroid of the moving part's own
    children (handles, knobs; ``d_child``, 0 without children) and the same for OBB-edge lines
    only (``d_child_edge``): a hinge lies at the side opposite the handle, which separates the
-   parallel edges of a door that sweep and attachment cannot tell apart.
+   parallel edges of a door that sweep and attachment cannot tell apart. The *semantic prior*
+   (``sem_prior``, :mod:`kinmo.refine.semantic_prior`): the share of the training objects'
+   joints of the same motion, category and part names whose axis is parallel to the line,
+   which separates what geometry cannot (a microwave's vertical hinge from an oven's
+   horizontal one).
 4. **A ranker** (:class:`Ranker`): a linear score ``w . x`` over the standardised features,
    turned into a softmax over the candidates of one edge (listwise), fit on out-of-fold GNN
    predictions of training objects (:func:`fit_ranker`), and a Platt calibration of the
@@ -57,6 +61,7 @@ from kinmo.refine.candidates import (
     frame_box,
     merge_candidates,
 )
+from kinmo.refine.semantic_prior import SemanticPrior
 
 __all__ = [
     "FEATURES",
@@ -80,6 +85,7 @@ FEATURES: tuple[str, ...] = (
     "frame_moving", "frame_reference", "frame_shape", "shape_aligned", "ref_aligned",
     "sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max", "attach_mesh",
     "d_child", "d_child_edge",
+    "sem_prior", "log_sem_prior",
 )
 _F = {n: k for k, n in enumerate(FEATURES)}
 #: Feature groups removed together in the ablation rows (``Ranker.drop``).
@@ -93,6 +99,7 @@ FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
     "sweep": ("sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max"),
     "feasibility": ("feasibility",),
     "handle_side": ("d_child", "d_child_edge"),
+    "semantic_prior": ("sem_prior", "log_sem_prior"),
     "kind_frame": ("kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
                    "frame_moving", "frame_reference", "frame_shape", "shape_aligned",
                    "ref_aligned"),
@@ -369,6 +376,8 @@ def candidate_features(
     fractions: tuple[float, ...] = (0.25, 0.5),
     static_cap: int = 2048,
     seed: int = 0,
+    semantic: SemanticPrior | None = None,
+    exclude: str | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-candidate features (:data:`FEATURES`) and the less-colliding sign of each line.
 
@@ -398,6 +407,11 @@ def candidate_features(
     static_cap : int
         At most this many static surface samples (random subset, ``seed``).
     seed : int
+    semantic : SemanticPrior, optional
+        Category / part-name prior on the direction (:mod:`kinmo.refine.semantic_prior`);
+        without it ``sem_prior`` is 1/3 for every line (drops out of the per-edge softmax).
+    exclude : str, optional
+        Shape id left out of the semantic prior (out-of-fold fits on training objects).
 
     Returns
     -------
@@ -509,6 +523,11 @@ def candidate_features(
     x[:, _F["shape_aligned"]] = np.abs(d).max(axis=1) >= _PARALLEL_COS
     ra = np.asarray(graph.obb_axes[reference], dtype=np.float64)
     x[:, _F["ref_aligned"]] = np.abs(d @ ra.T).max(axis=1) >= _PARALLEL_COS
+    sp = (np.full(c, 1.0 / 3.0) if semantic is None or len(semantic) == 0 else
+          semantic.probability("P" if cands.motion == "P" else "R", graph.category,
+                               graph.node_names[moving], graph.node_names[reference], d, exclude))
+    x[:, _F["sem_prior"]] = sp
+    x[:, _F["log_sem_prior"]] = np.log(sp + 0.01)
     return x, sign
 
 
@@ -557,6 +576,9 @@ class Ranker:
         ``(a, b)``; ``(1, 0)`` leaves ``p_max`` unchanged.
     meta : dict
         How it was fit (data, folds, seed, validation numbers).
+    semantic : SemanticPrior or None
+        The training objects' direction prior behind the ``sem_prior`` features (stored in
+        the same file).
     """
 
     features: tuple[str, ...]
@@ -565,6 +587,7 @@ class Ranker:
     std: np.ndarray
     platt: tuple[float, float] = (1.0, 0.0)
     meta: dict = field(default_factory=dict)
+    semantic: SemanticPrior | None = None
 
     def _x(self, x: np.ndarray) -> np.ndarray:
         idx = [_F[n] for n in self.features]
@@ -585,9 +608,12 @@ class Ranker:
 
     def to_json(self) -> dict:
         """JSON-ready dict (:func:`load_ranker` reads it back)."""
-        return {"features": list(self.features), "weights": self.weights.tolist(),
-                "mean": self.mean.tolist(), "std": self.std.tolist(),
-                "platt": list(self.platt), "meta": self.meta}
+        out = {"features": list(self.features), "weights": self.weights.tolist(),
+               "mean": self.mean.tolist(), "std": self.std.tolist(),
+               "platt": list(self.platt), "meta": self.meta}
+        if self.semantic is not None:
+            out["semantic_prior"] = self.semantic.to_json()
+        return out
 
     def save(self, path: str | Path) -> Path:
         """Write ``path`` (JSON, atomic)."""
@@ -617,12 +643,13 @@ def _load_ranker_cached(path: str) -> Ranker:
         feats = tuple(d["features"])
         w, m, s = (np.asarray(d[k], dtype=np.float64) for k in ("weights", "mean", "std"))
         platt = (float(d["platt"][0]), float(d["platt"][1]))
+        sem = SemanticPrior.from_json(d["semantic_prior"]) if "semantic_prior" in d else None
     except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
         raise KinmoDataError(path, f"not a ranker file ({type(e).__name__}: {e})") from None
     unknown = [f for f in feats if f not in _F]
     if unknown or not (len(feats) == w.size == m.size == s.size):
         raise KinmoDataError(path, f"ranker: unknown features {unknown} or inconsistent lengths")
-    return Ranker(feats, w, m, s, platt, d.get("meta", {}))
+    return Ranker(feats, w, m, s, platt, d.get("meta", {}), sem)
 
 
 def fit_ranker(
