@@ -32,7 +32,7 @@ import numpy as np
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TYPES
 
-__all__ = ["SemanticPrior", "edge_semantic_prior", "motion_of"]
+__all__ = ["SemanticPrior", "motion_of"]
 
 #: A training axis counts for a candidate line when they are within this angle.
 PARALLEL_DEG: float = 15.0
@@ -170,15 +170,3 @@ class SemanticPrior:
 
     def __len__(self) -> int:
         return len(self.joints)
-
-
-def edge_semantic_prior(prior: SemanticPrior | None, graph: PartGraph, moving: int,
-                        reference: int, type_name: str, directions: np.ndarray,
-                        exclude: str | None = None) -> np.ndarray:
-    """:meth:`SemanticPrior.probability` for one sibling edge (1/3 each without a prior)."""
-    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    if prior is None or len(prior) == 0:
-        return np.full(d.shape[0], _BASE)
-    return prior.probability(motion_of(type_name), graph.category, graph.node_names[moving],
-                             graph.node_names[reference], d, exclude)
-
