@@ -143,5 +143,6 @@ def sweep_collisions(
     on bad input (``P = 0``, ``C = 0``, zero direction, bad kind/range/parameters)."""
 
 def line_mesh_distance(origins: F64, directions: F64, vertices: F64, faces: I64) -> F64:
-    """``(C,)`` float64: distance from each infinite line to the mesh surface (parry).
+    """``(C,)`` float64: distance from each infinite line to the mesh surface (exact, by
+    projecting the mesh along the line).
     ``ValueError`` on bad input, a zero-length direction or a mesh without faces."""

@@ -164,10 +164,12 @@ def line_mesh_distance(
 ) -> np.ndarray:
     """Distance from each infinite line to a mesh surface (the "attachment" term).
 
-    A hinge or slider axis must lie on or near its reference part. The line is clipped to a
-    segment reaching well beyond the mesh's bounding box (which contains its closest point)
-    and measured with parry's ``query::distance`` against the mesh (its BVH); parallel over
-    lines, GIL released.
+    A hinge or slider axis must lie on or near its reference part. Exact, by projection: the
+    distance between an infinite line and a triangle is the 2D distance, in the plane
+    orthogonal to the line, from the line's trace to the triangle projected along it; each
+    line projects the vertices once and scans the faces (``O(V + F)``, no BVH to build; a
+    parry BVH query of a segment spanning the mesh gives the same value, 40x slower, because
+    the long segment defeats the BVH's pruning). Parallel over lines, GIL released.
 
     Parameters
     ----------

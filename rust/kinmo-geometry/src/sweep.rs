@@ -1,4 +1,4 @@
-//! Swept-collision feasibility of candidate motions, and line-to-mesh distance, on parry.
+//! Swept-collision feasibility of candidate motions on parry, and line-to-mesh distance.
 //!
 //! Source: Liu et al., "Semi-Weakly Supervised Object Kinematic Motion Prediction", CVPR
 //! 2023, Sec. 3.3 (a candidate axis is feasible when the part can move along it without
@@ -366,15 +366,111 @@ pub fn sweep_collisions(
 ///
 /// The "attachment" term of refinement: a hinge must lie on or near its reference part.
 ///
+/// Exact, by projection: the distance between an infinite line and a triangle equals the
+/// distance, in the plane orthogonal to the line, from the line's trace to the triangle
+/// projected along the line. Each line projects the mesh's vertices once (`V` dot
+/// products), then takes the 2D point-to-triangle distance of every face, stopping at 0:
+/// `O(V + F)` per line without any acceleration structure, parallel over lines (rayon).
+/// For the tens of lines and tens of thousands of faces of one refinement edge this is
+/// several times faster than a BVH query of a segment spanning the mesh
+/// ([`SweepObstacle::line_distance`], whose long segment defeats the BVH's pruning), and
+/// builds nothing.
+///
 /// # Errors
-/// As [`SweepObstacle::line_distance`].
+/// [`GeometryError::Degenerate`] for a mesh without faces or a zero-length direction;
+/// [`GeometryError::Shape`] when the lengths differ; [`GeometryError::NonFinite`];
+/// [`GeometryError::Invalid`] for coordinates beyond [`MAX_COORDINATE`].
 pub fn line_mesh_distance(
     origins: &[Point3<f64>],
     directions: &[Vector3<f64>],
     mesh: &TriMesh,
 ) -> Result<Vec<f64>> {
-    line_axes(origins, directions)?;
-    SweepObstacle::new(mesh)?.line_distance(origins, directions)
+    let axes = line_axes(origins, directions)?;
+    check_magnitude(mesh.vertices(), "mesh vertices")?;
+    if mesh.n_faces() == 0 {
+        return Err(GeometryError::Degenerate(
+            "line_mesh_distance: the mesh has no faces".to_string(),
+        ));
+    }
+    let (verts, faces) = (mesh.vertices(), mesh.faces());
+    Ok(origins
+        .par_iter()
+        .zip(axes.par_iter())
+        .map(|(o, u)| {
+            let (e1, e2) = orthonormal_pair(u);
+            let proj: Vec<[f64; 2]> = verts
+                .iter()
+                .map(|v| {
+                    let r = v - o;
+                    [r.dot(&e1), r.dot(&e2)]
+                })
+                .collect();
+            let mut best = f64::INFINITY;
+            for f in faces {
+                let d2 = origin_triangle_dist2(
+                    proj[f[0] as usize],
+                    proj[f[1] as usize],
+                    proj[f[2] as usize],
+                );
+                if d2 < best {
+                    best = d2;
+                    if best == 0.0 {
+                        break;
+                    }
+                }
+            }
+            best.sqrt()
+        })
+        .collect())
+}
+
+/// Two unit vectors completing `u` to an orthonormal basis.
+fn orthonormal_pair(u: &Unit<Vector3<f64>>) -> (Vector3<f64>, Vector3<f64>) {
+    // The coordinate axis least aligned with u keeps the cross product well conditioned.
+    let a = if u.x.abs() <= u.y.abs() && u.x.abs() <= u.z.abs() {
+        Vector3::x()
+    } else if u.y.abs() <= u.z.abs() {
+        Vector3::y()
+    } else {
+        Vector3::z()
+    };
+    let e1 = u.cross(&a).normalize();
+    let e2 = u.cross(&e1);
+    (e1, e2)
+}
+
+/// Squared 2D distance from the origin to the closed triangle `(a, b, c)` (0 inside;
+/// a degenerate triangle is its edges).
+fn origin_triangle_dist2(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    let cross = |p: [f64; 2], q: [f64; 2]| p[0] * q[1] - p[1] * q[0];
+    let (s0, s1, s2) = (cross(a, b), cross(b, c), cross(c, a));
+    let area2 = s0 + s1 + s2;
+    if area2 != 0.0 {
+        let inside = if area2 > 0.0 {
+            s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0
+        } else {
+            s0 <= 0.0 && s1 <= 0.0 && s2 <= 0.0
+        };
+        if inside {
+            return 0.0;
+        }
+    }
+    origin_segment_dist2(a, b)
+        .min(origin_segment_dist2(b, c))
+        .min(origin_segment_dist2(c, a))
+}
+
+/// Squared 2D distance from the origin to the segment `[a, b]`.
+fn origin_segment_dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let len2 = d[0] * d[0] + d[1] * d[1];
+    let t = if len2 > 0.0 {
+        (-(a[0] * d[0] + a[1] * d[1]) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let p = [a[0] + t * d[0], a[1] + t * d[1]];
+    p[0] * p[0] + p[1] * p[1]
 }
 
 /// The stepped path of one candidate sign.
@@ -975,6 +1071,28 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(48))]
+
+        /// The projected line-to-mesh distance equals parry's segment-vs-BVH distance on
+        /// random triangle soups and lines (the segment spans the mesh, so the two are the
+        /// same quantity).
+        #[test]
+        fn line_mesh_distance_matches_parry(
+            tris in prop::collection::vec(prop::array::uniform9(-1.0f64..1.0), 1..12),
+            origin in prop::array::uniform3(-2.0f64..2.0),
+            dir in prop::array::uniform3(-1.0f64..1.0),
+        ) {
+            prop_assume!(dir.iter().map(|x| x * x).sum::<f64>() > 1e-3);
+            let v: Vec<Point3<f64>> = tris
+                .iter()
+                .flat_map(|t| (0..3).map(move |k| Point3::new(t[3 * k], t[3 * k + 1], t[3 * k + 2])))
+                .collect();
+            let f: Vec<[u32; 3]> = (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+            let mesh = TriMesh::new(v, f, "soup").unwrap();
+            let (o, d) = ([Point3::from(origin)], [Vector3::from(dir)]);
+            let fast = line_mesh_distance(&o, &d, &mesh).unwrap();
+            let parry = SweepObstacle::new(&mesh).unwrap().line_distance(&o, &d).unwrap();
+            prop_assert!((fast[0] - parry[0]).abs() < 1e-7, "{} vs {}", fast[0], parry[0]);
+        }
 
         /// Random boxes and motions: no panic, fractions in [0, 1], and the mirror image of
         /// the whole scene through x = 0 (rotations about mirrored axes change handedness,

@@ -1,6 +1,6 @@
 //! Bindings of `kinmo_geometry::sweep`: `sweep_collisions`, `line_mesh_distance`.
 
-use kinmo_geometry::sweep::{self, MotionKind, SweepCandidate, SweepObstacle, SweepParams};
+use kinmo_geometry::sweep::{self, MotionKind, SweepCandidate, SweepParams};
 use kinmo_geometry::GeometryError;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -101,7 +101,7 @@ fn line_mesh_distance<'py>(
     let d = directions_from_array(&directions, o.len(), "directions")?;
     let mesh = mesh_from_arrays(&vertices, &faces, "mesh")?;
     let dist = detach(py, "line_mesh_distance", || {
-        SweepObstacle::new(&mesh)?.line_distance(&o, &d)
+        sweep::line_mesh_distance(&o, &d, &mesh)
     })?;
     Ok(array1(py, dist))
 }
