@@ -142,6 +142,17 @@ def test_prepare_logs_the_resumed_shapes(tmp_path: Path, caplog) -> None:
     assert f"{out}: resumed, 2 of 2 shapes up to date (skipped)" in caplog.messages
 
 
+def test_prepare_logs_a_damaged_cache_file_it_rebuilds(tmp_path: Path, caplog) -> None:
+    write_cabinet(tmp_path / "data" / "s1")
+    out = tmp_path / "cache"
+    assert prepare_dataset(tmp_path / "data", out, CFG, workers=1, progress=False).ok
+    (out / "s1.npz").write_bytes(b"not a zip")
+    caplog.set_level(logging.INFO, logger="kinmo")
+    assert prepare_dataset(tmp_path / "data", out, CFG, workers=1, progress=False).count("ok") == 1
+    assert any(m.startswith("rebuilding a damaged cache file: ") and "s1.npz" in m
+               for m in caplog.messages), caplog.messages
+
+
 def test_log_level_from_verbosity_and_environment() -> None:
     assert log_level(0, {}) == logging.WARNING
     assert log_level(1, {}) == logging.INFO and log_level(3, {}) == logging.DEBUG

@@ -48,6 +48,7 @@ relative to the current directory.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import time
 from collections.abc import Callable
@@ -69,6 +70,8 @@ from kinmo.stages import (
     one_line,
     source_fingerprint,
 )
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "MANIFEST_COLUMNS",
@@ -218,7 +221,8 @@ def _cached_row(npz: Path, key: str, folder: Path, config: PrepareConfig, fp: st
         return None
     try:
         graph = PartGraph.load(npz)
-    except KinmoDataError:  # unreadable, corrupt or foreign file: rebuild it
+    except KinmoDataError as e:  # unreadable, corrupt or foreign file: rebuild it
+        logger.info("rebuilding a damaged cache file: %s", e)
         return None
     meta, category, fmt = graph.meta, graph.category, graph.format
     if not matches(meta, {"cache_version": CACHE_VERSION, "config": config.as_dict(),

@@ -52,6 +52,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import logging
 import os
 import shutil
 import time
@@ -72,6 +73,8 @@ from kinmo.executor import parse_executor
 from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
 from kinmo.stages import ShapeStage, one_line
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "STATUSES",
@@ -249,7 +252,8 @@ def _link_or_copy(src: Path, dst: Path, mode: str) -> None:
         try:
             os.symlink(src.resolve(), dst)
             return
-        except OSError:
+        except OSError as e:
+            logger.debug("cannot link %s (%s): copying it", src, e.strerror or e)
             pass
     shutil.copyfile(src, dst)
 
@@ -354,6 +358,8 @@ def pseudo_label_shape(
             if p.is_file():
                 graph = PartGraph.load(p)
         if graph is None:
+            if cache is not None:
+                logger.debug("%s: not in the cache %s, building its part graph", folder, cache)
             graph = build_graph(shape)
         prior = None
         if config.refine.selector == "ranker":  # the GNN's raw outputs are its priors
@@ -433,7 +439,9 @@ def pseudo_label_shape(
         rec.status, rec.reason = "failed", one_line(f"internal error: {type(e).__name__}: {e}")
     rec.seconds = time.perf_counter() - t0
     if rec.status != "kept" and (out / rec.id).is_dir() and rec.fingerprint:
-        shutil.rmtree(out / rec.id, ignore_errors=True)  # a stale folder of an earlier run
+        logger.info("%s: no longer kept (%s), removing its folder of an earlier run",
+                    rec.id, rec.status)
+        shutil.rmtree(out / rec.id, ignore_errors=True)
     write_json(out / ".records" / f"{rec.id}.json", _record_json(rec))
     return rec
 

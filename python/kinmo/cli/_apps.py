@@ -25,7 +25,7 @@ app.add_typer(eval_app, name="eval")
 @app.callback()
 def _root(
     verbose: int = typer.Option(
-        0, "--verbose", "-v", count=True,
+        0, "--verbose", "-v", count=True, show_default=False,
         help="Show diagnostics (skipped and resumed shapes, failures, fallbacks): -v info, "
         "-vv debug. Without it the KINMO_LOG environment variable sets the level.",
     ),
