@@ -213,3 +213,29 @@ def test_bad_input_is_one_error_line(tmp_path: Path, argv: list[str], needle: st
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], r.output
     assert "Traceback" not in r.output
+
+
+def test_refine_options_reach_the_command_as_one_value() -> None:
+    """``with_refine_options``: the six options in place of ``refine``, handed over as one."""
+    import typer
+
+    from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
+
+    got = []
+    cmd = typer.Typer()
+
+    @cmd.command()
+    @with_refine_options
+    def run(first: int = typer.Option(1, "--first"), refine: RefineOptions = REFINE,
+            last: str = typer.Option("x", "--last")) -> None:
+        got.append((first, refine, last))
+
+    r = CliRunner().invoke(cmd, ["--first", "3", "--snap-angle", "20", "--box-frames",
+                                 "moving,shape", "--keep-gnn", "--last", "y"])
+    assert r.exit_code == 0, r.output
+    assert got == [(3, RefineOptions(keep_gnn=True, snap_angle=20.0, box_frames="moving,shape"), "y")]
+    assert got[0][1].config().snap_angle_deg == 20.0
+    names = [p.name for p in __import__("inspect").signature(run).parameters.values()]
+    assert names[0] == "first" and names[-1] == "last" and "snap_angle" in names
+    with pytest.raises(TypeError, match="no parameter 'refine'"):
+        with_refine_options(lambda x=1: x)

@@ -360,8 +360,9 @@ class ShapeStage(Generic[R]):
     Use as a context manager: entering takes the folder's lock (raising at once if another
     run holds it), removes the leftovers of an interrupted run (``scratch``), starts the
     progress bar and saves once with no results (``complete: false``); leaving saves the
-    results (``complete`` when every job has one), removes ``scratch`` again and releases
-    the lock, also when the run is interrupted.
+    results (``complete`` when every job has one; not when an error ends a run that has no
+    result yet), removes ``scratch`` again and releases the lock, also when the run is
+    interrupted.
 
     Parameters
     ----------
@@ -444,7 +445,7 @@ class ShapeStage(Generic[R]):
     def __exit__(self, *exc: Any) -> None:
         try:
             self.bar.__exit__(*exc)
-            if self._save is not None:
+            if self._save is not None and (self.results or exc[0] is None):
                 self._save(list(self.results), self.complete)
             self._clean()
         finally:
