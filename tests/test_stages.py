@@ -87,6 +87,11 @@ def _work(j: str) -> _Row:
     return _Row(j, "ok")
 
 
+def _work_logging(j: str) -> _Row:
+    logging.getLogger("kinmo.test_stages").info("worker says %s", j)
+    return _Row(j, "ok")
+
+
 def _stage(tmp_path: Path, saves: list, **kw) -> ShapeStage:
     return ShapeStage(tmp_path, "kinmo test", 3, progress=False,
                       save=lambda rows, complete: saves.append((len(rows), complete)), **kw)
@@ -239,3 +244,15 @@ def test_refine_options_reach_the_command_as_one_value() -> None:
     assert names[0] == "first" and names[-1] == "last" and "snap_angle" in names
     with pytest.raises(TypeError, match="no parameter 'refine'"):
         with_refine_options(lambda x=1: x)
+
+
+def test_worker_processes_log_at_the_parent_level(tmp_path: Path, capfd, _restore_kinmo_logger) -> None:
+    """Diagnostics of the work done in worker processes reach stderr at the parent's level."""
+    log = _restore_kinmo_logger
+    for level, shown in ((logging.INFO, True), (logging.WARNING, False)):
+        log.setLevel(level)
+        with _stage(tmp_path, []) as stage:
+            stage.map(_work_logging, ["a", "b"], 2, lambda j, e: _Row(j, "failed"))
+        assert sorted(r.status for r in stage.results) == ["ok", "ok"]
+        err = capfd.readouterr().err
+        assert ("worker says a" in err and "worker says b" in err) is shown, err

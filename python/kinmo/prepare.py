@@ -75,6 +75,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = [
     "MANIFEST_COLUMNS",
+    "MANIFEST_INTERVAL_S",
     "ManifestRow",
     "PrepareConfig",
     "PrepareResult",

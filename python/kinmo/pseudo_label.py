@@ -76,7 +76,7 @@ from kinmo.io import write_json, write_text
 from kinmo.executor import parse_executor
 from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
-from kinmo.stages import ShapeStage, one_line
+from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
 
 logger = logging.getLogger(__name__)
 
@@ -258,7 +258,6 @@ def _link_or_copy(src: Path, dst: Path, mode: str) -> None:
             return
         except OSError as e:
             logger.debug("cannot link %s (%s): copying it", src, e.strerror or e)
-            pass
     shutil.copyfile(src, dst)
 
 
@@ -346,7 +345,6 @@ def pseudo_label_shape(
     from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
     from kinmo.predict import consistent_fine, infer_edges, infer_edges_with_priors
     from kinmo.refine.refine import refine_predictions
-    from kinmo.stages import cache_key, source_fingerprint
 
     t0 = time.perf_counter()
     folder = Path(folder)
@@ -489,8 +487,6 @@ def _worker_failed(folder: Path, e: Exception) -> ShapeRecord:
 
 def _current_record(out: Path, folder: Path, models_fp: str, config: PseudoLabelConfig
                     ) -> ShapeRecord | None:
-    from kinmo.stages import source_fingerprint
-
     p = out / ".records" / f"{folder.name}.json"
     if not p.is_file():
         return None

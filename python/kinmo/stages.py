@@ -535,7 +535,9 @@ class ShapeStage(Generic[R]):
             As :func:`kinmo.executor.map_unordered`; ``on_error`` turns a worker failure
             into the job's result (it is logged as a warning).
         **kwargs
-            ``initializer``, ``initargs``, ``max_tasks_per_child``, ``executor``.
+            ``initializer``, ``initargs``, ``max_tasks_per_child``, ``executor``. Each
+            worker process first sets the ``kinmo`` loggers to this process's level, with
+            a handler to its stderr, then runs ``initializer(*initargs)``.
 
         Returns
         -------
@@ -547,6 +549,24 @@ class ShapeStage(Generic[R]):
             logger.warning("%s", _reason(_status_rows(res)[0]))
             return res
 
+        # worker processes log at this process's level (their records go to their stderr)
+        level = logging.getLogger("kinmo").getEffectiveLevel()
+        kwargs["initargs"] = (level, kwargs.pop("initializer", None),
+                              tuple(kwargs.pop("initargs", ())))
         self.stopped = bool(map_unordered(fn, jobs, workers, lambda job, res: self.record(res),
-                                          failed, **kwargs))
+                                          failed, initializer=_init_worker, **kwargs))
         return self.stopped
+
+
+def _init_worker(level: int, initializer: Callable[..., Any] | None,
+                 initargs: tuple[Any, ...]) -> None:
+    """In a worker process: the ``kinmo`` loggers at the parent's level, writing to stderr,
+    then the stage's own initializer."""
+    log = logging.getLogger("kinmo")
+    if not log.handlers:
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("%(levelname)-8s %(message)s"))
+        log.addHandler(handler)
+    log.setLevel(level)
+    if initializer is not None:
+        initializer(*initargs)
