@@ -46,7 +46,7 @@ and ``OUT/summary.csv`` counts them per category. Shapes run in parallel worker 
 
 Frames and units: mesh frame (y-up), mesh units; hinge limits in degrees.
 
-Length: about 620 lines, 180 of them docstrings: the judgement of one shape
+Length: over 500 lines, about 30 % of them docstrings: the judgement of one shape
 (:func:`pseudo_label_shape`), the folder it becomes, and its record and tables are one
 topic; the run itself is :mod:`kinmo.stages`.
 """
