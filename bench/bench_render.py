@@ -45,7 +45,8 @@ def bench_object(folder: Path, sizes: list[int], frames: int) -> list[dict]:
     from kinmo.data.readers import read_shape
     from kinmo.render.ancsh_gt import link_meshes, rest_geometry
     from kinmo.render.camera import Camera, back_project
-    from kinmo.render.dataset import RenderConfig, _save_frame, frame_rng, render_frame
+    from kinmo.render.dataset import RenderConfig, frame_rng, render_frame
+    from kinmo.render.frames import save_frame as _save_frame
     from kinmo.render.scene import Scene
 
     shape = read_shape(folder)

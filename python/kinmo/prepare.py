@@ -31,9 +31,10 @@ file, ``.lock``, enforces it).
 
 Parallelism: :func:`prepare_one` is a pure function of picklable arguments returning a
 :class:`ManifestRow`; it reads, builds, saves and reports one shape and never raises for bad
-input. :func:`prepare_dataset` maps it over the shapes with :func:`kinmo.parallel.map_unordered`
-(a ``spawn`` process pool, so Rust thread pools are never forked); the same function can be
-shipped unchanged to another executor (e.g. ``ray.remote(prepare_one)``) for cluster runs.
+input. :func:`prepare_dataset` runs it over the shapes with the stage machinery of
+:mod:`kinmo.stages` (manifest, resume, lock, progress bar, worker-failure rows) on the
+executor chosen with ``executor`` (:mod:`kinmo.executor`: a ``spawn`` process pool, so Rust
+thread pools are never forked, or Ray).
 
 Odd input: a shape that fails (a mesh without faces included, even one of several of a
 part) is a ``failed`` row naming the file; file and folder names that are not UTF-8 are kept
@@ -46,26 +47,35 @@ relative to the current directory.
 
 from __future__ import annotations
 
-import csv
-import hashlib
-import io
 import json
+import logging
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
-from kinmo.progress import CountingBar
+from kinmo import stages
 from kinmo.errors import KinmoDataError
-from kinmo.executor import map_unordered
-from kinmo.io import folder_lock, output_dir
+from kinmo.io import output_dir
 from kinmo.parallel import available_cpus, resolve_workers
+from kinmo.stages import (
+    MANIFEST_INTERVAL_S,
+    ShapeStage,
+    StageRow,
+    cache_key,
+    matches,
+    one_line,
+    source_fingerprint,
+)
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "MANIFEST_COLUMNS",
+    "MANIFEST_INTERVAL_S",
     "ManifestRow",
     "PrepareConfig",
     "PrepareResult",
@@ -92,9 +102,6 @@ MANIFEST_COLUMNS: tuple[str, ...] = (
     "seconds",
     "source",
 )
-#: Minimum seconds between two manifest rewrites during a run.
-MANIFEST_INTERVAL_S = 2.0
-_STATUSES = ("ok", "skipped", "failed")
 
 
 @dataclass(frozen=True)
@@ -138,7 +145,7 @@ class PrepareConfig:
 
 
 @dataclass
-class ManifestRow:
+class ManifestRow(StageRow):
     """One shape's line in the manifest (see :data:`MANIFEST_COLUMNS`).
 
     Counts are ``None`` when unknown (failed shapes). ``error`` is one line naming the file
@@ -159,10 +166,7 @@ class ManifestRow:
     fingerprint: str = ""
     seconds: float = 0.0
 
-    def as_dict(self) -> dict[str, Any]:
-        """Dict in :data:`MANIFEST_COLUMNS` order."""
-        d = asdict(self)
-        return {k: d[k] for k in MANIFEST_COLUMNS}
+    columns: ClassVar[tuple[str, ...]] = MANIFEST_COLUMNS
 
 
 @dataclass
@@ -207,65 +211,6 @@ class PrepareResult:
 # ------------------------------------------------------------------------------ per shape
 
 
-def source_fingerprint(folder: str | Path) -> str:
-    """Fingerprint of a shape folder's files: relative paths, sizes, modification times.
-
-    Parameters
-    ----------
-    folder : str or Path
-
-    Returns
-    -------
-    str
-        16 hex digits (SHA-256 prefix). Changes when any file is added, removed, resized or
-        touched.
-
-    Raises
-    ------
-    KinmoDataError
-        The folder cannot be listed.
-    """
-    folder = Path(folder)
-    entries: list[str] = []
-
-    def walk(d: Path, rel: str) -> None:
-        with os.scandir(d) as it:
-            for e in it:
-                name = f"{rel}{e.name}"
-                if e.is_dir(follow_symlinks=False):
-                    walk(Path(e.path), name + "/")
-                else:
-                    try:
-                        st = e.stat()
-                        entries.append(f"{name}\0{st.st_size}\0{st.st_mtime_ns}")
-                    except OSError:
-                        entries.append(f"{name}\0?")
-
-    try:
-        walk(folder, "")
-    except OSError as e:
-        raise KinmoDataError(folder, f"cannot list the folder: {e.strerror or e}") from None
-    # surrogateescape: a file name that is not UTF-8 counts by its bytes, never fails
-    h = hashlib.sha256("\n".join(sorted(entries)).encode("utf-8", "surrogateescape"))
-    return h.hexdigest()[:16]
-
-
-def cache_key(folder: str | Path, root: str | Path) -> str:
-    """Cache file stem of a shape folder (see the module docstring)."""
-    folder, root = Path(folder), Path(root)
-    try:
-        rel = folder.relative_to(root)
-    except ValueError:
-        rel = Path(folder.name)
-    if rel == Path("."):
-        rel = Path(folder.name)
-    return "__".join(rel.parts)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
 def _cached_row(npz: Path, key: str, folder: Path, config: PrepareConfig, fp: str) -> ManifestRow | None:
     """The row of an up-to-date cache file, or None when it must be (re)built.
 
@@ -277,14 +222,12 @@ def _cached_row(npz: Path, key: str, folder: Path, config: PrepareConfig, fp: st
         return None
     try:
         graph = PartGraph.load(npz)
-    except KinmoDataError:  # unreadable, corrupt or foreign file: rebuild it
+    except KinmoDataError as e:  # unreadable, corrupt or foreign file: rebuild it
+        logger.info("rebuilding a damaged cache file: %s", e)
         return None
     meta, category, fmt = graph.meta, graph.category, graph.format
-    if (
-        meta.get("cache_version") != CACHE_VERSION
-        or meta.get("config") != config.as_dict()
-        or meta.get("fingerprint") != fp
-    ):
+    if not matches(meta, {"cache_version": CACHE_VERSION, "config": config.as_dict(),
+                          "fingerprint": fp}):
         return None
     c = meta.get("counts", {})
     return ManifestRow(
@@ -377,9 +320,9 @@ def prepare_one(
         row.n_sibling_edges, row.n_moving_joints = c["n_sibling_edges"], c["n_moving_joints"]
         row.status = "ok"
     except KinmoDataError as e:
-        row.error = _one_line(str(e))
+        row.error = one_line(str(e))
     except Exception as e:  # a bug or an environment problem: still one row, the run goes on
-        row.error = _one_line(f"{folder}: internal error {type(e).__name__}: {e}")
+        row.error = one_line(f"{folder}: internal error {type(e).__name__}: {e}")
     if row.status == "failed":
         # Best effort: fill the format and category when they are readable.
         try:
@@ -394,43 +337,6 @@ def prepare_one(
 # ------------------------------------------------------------------------------- manifest
 
 
-def _manifest_csv(rows: list[ManifestRow]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(MANIFEST_COLUMNS), lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        d = r.as_dict()
-        w.writerow({k: "" if v is None else v for k, v in d.items()})
-    return buf.getvalue()
-
-
-def _write_manifest(
-    out: Path, root: Path, config: PrepareConfig, rows: list[ManifestRow], n_shapes: int,
-    complete: bool,
-) -> None:
-    from kinmo import __version__
-    from kinmo.data.graph import CACHE_VERSION
-    from kinmo.io import write_json, write_text
-
-    rows = sorted(rows, key=lambda r: r.id)
-    # surrogateescape: non-UTF-8 folder names are written back as their bytes (read_manifest
-    # reads them the same way); manifest.json escapes them (\udcxx)
-    write_text(out / "manifest.csv", _manifest_csv(rows), errors="surrogateescape")
-    write_json(
-        out / "manifest.json",
-        {
-            "kinmo_version": __version__,
-            "cache_version": CACHE_VERSION,
-            "root": str(root),
-            "config": config.as_dict(),
-            "n_shapes": n_shapes,
-            "complete": complete,
-            "counts": {s: sum(r.status == s for r in rows) for s in _STATUSES},
-            "shapes": [r.as_dict() for r in rows],
-        },
-    )
-
-
 def read_manifest(path: str | Path) -> list[ManifestRow]:
     """Read ``manifest.csv`` (or a cache folder holding one) back into rows.
 
@@ -439,33 +345,7 @@ def read_manifest(path: str | Path) -> list[ManifestRow]:
     KinmoDataError
         Missing or malformed manifest.
     """
-    path = Path(path)
-    if path.is_dir():
-        path = path / "manifest.csv"
-    try:
-        with open(path, newline="", encoding="utf-8", errors="surrogateescape") as f:
-            reader = csv.DictReader(f)
-            if tuple(reader.fieldnames or ()) != MANIFEST_COLUMNS:
-                raise KinmoDataError(path, f"unexpected columns {reader.fieldnames}")
-            out = []
-            for d in reader:
-                kw: dict[str, Any] = {}
-                for fl in fields(ManifestRow):
-                    v = d[fl.name]
-                    if fl.name.startswith("n_"):
-                        kw[fl.name] = int(v) if v != "" else None
-                    elif fl.name == "seconds":
-                        kw[fl.name] = float(v) if v != "" else 0.0
-                    else:
-                        kw[fl.name] = v
-                out.append(ManifestRow(**kw))
-            return out
-    except FileNotFoundError:
-        raise KinmoDataError(path, "file is missing") from None
-    except (ValueError, KeyError, csv.Error) as e:
-        if isinstance(e, KinmoDataError):
-            raise
-        raise KinmoDataError(path, f"malformed manifest: {e}") from None
+    return stages.read_manifest(path, ManifestRow)
 
 
 def check_manifest(cache: str | Path) -> list[ManifestRow]:
@@ -524,17 +404,6 @@ def default_cache_dir(root: str | Path) -> Path:
     return Path("cache") / Path(root).resolve().name
 
 
-def _clean_tmp(out: Path) -> int:
-    n = 0
-    for p in out.glob(".*.tmp"):
-        try:
-            p.unlink()
-            n += 1
-        except OSError:
-            pass
-    return n
-
-
 def _init_worker(threads: int) -> None:
     # Rust (rayon) thread pools size themselves on first use: give each worker its share.
     os.environ.setdefault("RAYON_NUM_THREADS", str(threads))
@@ -551,7 +420,7 @@ def _worker_failed(job: tuple[Path, str], e: Exception) -> ManifestRow:
     f, key = job
     return ManifestRow(
         id=key, source=str(f), status="failed",
-        error=_one_line(f"{f}: worker process failed: {type(e).__name__}: {e}"),
+        error=stages.worker_error(f, e),
     )
 
 
@@ -603,70 +472,36 @@ def prepare_dataset(
     t0 = time.perf_counter()
     config = config or PrepareConfig()
     root = Path(root)
-    from kinmo.data.readers import find_shapes
-
-    folders = find_shapes(root)
-    if not folders:
-        raise KinmoDataError(
-            root, "no shape folders found (folders holding result.json or mobility_v2.json)"
-        )
+    jobs = stages.shape_jobs(root)
     out = output_dir(out if out is not None else default_cache_dir(root))
-    jobs = [(f, cache_key(f, root)) for f in folders]
 
-    rows: dict[str, ManifestRow] = {}
-    stopped = False
-    with folder_lock(out, "kinmo prepare"):
-        _clean_tmp(out)
-        # An incomplete manifest first: a run killed at any point leaves ``complete: false``
-        # (readers then say how many graphs are missing, :func:`check_manifest`).
-        _write_manifest(out, root, config, [], len(jobs), complete=False)
-        last_write = time.monotonic()
+    def save(rows: list[ManifestRow], complete: bool) -> None:
+        from kinmo.data.graph import CACHE_VERSION
 
-        def record(row: ManifestRow, bar: Any) -> bool:
-            nonlocal last_write
-            rows[row.id] = row
-            if on_row is not None:
-                on_row(row)
-            if bar is not None:
-                bar.advance(failed=row.status == "failed")
-            now = time.monotonic()
-            if now - last_write >= MANIFEST_INTERVAL_S:
-                _write_manifest(out, root, config, list(rows.values()), len(jobs), False)
-                last_write = now
-            return strict and row.status == "failed"
+        stages.write_manifest(
+            out, sorted(rows, key=lambda r: r.id), MANIFEST_COLUMNS,
+            {"cache_version": CACHE_VERSION, "root": str(root), "config": config.as_dict(),
+             "n_shapes": len(jobs)}, "shapes", complete)
 
-        with CountingBar(len(jobs), progress, "prepare", root.name) as bar:
-            try:
-                # Up-to-date shapes are settled here, so that a resumed run starts no worker
-                # for them (prepare_one checks again, for callers that use it alone).
-                todo = []
-                for f, key in jobs:
-                    cached = None if force else _up_to_date(f, key, out, config)
-                    if cached is not None:
-                        record(cached, bar)
-                    else:
-                        todo.append((f, key))
-                n_workers = resolve_workers(workers, len(todo))
-                stopped = map_unordered(
-                    partial(_prepare_job, out=out, config=config, force=force),
-                    todo, n_workers,
-                    on_result=lambda job, row: record(row, bar),
-                    on_error=_worker_failed,
-                    initializer=_init_worker,
-                    initargs=(max(1, available_cpus() // n_workers),),
-                    executor=executor,
-                )
-            finally:
-                _write_manifest(
-                    out, root, config, list(rows.values()), len(jobs),
-                    complete=len(rows) == len(jobs),
-                )
-    result = PrepareResult(
+    # The manifest is written incomplete first: a run killed at any point leaves
+    # ``complete: false`` (readers then say how many graphs are missing, check_manifest).
+    stage: ShapeStage[ManifestRow] = ShapeStage(
+        out, "kinmo prepare", len(jobs), save=save, title="prepare", description=root.name,
+        progress=progress, on_result=on_row, stop_on_failure=strict)
+    with stage:
+        # Up-to-date shapes are settled here, so that a resumed run starts no worker for
+        # them (prepare_one checks again, for callers that use it alone).
+        todo = stage.resume(jobs, None if force else (lambda job: _up_to_date(*job, out, config)))
+        n_workers = resolve_workers(workers, len(todo))
+        stage.map(
+            partial(_prepare_job, out=out, config=config, force=force), todo, n_workers,
+            _worker_failed, initializer=_init_worker,
+            initargs=(max(1, available_cpus() // n_workers),), executor=executor,
+        )
+    return PrepareResult(
         out=out,
-        rows=sorted(rows.values(), key=lambda r: r.id),
+        rows=sorted(stage.results, key=lambda r: r.id),
         n_shapes=len(jobs),
         seconds=time.perf_counter() - t0,
-        stopped=stopped,
+        stopped=stage.stopped,
     )
-    return result
-

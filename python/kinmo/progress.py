@@ -1,8 +1,107 @@
-"""The rich progress bar of kinmo's per-shape stages (prepare, render, pseudo-label)."""
+"""What kinmo shows on stderr while it works: rich progress bars and :mod:`logging` diagnostics.
+
+Both go to one rich console on stderr (:func:`stderr_console`), so a diagnostic logged while a
+progress bar is live is printed above the bar instead of breaking it.
+
+- :class:`CountingBar`: the progress bar of the per-shape stages (prepare, render,
+  pseudo-label, :mod:`kinmo.stages`) with running counters, e.g. of failures.
+- Diagnostics (shapes skipped or resumed, failed shapes, worker failures, fallbacks) are
+  records of the ``kinmo`` logger hierarchy (``logging.getLogger(__name__)`` in the module
+  that emits them). :func:`setup_logging` gives that hierarchy one
+  :class:`rich.logging.RichHandler` on the stderr console and its level: the command line
+  calls it with the count of ``--verbose/-v`` (0: warnings, ``-v``: info, ``-vv``: debug);
+  without ``-v`` the environment variable :data:`LOG_ENV` (``KINMO_LOG=info``, a level name
+  or number) sets it. Library users configure :mod:`logging` as they like instead.
+"""
 
 from __future__ import annotations
 
+import logging
+import os
+from collections.abc import Mapping
 from typing import Any
+
+__all__ = ["LOG_ENV", "CountingBar", "log_level", "setup_logging", "stderr_console"]
+
+#: Environment variable giving the ``kinmo`` loggers' level when ``-v`` is not given.
+LOG_ENV = "KINMO_LOG"
+
+_CONSOLE: Any = None
+
+
+def stderr_console() -> Any:
+    """The rich :class:`~rich.console.Console` on stderr shared by progress bars and logging.
+
+    It writes to whatever ``sys.stderr`` is at the time (so captured streams of tests work).
+    """
+    global _CONSOLE
+    if _CONSOLE is None:
+        from rich.console import Console
+
+        _CONSOLE = Console(stderr=True)
+    return _CONSOLE
+
+
+def log_level(verbosity: int = 0, environ: Mapping[str, str] | None = None) -> int:
+    """The ``kinmo`` loggers' level for ``verbosity`` (count of ``-v``) and :data:`LOG_ENV`.
+
+    Parameters
+    ----------
+    verbosity : int
+        0: :data:`LOG_ENV` if set, else ``WARNING``; 1: ``INFO``; 2 or more: ``DEBUG``.
+    environ : mapping, optional
+        ``os.environ`` by default.
+
+    Returns
+    -------
+    int
+        A :mod:`logging` level.
+
+    Raises
+    ------
+    KinmoError
+        :data:`LOG_ENV` holds neither a level name (``debug``, ``info``, ``warning``,
+        ``error``) nor a number.
+    """
+    if verbosity >= 2:
+        return logging.DEBUG
+    if verbosity == 1:
+        return logging.INFO
+    value = (os.environ if environ is None else environ).get(LOG_ENV, "").strip()
+    if not value:
+        return logging.WARNING
+    if value.isdigit():
+        return int(value)
+    level = logging.getLevelName(value.upper())
+    if not isinstance(level, int):
+        from kinmo.errors import KinmoError
+
+        raise KinmoError(f"{LOG_ENV}={value!r}: expected debug, info, warning, error or a number")
+    return level
+
+
+def setup_logging(verbosity: int = 0, environ: Mapping[str, str] | None = None) -> logging.Logger:
+    """Give the ``kinmo`` logger its level (:func:`log_level`) and one rich handler on stderr.
+
+    Calling it again replaces the handler it installed before (never stacks them).
+
+    Returns
+    -------
+    logging.Logger
+        The ``kinmo`` logger.
+    """
+    from rich.logging import RichHandler
+
+    log = logging.getLogger("kinmo")
+    log.setLevel(log_level(verbosity, environ))
+    for h in list(log.handlers):
+        if getattr(h, "_kinmo", False):
+            log.removeHandler(h)
+    handler = RichHandler(console=stderr_console(), show_path=False, markup=False,
+                          rich_tracebacks=False)
+    handler._kinmo = True  # type: ignore[attr-defined]
+    log.addHandler(handler)
+    return log
 
 
 class CountingBar:
@@ -35,7 +134,6 @@ class CountingBar:
 
     def __enter__(self) -> CountingBar:
         if self.enabled:
-            from rich.console import Console
             from rich.progress import (
                 BarColumn,
                 MofNCompleteColumn,
@@ -55,7 +153,7 @@ class CountingBar:
                 TextColumn(fields),
                 TimeElapsedColumn(),
                 TimeRemainingColumn(),
-                console=Console(stderr=True),
+                console=stderr_console(),
             )
             self._progress.__enter__()
             self._task = self._progress.add_task(self.description, total=self.total, **self.counts)

@@ -41,17 +41,22 @@ is complete or absent. Each processed shape leaves a record ``OUT/.records/<id>.
 shapes whose record is current, so an interrupted run resumes. ``OUT/shapes.csv`` lists every
 shape (status ``kept``, ``no_moving_joint``, ``below_threshold`` or ``failed`` with the reason)
 and ``OUT/summary.csv`` counts them per category. Shapes run in parallel worker processes
-(``spawn``; each loads the models once).
+(``spawn`` or Ray; each loads the models once) through the stage machinery of
+:mod:`kinmo.stages` (lock, resume, progress bar, worker-failure records).
 
 Frames and units: mesh frame (y-up), mesh units; hinge limits in degrees.
+
+Length: over 500 lines, about 30 % of them docstrings: the judgement of one shape
+(:func:`pseudo_label_shape`), the folder it becomes, and its record and tables are one
+topic; the run itself is :mod:`kinmo.stages`.
 """
 
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
+import logging
 import os
 import shutil
 import time
@@ -65,12 +70,15 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from kinmo import stages
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.progress import CountingBar
-from kinmo.io import folder_lock, write_json, write_text
-from kinmo.executor import map_unordered, parse_executor
+from kinmo.io import write_json, write_text
+from kinmo.executor import parse_executor
 from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
+from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "STATUSES",
@@ -201,11 +209,6 @@ class PseudoLabelResult:
 # ----------------------------------------------------------------------------- fingerprints
 
 
-def _file_digest(path: Path) -> str:
-    st = path.stat()
-    return f"{path.resolve()}:{st.st_size}:{st.st_mtime_ns}"
-
-
 def _models_fingerprint(gnn_run: Path, axis_run: Path) -> str:
     gnn = gnn_run / "model.pt" if gnn_run.is_dir() else gnn_run
     axis = axis_run / "model.pt" if axis_run.is_dir() else axis_run
@@ -214,13 +217,12 @@ def _models_fingerprint(gnn_run: Path, axis_run: Path) -> str:
     for p in (gnn, axis):
         if not p.is_file():
             raise KinmoDataError(p, "checkpoint is missing")
-    return hashlib.sha256(f"{_file_digest(gnn)}|{_file_digest(axis)}".encode()).hexdigest()[:16]
+    return stages.digest(stages.file_fingerprint(gnn), stages.file_fingerprint(axis))
 
 
 def _fingerprint(source_fp: str, models_fp: str, config: PseudoLabelConfig) -> str:
-    blob = json.dumps([_RECORD_VERSION, source_fp, models_fp, config.model_dump(mode="json")],
-                      sort_keys=True)
-    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+    return stages.json_digest([_RECORD_VERSION, source_fp, models_fp,
+                               config.model_dump(mode="json")])
 
 
 # ----------------------------------------------------------------------------- one shape
@@ -249,17 +251,13 @@ def _load_models(gnn_run: Path, axis_run: Path, device: str) -> _Models:
     return _Models(load_run(gnn_run, device), axis, fp, str(gnn_run), str(axis_run))
 
 
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
 def _link_or_copy(src: Path, dst: Path, mode: str) -> None:
     if mode == "symlink":
         try:
             os.symlink(src.resolve(), dst)
             return
-        except OSError:
-            pass
+        except OSError as e:
+            logger.debug("cannot link %s (%s): copying it", src, e.strerror or e)
     shutil.copyfile(src, dst)
 
 
@@ -346,7 +344,6 @@ def pseudo_label_shape(
     from kinmo.data.readers import HIERARCHY_FILES, read_shape
     from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
     from kinmo.predict import consistent_fine, infer_edges, infer_edges_with_priors
-    from kinmo.prepare import cache_key, source_fingerprint
     from kinmo.refine.refine import refine_predictions
 
     t0 = time.perf_counter()
@@ -363,6 +360,8 @@ def pseudo_label_shape(
             if p.is_file():
                 graph = PartGraph.load(p)
         if graph is None:
+            if cache is not None:
+                logger.debug("%s: not in the cache %s, building its part graph", folder, cache)
             graph = build_graph(shape)
         prior = None
         if config.refine.selector == "ranker":  # the GNN's raw outputs are its priors
@@ -437,12 +436,14 @@ def pseudo_label_shape(
                         shutil.rmtree(stage, ignore_errors=True)
                 rec.status = "kept"
     except (KinmoError, OSError, ValueError) as e:
-        rec.status, rec.reason = "failed", _one_line(e)
+        rec.status, rec.reason = "failed", one_line(e)
     except Exception as e:  # keep a long batch going; the reason names the error type
-        rec.status, rec.reason = "failed", _one_line(f"internal error: {type(e).__name__}: {e}")
+        rec.status, rec.reason = "failed", one_line(f"internal error: {type(e).__name__}: {e}")
     rec.seconds = time.perf_counter() - t0
     if rec.status != "kept" and (out / rec.id).is_dir() and rec.fingerprint:
-        shutil.rmtree(out / rec.id, ignore_errors=True)  # a stale folder of an earlier run
+        logger.info("%s: no longer kept (%s), removing its folder of an earlier run",
+                    rec.id, rec.status)
+        shutil.rmtree(out / rec.id, ignore_errors=True)
     write_json(out / ".records" / f"{rec.id}.json", _record_json(rec))
     return rec
 
@@ -478,7 +479,7 @@ def _worker_run(folder: str | Path, out: str, config_json: dict, cache: str | No
 def _worker_failed(folder: Path, e: Exception) -> ShapeRecord:
     # the worker raised or died (e.g. killed for memory)
     return ShapeRecord(id=folder.name, category="unknown", status="failed", source=str(folder),
-                       reason=_one_line(f"worker process failed: {type(e).__name__}: {e}"))
+                       reason=stages.worker_error(folder, e))
 
 
 # ----------------------------------------------------------------------------- the dataset
@@ -486,8 +487,6 @@ def _worker_failed(folder: Path, e: Exception) -> ShapeRecord:
 
 def _current_record(out: Path, folder: Path, models_fp: str, config: PseudoLabelConfig
                     ) -> ShapeRecord | None:
-    from kinmo.prepare import source_fingerprint
-
     p = out / ".records" / f"{folder.name}.json"
     if not p.is_file():
         return None
@@ -591,64 +590,31 @@ def pseudo_label_dataset(
     KinmoError
         Another ``kinmo pseudo-label`` is writing ``out``.
     """
-    from kinmo.data.readers import find_shapes
-
     config = config or PseudoLabelConfig()
     t0 = time.perf_counter()
     data, out, gnn_run, axis_run = Path(data), Path(out), Path(gnn_run), Path(axis_run)
-    folders = find_shapes(data)
-    if not folders:
-        raise KinmoDataError(data, "no shape folder found")
+    folders = [f for f, _ in stages.shape_jobs(data)]
+    models_fp = _models_fingerprint(gnn_run, axis_run)  # raises for a missing checkpoint
     out.mkdir(parents=True, exist_ok=True)
-    with folder_lock(out, "kinmo pseudo-label"):
-        return _label_all(data, out, gnn_run, axis_run, folders, config, workers, cache, force,
-                          progress, on_record, t0, executor)
-
-
-def _label_all(data: Path, out: Path, gnn_run: Path, axis_run: Path, folders: list[Path],
-               config: PseudoLabelConfig, workers: int, cache: str | Path | None, force: bool,
-               progress: bool, on_record: Callable[[ShapeRecord], None] | None, t0: float,
-               executor: str = "local") -> PseudoLabelResult:
-    """The body of :func:`pseudo_label_dataset`, run while holding ``out``'s lock."""
-    shutil.rmtree(out / ".staging", ignore_errors=True)  # leftovers of an interrupted run
-    models_fp = _models_fingerprint(gnn_run, axis_run)
-    records: dict[str, ShapeRecord] = {}
-    todo: list[Path] = []
-    for f in folders:
-        rec = None if force else _current_record(out, f, models_fp, config)
-        if rec is not None:
-            records[str(f)] = rec
-        else:
-            todo.append(f)
-    n_skipped = len(records)
-    # 0: one per CPU; a negative count runs in this process
-    workers = resolve_workers(workers, len(todo)) if workers >= 0 else 1
-    bar = CountingBar(len(folders), progress, "pseudo-label", "shapes", {"kept": "green", "failed": "red"})
-    with bar:
-        for r in records.values():
-            bar.advance(kept=r.status == "kept", failed=r.status == "failed")
-
-        def record(folder: Path, rec: ShapeRecord) -> None:
-            records[str(folder)] = rec
-            bar.advance(kept=rec.status == "kept", failed=rec.status == "failed")
-            if on_record is not None:
-                on_record(rec)
-            if len(records) % 10 == 0:
-                _write_tables(out, list(records.values()))
-
+    stage: ShapeStage[ShapeRecord] = ShapeStage(
+        out, "kinmo pseudo-label", len(folders), save=lambda recs, _: _write_tables(out, recs),
+        title="pseudo-label", description="shapes", counters={"kept": "green", "failed": "red"},
+        progress=progress, on_result=on_record, scratch=(".staging",), save_at_start=False)
+    with stage:
+        todo = stage.resume(folders, None if force else
+                            (lambda f: _current_record(out, f, models_fp, config)))
         if todo:
-            local = parse_executor(executor).kind == "local"
-            if workers == 1 and local:  # in this process: map_unordered calls fn directly
+            # 0: one per CPU; a negative count runs in this process
+            workers = resolve_workers(workers, len(todo)) if workers >= 0 else 1
+            if workers == 1 and parse_executor(executor).kind == "local":
+                # in this process: map_unordered calls fn directly, no initializer
                 models = _load_models(gnn_run, axis_run, config.device)
                 fn = partial(pseudo_label_shape, out=out, models=models, config=config,
                              cache=cache, root=data)
             else:  # each worker loads the models once (_worker_init)
                 fn = partial(_worker_run, out=str(out), config_json=config.model_dump(mode="json"),
                              cache=None if cache is None else str(cache), root=str(data))
-            map_unordered(fn, todo, workers, record, _worker_failed, initializer=_worker_init,
-                          initargs=(str(gnn_run), str(axis_run), config.device), executor=executor)
-    recs = sorted(records.values(), key=lambda r: r.id)
-    _write_tables(out, recs)
-    shutil.rmtree(out / ".staging", ignore_errors=True)
-    return PseudoLabelResult(out, recs, n_skipped, time.perf_counter() - t0)
-
+            stage.map(fn, todo, workers, _worker_failed, initializer=_worker_init,
+                      initargs=(str(gnn_run), str(axis_run), config.device), executor=executor)
+    return PseudoLabelResult(out, sorted(stage.results, key=lambda r: r.id), stage.n_skipped,
+                             time.perf_counter() - t0)

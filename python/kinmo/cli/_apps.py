@@ -20,3 +20,19 @@ eval_app = typer.Typer(
     invoke_without_command=True,
 )
 app.add_typer(eval_app, name="eval")
+
+
+@app.callback()
+def _root(
+    verbose: int = typer.Option(
+        0, "--verbose", "-v", count=True, show_default=False,
+        help="Show diagnostics (skipped and resumed shapes, failures, fallbacks): -v info, "
+        "-vv debug. Without it the KINMO_LOG environment variable sets the level.",
+    ),
+) -> None:
+    """Predict how the parts of 3D objects move (PartNet / PartNet-Mobility)."""
+    from kinmo.cli._errors import cli_errors
+    from kinmo.progress import setup_logging
+
+    with cli_errors(2):
+        setup_logging(verbose)

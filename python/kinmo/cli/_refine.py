@@ -1,8 +1,18 @@
 """Refinement options shared by ``kinmo predict``, ``kinmo pseudo-label`` and ``kinmo eval
-pre-segmented`` (:class:`kinmo.refine.refine.RefineConfig`, Liu et al. 2023, Sec. 3.3)."""
+pre-segmented`` (:class:`kinmo.refine.refine.RefineConfig`, Liu et al. 2023, Sec. 3.3).
+
+A command declares one parameter ``refine: RefineOptions = REFINE`` and is decorated with
+:func:`with_refine_options`: the parameter becomes the six options below on the command line
+(in its place in ``--help``), and the command receives them as one :class:`RefineOptions`.
+"""
 
 from __future__ import annotations
 
+import functools
+import inspect
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from pathlib import Path
 from typing import Any, Optional
 
 import typer
@@ -68,3 +78,69 @@ def refine_config(feasibility_only: bool, keep_gnn: bool, snap_angle: Optional[f
                             **extra)
     except ValueError as e:
         fail(f"invalid refinement option: {e}", 2)
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """The refinement options of a command, as given on its command line."""
+
+    feasibility_only: bool = False
+    keep_gnn: bool = False
+    snap_angle: Optional[float] = None  # noqa: UP007
+    box_frames: str = "moving"
+    paper_selector: bool = False
+    ranker: Optional[Path] = None  # noqa: UP007
+
+    def config(self, axis_model: Any = None) -> Any:
+        """:func:`refine_config` of these options (``axis_model`` may hold a ranker.json)."""
+        return refine_config(self.feasibility_only, self.keep_gnn, self.snap_angle,
+                             self.box_frames, axis_model, self.paper_selector, self.ranker)
+
+
+#: Default of a command's ``refine`` parameter (replaced by :func:`with_refine_options`).
+REFINE = RefineOptions()
+
+_OPTIONS: dict[str, tuple[Any, Any]] = {
+    "feasibility_only": (bool, FEASIBILITY_ONLY),
+    "keep_gnn": (bool, KEEP_GNN),
+    "snap_angle": (Optional[float], SNAP_ANGLE),  # noqa: UP007
+    "box_frames": (str, BOX_FRAMES),
+    "paper_selector": (bool, PAPER_SELECTOR),
+    "ranker": (Optional[Path], RANKER),  # noqa: UP007
+}
+assert tuple(_OPTIONS) == tuple(f.name for f in fields(RefineOptions))
+
+
+def with_refine_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a command the refinement options in place of its parameter ``refine``.
+
+    Typer reads the returned function's signature: the command's own parameters, with
+    ``refine`` replaced by the six options of this module; when called, the six values are
+    passed to the command as ``refine=RefineOptions(...)``.
+
+    Raises
+    ------
+    TypeError
+        The command has no parameter ``refine``.
+    """
+    sig = inspect.signature(command)  # string annotations: typer resolves them (get_type_hints)
+    if "refine" not in sig.parameters:
+        raise TypeError(f"{command.__name__} has no parameter 'refine'")
+    params: list[inspect.Parameter] = []
+    for p in sig.parameters.values():
+        if p.name != "refine":
+            params.append(p)
+            continue
+        params += [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                                     default=option, annotation=ann)
+                   for name, (ann, option) in _OPTIONS.items()]
+
+    @functools.wraps(command)
+    def run(**kwargs: Any) -> Any:
+        refine = RefineOptions(**{name: kwargs.pop(name) for name in _OPTIONS})
+        return command(**kwargs, refine=refine)
+
+    run.__signature__ = sig.replace(parameters=params)  # type: ignore[attr-defined]
+    run.__annotations__ = {p.name: p.annotation for p in params
+                           if p.annotation is not inspect.Parameter.empty}
+    return run

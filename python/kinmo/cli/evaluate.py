@@ -8,11 +8,11 @@ from typing import Optional
 import typer
 
 from kinmo.cli._apps import eval_app
-from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
-from kinmo.cli._refine import PAPER_SELECTOR, RANKER
+from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
 
 @eval_app.command("pre-segmented")
+@with_refine_options
 def pre_segmented_cmd(
     model: Optional[list[Path]] = typer.Option(None, "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns (default: the motion GNNs and axis network of the last `kinmo train all`, runs/all)."),  # noqa: UP007
     data: Path = typer.Option(..., "--data", "-d", help="Part-graph cache (`kinmo prepare`) or PartNet-Mobility dataset folder."),
@@ -21,12 +21,7 @@ def pre_segmented_cmd(
     all_shapes: bool = typer.Option(False, "--all", help="Evaluate every labelled shape of DATA, training shapes of the split included."),
     render: bool = typer.Option(False, "--render", help="Write a PNG per shape and model (OUT/renders/<model>/<id>.png)."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: add OBB_fine / OBB_coarse columns with refined axes."),  # noqa: UP007
-    feasibility_only: bool = FEASIBILITY_ONLY,
-    keep_gnn: bool = KEEP_GNN,
-    snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
-    box_frames: str = BOX_FRAMES,
-    paper_selector: bool = PAPER_SELECTOR,
-    ranker: Optional[Path] = RANKER,  # noqa: UP007
+    refine: RefineOptions = REFINE,
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -52,8 +47,7 @@ def pre_segmented_cmd(
         Console(stderr=True).print(
             f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
             highlight=False, soft_wrap=True)
-    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
-                       paper_selector, ranker)
+    rc = refine.config(axis_model)
     with cli_errors(1):
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,

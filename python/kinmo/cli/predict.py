@@ -9,11 +9,11 @@ import typer
 
 from kinmo.cli._apps import app
 from kinmo.cli.export import FORMAT_HELP, check_formats
-from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
-from kinmo.cli._refine import PAPER_SELECTOR, RANKER
+from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
 
 @app.command("predict")
+@with_refine_options
 def predict_cmd(
     data: Path = typer.Argument(..., metavar="DIR|FILE", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder; or your own part-segmented asset: a GLB/glTF scene (a node per part), an OBJ with o/g groups, a folder of part meshes, or a URDF (a link per part)."),
     model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
@@ -24,12 +24,7 @@ def predict_cmd(
     slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, help="Slider range as a fraction of the part's size."),
     render: bool = typer.Option(False, "--render", help="Also write OUT/<id>/prediction.png."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the predicted axes (paper Sec. 3.3)."),  # noqa: UP007
-    feasibility_only: bool = FEASIBILITY_ONLY,
-    keep_gnn: bool = KEEP_GNN,
-    snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
-    box_frames: str = BOX_FRAMES,
-    paper_selector: bool = PAPER_SELECTOR,
-    ranker: Optional[Path] = RANKER,  # noqa: UP007
+    refine: RefineOptions = REFINE,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
 ) -> None:
@@ -48,8 +43,7 @@ def predict_cmd(
 
     console = Console()
     err = Console(stderr=True)
-    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
-                       paper_selector, ranker)
+    rc = refine.config(axis_model)
     check_formats(fmt)
     with cli_errors(1):
         from kinmo.user_input import is_user_input, predict_user_input

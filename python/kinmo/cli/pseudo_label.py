@@ -10,11 +10,11 @@ import typer
 from kinmo.cli._apps import app
 from kinmo.cli.export import FORMAT_HELP, check_formats
 from kinmo.cli._executor import EXECUTOR
-from kinmo.cli._refine import BOX_FRAMES, FEASIBILITY_ONLY, KEEP_GNN, SNAP_ANGLE, refine_config
-from kinmo.cli._refine import PAPER_SELECTOR, RANKER
+from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
 
 @app.command("pseudo-label")
+@with_refine_options
 def pseudo_label_cmd(
     data_dir: Path = typer.Argument(..., metavar="DIR", help="PartNet dataset folder (or one shape folder)."),
     model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
@@ -23,12 +23,7 @@ def pseudo_label_cmd(
     threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, help="Minimum refinement score of every joint of a kept shape."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="A `kinmo prepare` cache of DIR (graphs are built when missing)."),  # noqa: UP007
-    feasibility_only: bool = FEASIBILITY_ONLY,
-    keep_gnn: bool = KEEP_GNN,
-    snap_angle: Optional[float] = SNAP_ANGLE,  # noqa: UP007
-    box_frames: str = BOX_FRAMES,
-    paper_selector: bool = PAPER_SELECTOR,
-    ranker: Optional[Path] = RANKER,  # noqa: UP007
+    refine: RefineOptions = REFINE,
     consistent: bool = typer.Option(False, "--consistent/--raw-types", help="Make the fine types agree with the GNN's axes before refining (as `kinmo eval` does; the threshold then rejects far fewer, and fewer wrong, shapes). Default: the paper's arg-max types."),
     sign: str = typer.Option("tree", "--sign", help="Direction of motion: tree (away from the reference part) or feasibility (the network's)."),
     copy: bool = typer.Option(False, "--copy", help="Copy meshes instead of linking them."),
@@ -58,8 +53,7 @@ def pseudo_label_cmd(
     )
 
     console = Console()
-    rc = refine_config(feasibility_only, keep_gnn, snap_angle, box_frames, axis_model,
-                       paper_selector, ranker)
+    rc = refine.config(axis_model)
     check_formats(fmt)
     with cli_errors(2, also=(ValueError,)):
         config = PseudoLabelConfig(

@@ -24,20 +24,15 @@ def train_ranker_cmd(
     """Fit the ranker of candidate axes on out-of-fold GNN predictions of the training objects."""
     from rich.console import Console
 
-    from kinmo.errors import KinmoError
+    from kinmo.cli._errors import cli_errors, fail
     from kinmo.refine.fit_selector import train_ranker
 
-    err = Console(stderr=True)
     ts = tuple(t.strip() for t in types.split(",") if t.strip())
     if not ts or any(t not in ("fine", "coarse") for t in ts):
-        err.print(f"[red]error:[/] --types: expected fine and/or coarse, got {types!r}")
-        raise typer.Exit(2)
-    try:
+        fail(f"--types: expected fine and/or coarse, got {types!r}", 2)
+    with cli_errors(1):
         _, st = train_ranker(data, out, split, folds=folds, preset=preset, types=ts, seed=seed,
                              threads=threads, progress=not quiet)
-    except KinmoError as e:
-        err.print(f"[red]error:[/] {e}")
-        raise typer.Exit(1) from None
     Console().print(f"wrote {out / 'ranker.json'}: {st['groups']} edges, candidate recall "
                     f"{st['recall']:.3f}, out-of-fold top-1 {st['oof_top1']:.3f} "
                     f"(angle {st['oof_angle']:.2f}° vs GNN {st['gnn_angle']:.2f}°)")

@@ -21,66 +21,50 @@ frame)`` (reproducible whatever the worker count, order or resumption):
 
 Outputs in ``out``:
 
-- ``<key>/<frame:05d>.npz`` (atomic, deflate-compressed; ``np.load`` reads it), ``key`` as
-  in ``kinmo prepare`` (:func:`kinmo.prepare.cache_key`). Arrays, for N points, K rigid
-  parts, J moving joints and L links; camera frame = OpenCV, lengths in mesh units (details
-  in :mod:`kinmo.render.ancsh_gt`):
-
-  - ``points`` (N, 3) float32: camera frame; ``pixels`` (N, 2) uint16: (row, column);
-  - ``link``, ``part`` (N,) int16: link id and rigid part id of each point;
-  - ``npcs``, ``naocs`` (N, 3) float16: values in [0, 1], quantisation <= 2.5e-4;
-  - ``K`` (3, 3) float64: intrinsics; ``cam_to_world`` (4, 4) float64: camera -> mesh frame
-    (y-up); ``image_size`` (2,) int32: (H, W);
-  - ``part_ids`` (K,) int16; ``part_rotation`` (K, 3, 3), ``part_translation`` (K, 3),
-    ``part_scale`` (K,) float32: NPCS -> camera, ``p = s R npcs + t``; ``part_bounds``
-    (K, 2, 3) float32: the part's box in NPCS;
-  - ``naocs_rotation`` (3, 3), ``naocs_translation`` (3,), ``naocs_scale`` () float32:
-    NAOCS -> camera;
-  - ``joint_ids`` (J,) int16: the moving links; ``joint_parent`` (J,) int16: rigid part id of
-    the parent; ``joint_type`` (J,) int8: index in ``("revolute", "prismatic",
-    "cylindrical")``; ``joint_origin``, ``joint_direction`` (J, 3) float32: camera frame,
-    rendered state; ``joint_origin_naocs``, ``joint_direction_naocs`` (J, 3) float32: NAOCS,
-    canonical (rest) state; ``joint_translation``, ``joint_angle`` (J,) float32: the state,
-    mesh units / radians; ``joint_translation_limits``, ``joint_angle_limits`` (J, 2)
-    float32, NaN where the joint has no such DOF;
-  - ``link_ids`` (L,) int16, ``link_pose`` (L, 4, 4) float32: rest -> current, mesh frame;
-  - ``meta_json`` (str): JSON with ids, category, config, view (azimuth, elevation,
-    distance, near, far, joint state), counts, source fingerprint.
-
+- ``<key>/<frame:05d>.npz``: one frame file each (atomic, deflate-compressed; ``np.load``
+  reads it; arrays and dtypes in :mod:`kinmo.render.frames`), ``key`` as in ``kinmo prepare``
+  (:func:`kinmo.stages.cache_key`);
 - ``manifest.csv`` / ``manifest.json``: one row per (object, frame) (:data:`MANIFEST_COLUMNS`),
   status ``ok``, ``skipped`` (up to date) or ``failed`` (one-line reason naming the file),
-  rewritten atomically as objects complete and at the end.
+  written incomplete (``complete: false``) before the first object, rewritten atomically as
+  objects complete and at the end (:mod:`kinmo.stages`).
 
 Resume: a frame is skipped when its file exists and records the same :data:`FRAME_VERSION`,
-:class:`RenderConfig` and source fingerprint (:func:`kinmo.prepare.source_fingerprint`), so
+:class:`RenderConfig` and source fingerprint (:func:`kinmo.stages.source_fingerprint`), so
 an interrupted run resumes where it stopped and a larger ``frames_per_object`` only renders
 the new frames. One run at a time per output folder (``.lock``).
 
 Parallelism: :func:`render_one` is a pure function of picklable arguments (one object, all
 its frames: the URDF and meshes are loaded once) returning manifest rows and never raising
-for bad input; :func:`render_dataset` maps it with :func:`kinmo.parallel.map_unordered` (a
-``spawn`` process pool); it can be shipped to Ray unchanged.
+for bad input; :func:`render_dataset` runs it over the objects with the stage machinery of
+:mod:`kinmo.stages` on the chosen executor (:mod:`kinmo.executor`: a ``spawn`` process pool,
+or Ray). ``load_frame``, ``frame_images``, ``frame_path`` and ``FRAME_VERSION`` of
+:mod:`kinmo.render.frames` are importable from here too.
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import time
 import zlib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from kinmo.progress import CountingBar
+from kinmo import stages
 from kinmo.errors import KinmoDataError
-from kinmo.io import folder_lock
-from kinmo.executor import map_unordered
+from kinmo.render.frames import (
+    FRAME_VERSION,
+    frame_images,
+    frame_path,
+    load_frame,
+    read_frame_meta,
+    save_frame,
+)
+from kinmo.stages import ShapeStage, StageRow, matches, one_line, source_fingerprint
 
 __all__ = [
     "FRAME_VERSION",
@@ -98,14 +82,10 @@ __all__ = [
     "render_one",
 ]
 
-#: Version of the frame file layout (stored in every frame; a change re-renders).
-FRAME_VERSION = 1
 MANIFEST_COLUMNS: tuple[str, ...] = (
     "id", "frame", "file", "category", "status", "error", "n_points", "n_parts",
     "n_moving_joints", "azimuth_deg", "elevation_deg", "distance", "seconds", "source",
 )
-_STATUSES = ("ok", "skipped", "failed")
-MANIFEST_INTERVAL_S = 2.0
 #: Objects a render worker process renders before it is replaced by a fresh one: PyBullet's
 #: process-wide state grows with every object loaded (89 -> 297 MB after 100 -> 3,000 objects
 #: in one process, ``docs/results/scaling.md``), so workers are recycled to keep memory flat.
@@ -160,7 +140,7 @@ class RenderConfig:
 
 
 @dataclass
-class FrameRow:
+class FrameRow(StageRow):
     """One frame's line in the manifest (:data:`MANIFEST_COLUMNS`)."""
 
     id: str
@@ -178,10 +158,7 @@ class FrameRow:
     distance: float | None = None
     seconds: float = 0.0
 
-    def as_dict(self) -> dict[str, Any]:
-        """Dict in :data:`MANIFEST_COLUMNS` order."""
-        d = asdict(self)
-        return {k: d[k] for k in MANIFEST_COLUMNS}
+    columns: ClassVar[tuple[str, ...]] = MANIFEST_COLUMNS
 
 
 @dataclass
@@ -202,11 +179,6 @@ class RenderResult:
 def frame_rng(seed: int, key: str, frame: int) -> np.random.Generator:
     """The generator of one frame: ``default_rng([seed, crc32(key), frame])``."""
     return np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(key.encode()), int(frame)])
-
-
-def frame_path(out_dir: str | Path, key: str, frame: int) -> Path:
-    """``out_dir/<key>/<frame:05d>.npz``."""
-    return Path(out_dir) / key / f"{frame:05d}.npz"
 
 
 # ------------------------------------------------------------------------------ one frame
@@ -246,7 +218,7 @@ def render_frame(
     Returns
     -------
     arrays : dict of str to ndarray
-        The frame file's arrays (dtypes as stored, see the module docs), without ``meta_json``.
+        The frame file's arrays (dtypes as stored, :mod:`kinmo.render.frames`), without ``meta_json``.
     view : dict
         ``azimuth_deg``, ``elevation_deg``, ``distance``, ``near``, ``far``,
         ``state`` (link id -> [translation, angle]).
@@ -293,75 +265,10 @@ def render_frame(
     return arrays, view
 
 
-def _write_npz(f: Any, arrays: dict[str, np.ndarray]) -> None:
-    """``np.savez_compressed`` with zlib level 1 instead of 6: files 1-2 % larger, written
-    about twice as fast (the write is a third of a frame's cost at level 6)."""
-    import zipfile
-
-    with zipfile.ZipFile(f, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as z:
-        for k, v in arrays.items():
-            with z.open(f"{k}.npy", "w", force_zip64=True) as fh:
-                np.lib.format.write_array(fh, np.asanyarray(v), allow_pickle=False)
-
-
-def _save_frame(path: Path, arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
-    from kinmo.io import atomic_write
-
-    payload = dict(arrays, meta_json=np.array(json.dumps(meta)))
-    atomic_write(path, lambda f: _write_npz(f, payload), mode="wb")
-
-
-def load_frame(path: str | Path) -> dict[str, Any]:
-    """Read a frame file: its arrays plus ``meta`` (the parsed ``meta_json``).
-
-    Raises
-    ------
-    KinmoDataError
-        Missing, unreadable or not a kinmo frame file.
-    """
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            out: dict[str, Any] = {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise KinmoDataError(path, "file is missing") from None
-    except Exception as e:
-        raise KinmoDataError(path, f"unreadable frame file: {type(e).__name__}: {e}") from None
-    if "meta_json" not in out:
-        raise KinmoDataError(path, "not a kinmo frame file (no meta_json)")
-    out["meta"] = json.loads(str(out.pop("meta_json")))
-    return out
-
-
-def frame_images(frame: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """The depth and link-label images of a loaded frame (:func:`load_frame`).
-
-    Returns
-    -------
-    depth : (H, W) float32
-        Metric depth (OpenCV camera z, mesh units), ``inf`` off the object.
-    labels : (H, W) int16
-        kinmo link id per pixel, -1 off the object.
-    """
-    H, W = (int(v) for v in frame["image_size"])
-    depth = np.full((H, W), np.inf, dtype=np.float32)
-    labels = np.full((H, W), -1, dtype=np.int16)
-    r, c = frame["pixels"][:, 0].astype(np.intp), frame["pixels"][:, 1].astype(np.intp)
-    depth[r, c] = frame["points"][:, 2]
-    labels[r, c] = frame["link"]
-    return depth, labels
-
-
 def _cached_meta(path: Path, config: RenderConfig, fingerprint: str) -> dict[str, Any] | None:
-    if not path.is_file():
-        return None
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta_json"]))
-    except Exception:
-        return None
-    if (meta.get("frame_version") != FRAME_VERSION or meta.get("config") != config.as_dict()
-            or meta.get("fingerprint") != fingerprint):
+    meta = read_frame_meta(path)
+    if meta is None or not matches(meta, {"frame_version": FRAME_VERSION, "config": config.as_dict(),
+                          "fingerprint": fingerprint}):
         return None
     return meta
 
@@ -379,10 +286,6 @@ def _row_from_meta(meta: dict[str, Any], status: str, source: str, file: str) ->
 
 def _r(x: float | None) -> float | None:
     return None if x is None else round(float(x), 6)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
 
 
 # ------------------------------------------------------------------------------ one object
@@ -422,8 +325,6 @@ def render_one(
         ``failed`` with a one-line error naming the file (a
         :class:`~kinmo.errors.KinmoDataError` message, or ``"<folder>: internal error ..."``).
     """
-    from kinmo.prepare import source_fingerprint
-
     t0 = time.perf_counter()
     folder = Path(path)
     out_dir = Path(out_dir)
@@ -442,9 +343,9 @@ def render_one(
         if todo:
             _render_frames(folder, out_dir, config, key, todo, fp, rows)
     except KinmoDataError as e:
-        err = _one_line(str(e))
+        err = one_line(str(e))
     except Exception as e:  # a bug or an environment problem: still rows, the run goes on
-        err = _one_line(f"{folder}: internal error {type(e).__name__}: {e}")
+        err = one_line(f"{folder}: internal error {type(e).__name__}: {e}")
     else:
         err = ""
     if err:
@@ -494,37 +395,13 @@ def _render_frames(
                 "joint_kinds": ["revolute", "prismatic", "cylindrical"],
             }
             fpath = frame_path(out_dir, key, f)
-            _save_frame(fpath, arrays, meta)
+            save_frame(fpath, arrays, meta)
             row = _row_from_meta(meta, "ok", str(folder), f"{key}/{fpath.name}")
             row.seconds = round(time.perf_counter() - t0, 4)
             rows[f] = row
 
 
 # ------------------------------------------------------------------------------- manifest
-
-
-def _manifest_csv(rows: list[FrameRow]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(MANIFEST_COLUMNS), lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: "" if v is None else v for k, v in r.as_dict().items()})
-    return buf.getvalue()
-
-
-def _write_manifest(out: Path, root: Path, config: RenderConfig, frames: int,
-                    rows: list[FrameRow], n_objects: int, complete: bool) -> None:
-    from kinmo import __version__
-    from kinmo.io import write_json, write_text
-
-    rows = sorted(rows, key=lambda r: (r.id, r.frame))
-    write_text(out / "manifest.csv", _manifest_csv(rows))
-    write_json(out / "manifest.json", {
-        "kinmo_version": __version__, "frame_version": FRAME_VERSION, "root": str(root),
-        "config": config.as_dict(), "frames_per_object": frames, "n_objects": n_objects,
-        "complete": complete, "counts": {s: sum(r.status == s for r in rows) for s in _STATUSES},
-        "frames": [r.as_dict() for r in rows],
-    })
 
 
 def read_manifest(path: str | Path) -> list[FrameRow]:
@@ -535,46 +412,10 @@ def read_manifest(path: str | Path) -> list[FrameRow]:
     KinmoDataError
         Missing or malformed manifest.
     """
-    path = Path(path)
-    if path.is_dir():
-        path = path / "manifest.csv"
-    ints = {"frame", "n_points", "n_parts", "n_moving_joints"}
-    floats = {"azimuth_deg", "elevation_deg", "distance", "seconds"}
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            reader = csv.DictReader(f)
-            if tuple(reader.fieldnames or ()) != MANIFEST_COLUMNS:
-                raise KinmoDataError(path, f"unexpected columns {reader.fieldnames}")
-            out = []
-            for d in reader:
-                kw: dict[str, Any] = {}
-                for k, v in d.items():
-                    if k in ints:
-                        kw[k] = int(v) if v != "" else None
-                    elif k in floats:
-                        kw[k] = float(v) if v != "" else None
-                    else:
-                        kw[k] = v
-                kw["seconds"] = kw["seconds"] or 0.0
-                out.append(FrameRow(**kw))
-            return out
-    except FileNotFoundError:
-        raise KinmoDataError(path, "file is missing") from None
-    except (ValueError, KeyError, TypeError, csv.Error) as e:
-        if isinstance(e, KinmoDataError):
-            raise
-        raise KinmoDataError(path, f"malformed manifest: {e}") from None
+    return stages.read_manifest(path, FrameRow)
 
 
 # ----------------------------------------------------------------------------- the run
-
-
-def _clean_tmp(out: Path) -> None:
-    for p in [*out.glob(".*.tmp"), *out.glob("*/.*.tmp")]:
-        try:
-            p.unlink()
-        except OSError:
-            pass
 
 
 def _render_job(job: tuple[Path, str], out: Path, config: RenderConfig, frames: int,
@@ -586,7 +427,7 @@ def _render_job(job: tuple[Path, str], out: Path, config: RenderConfig, frames: 
 def _worker_failed(job: tuple[Path, str], e: Exception, frames: int) -> list[FrameRow]:
     # the worker raised or died (e.g. killed for memory): every frame of the object failed
     f, key = job
-    msg = _one_line(f"{f}: worker process failed: {type(e).__name__}: {e}")
+    msg = stages.worker_error(f, e)
     return [FrameRow(id=key, frame=i, source=str(f), status="failed", error=msg)
             for i in range(frames)]
 
@@ -639,52 +480,34 @@ def render_dataset(
     ValueError
         ``frames_per_object < 1``.
     """
-    from kinmo.data.readers import find_shapes
-    from kinmo.prepare import cache_key
-
     if frames_per_object < 1:
         raise ValueError(f"frames_per_object must be >= 1, got {frames_per_object}")
     t0 = time.perf_counter()
     config = config or RenderConfig()
     root, out = Path(root), Path(out)
-    folders = find_shapes(root)
-    jobs = [(f, cache_key(f, root)) for f in folders]
+    jobs = stages.shape_jobs(root, required=False)
     out.mkdir(parents=True, exist_ok=True)
-    rows: list[FrameRow] = []
-    failed: list[str] = []
-    with folder_lock(out, "kinmo render"):
-        _clean_tmp(out)
-        last = 0.0
 
-        def record(obj_rows: list[FrameRow], bar: Any) -> None:
-            nonlocal last
-            rows.extend(obj_rows)
-            if obj_rows and all(r.status == "failed" for r in obj_rows):
-                failed.append(obj_rows[0].id)
-            if on_rows is not None:
-                on_rows(obj_rows)
-            bar.advance(len(obj_rows), failed=sum(r.status == "failed" for r in obj_rows))
-            now = time.monotonic()
-            if now - last >= MANIFEST_INTERVAL_S:
-                _write_manifest(out, root, config, frames_per_object, rows, len(jobs), False)
-                last = now
+    def save(results: list[list[FrameRow]], complete: bool) -> None:
+        rows = sorted((r for rs in results for r in rs), key=lambda r: (r.id, r.frame))
+        stages.write_manifest(
+            out, rows, MANIFEST_COLUMNS,
+            {"frame_version": FRAME_VERSION, "root": str(root), "config": config.as_dict(),
+             "frames_per_object": frames_per_object, "n_objects": len(jobs)},
+            "frames", complete)
 
-        with CountingBar(len(jobs) * frames_per_object, progress, "render", root.name) as bar:
-            try:
-                map_unordered(
-                    partial(_render_job, out=out, config=config, frames=frames_per_object,
-                            force=force),
-                    jobs, workers,
-                    on_result=lambda job, obj_rows: record(obj_rows, bar),
-                    on_error=partial(_worker_failed, frames=frames_per_object),
-                    max_tasks_per_child=RECYCLE_WORKERS_AFTER,
-                    executor=executor,
-                )
-            finally:
-                done = {r.id for r in rows}
-                _write_manifest(out, root, config, frames_per_object, rows, len(jobs),
-                                complete=all(k in done for _, k in jobs))
+    stage: ShapeStage[list[FrameRow]] = ShapeStage(
+        out, "kinmo render", len(jobs), save=save, bar_total=len(jobs) * frames_per_object,
+        title="render", description=root.name, progress=progress, on_result=on_rows,
+        scratch=(".*.tmp", "*/.*.tmp"))
+    with stage:
+        stage.map(
+            partial(_render_job, out=out, config=config, frames=frames_per_object, force=force),
+            jobs, workers, partial(_worker_failed, frames=frames_per_object),
+            max_tasks_per_child=RECYCLE_WORKERS_AFTER, executor=executor,
+        )
+    rows = [r for rs in stage.results for r in rs]
+    failed = [rs[0].id for rs in stage.results if rs and all(r.status == "failed" for r in rs)]
     return RenderResult(out=out, rows=sorted(rows, key=lambda r: (r.id, r.frame)),
                         n_objects=len(jobs), seconds=time.perf_counter() - t0,
                         failed_objects=sorted(failed))
-
