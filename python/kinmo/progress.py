@@ -1,4 +1,4 @@
-"""The rich progress bar of kinmo's per-shape stages (prepare, render, pseudo-label)."""
+"""The rich progress bars of kinmo: per-shape stages (prepare, render, pseudo-label) and training loops."""
 
 from __future__ import annotations
 
@@ -67,6 +67,75 @@ class CountingBar:
             self.counts[name] += int(inc)
         if self._progress is not None:
             self._progress.update(self._task, advance=n, **self.counts)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._progress is not None:
+            self._progress.__exit__(*exc)
+
+
+class TrainingBar:
+    """The rich progress bar (on stderr) of kinmo's training loops (GNN, axis network, ANCSH).
+
+    One bar per task (a training stage), each with a free-text ``info`` field (loss, accuracy)
+    after the step count. A no-op when ``enabled`` is False (e.g. on the ranks other than 0
+    of a ``torchrun`` run). Use as a context manager.
+
+    Parameters
+    ----------
+    enabled : bool
+    title : str
+        Bold prefix of every task, e.g. ``"train gnn"``.
+    """
+
+    def __init__(self, enabled: bool, title: str) -> None:
+        self.enabled, self.title = enabled, title
+        self._progress: Any = None
+
+    def __enter__(self) -> TrainingBar:
+        if self.enabled:
+            from rich.console import Console
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._progress = Progress(
+                TextColumn(f"[bold]{self.title}[/] {{task.description}}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[info]}"),
+                TimeElapsedColumn(),
+                TimeRemainingColumn(),
+                console=Console(stderr=True),
+            )
+            self._progress.__enter__()
+        return self
+
+    def task(self, description: str, total: int) -> Any:
+        """Add a task of ``total`` steps; returns its handle (None when disabled)."""
+        if self._progress is None:
+            return None
+        return self._progress.add_task(description, total=total, info="")
+
+    def advance(self, task: Any, n: int = 1, info: str | None = None) -> None:
+        """Count ``n`` steps of ``task``, replacing its info text when given."""
+        if self._progress is not None:
+            fields = {} if info is None else {"info": info}
+            self._progress.update(task, advance=n, **fields)
+
+    def describe(self, task: Any, description: str) -> None:
+        """Replace ``task``'s description."""
+        if self._progress is not None:
+            self._progress.update(task, description=description)
+
+    def log(self, text: str) -> None:
+        """Print a line above the bar (nothing when disabled)."""
+        if self._progress is not None:
+            self._progress.console.print(text, highlight=False, soft_wrap=True)
 
     def __exit__(self, *exc: Any) -> None:
         if self._progress is not None:

@@ -7,7 +7,6 @@ Used by :mod:`kinmo.refine.train` (the loop, which re-exports these names) and
 
 from __future__ import annotations
 
-import json
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -169,9 +168,9 @@ def preset_config(preset: str = "quick", **overrides: Any) -> AxisTrainConfig:
     ValueError
         Unknown preset or invalid values.
     """
-    if preset not in PRESETS:
-        raise ValueError(f"preset: expected one of {', '.join(PRESETS)}, got {preset!r}")
-    values: dict[str, Any] = json.loads(json.dumps(PRESETS[preset]))
+    from kinmo.train.loop import preset_values
+
+    values = preset_values(PRESETS, preset)
     net = dict(values.pop("net"))
     net.update(overrides.pop("net", {}) or {})
     values.update(overrides)

@@ -20,10 +20,10 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-import torch
 from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo.models.motion_gnn import ModelConfig
+from kinmo.train.loop import override, preset_values, resolve_device
 
 __all__ = ["PRESETS", "TrainConfig", "preset", "resolve_device"]
 
@@ -171,33 +171,8 @@ def preset(name: str, **overrides: Any) -> TrainConfig:
     ValueError
         Unknown preset or field, or an invalid value.
     """
-    if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})")
-    cfg = PRESETS[name]()
-    data = cfg.model_dump()
-    for key, val in overrides.items():
-        if val is None:
-            continue
-        if key == "types":
-            data["model"]["types"] = val
-        elif key in data:
-            data[key] = val
-        else:
-            raise ValueError(f"unknown training option {key!r}")
-    return TrainConfig.model_validate(data)
-
-
-def resolve_device(device: str) -> torch.device:
-    """``"auto"`` → CUDA when available, else CPU; anything else as given.
-
-    Raises
-    ------
-    ValueError
-        CUDA requested but not available.
-    """
-    if device == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    dev = torch.device(device)
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise ValueError(f"device {device!r} requested but CUDA is not available")
-    return dev
+    data = preset_values(PRESETS, name)
+    types = overrides.pop("types", None)
+    if types is not None:
+        data["model"]["types"] = types
+    return TrainConfig.model_validate(override(data, overrides))

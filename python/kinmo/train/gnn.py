@@ -26,10 +26,7 @@ graphs, each rank training on its shard, rank 0 writing the run folder.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
-import random
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -43,11 +40,21 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TO_COARSE
 from kinmo.errors import KinmoDataError
 from kinmo.features import GraphBatch, GraphTensors, SemanticVocab, collate, graph_tensors, yaw_rotation
-from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
+from kinmo.io import write_json, write_text
 from kinmo.models.losses import MotionLoss, class_weights
 from kinmo.models.motion_gnn import ModelConfig, MotionGNN
 from kinmo.train import distributed
-from kinmo.train.config import TrainConfig, resolve_device
+from kinmo.train.config import TrainConfig
+from kinmo.train.loop import (
+    build_or_refuse,
+    load_checkpoint,
+    optimizer_step,
+    resolve_device,
+    rows_csv,
+    training_bar,
+    training_session,
+)
+from kinmo.train.loop import save_checkpoint as _save
 from kinmo.train.split import Split, make_split
 
 __all__ = [
@@ -65,6 +72,9 @@ METRIC_COLUMNS: tuple[str, ...] = (
     "test_loss", "test_acc", "test_moving_recall", "test_angle_deg", "test_pos_dist", "seconds",
 )
 
+
+#: ``format`` tag of the checkpoints (:func:`kinmo.train.loop.save_checkpoint`).
+CHECKPOINT_FORMAT = "kinmo-motion-gnn"
 
 _COARSE_LUT = torch.tensor(FINE_TO_COARSE, dtype=torch.int64)
 
@@ -146,18 +156,8 @@ class Run:
 def save_checkpoint(path: Path, model: MotionGNN, config: TrainConfig, vocab: SemanticVocab,
                     weights: torch.Tensor | None, epoch: int) -> None:
     """Write ``model.pt`` atomically (state dict + config + vocabulary)."""
-    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
-    payload = {
-        "format": "kinmo-motion-gnn",
-        "version": 1,
-        "state_dict": state,
-        "config": config.model_dump(),
-        "vocab": vocab.names,
-        "class_weights": None if weights is None else weights.cpu(),
-        "epoch": epoch,
-    }
-    with atomic_path(path) as tmp:
-        torch.save(payload, tmp)
+    _save(path, CHECKPOINT_FORMAT, model, config=config.model_dump(), vocab=vocab.names,
+          class_weights=None if weights is None else weights.cpu(), epoch=epoch)
 
 
 def load_run(run: str | Path, device: str = "auto") -> Run:
@@ -168,7 +168,7 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
     run : str or Path
         Run folder written by :func:`train_gnn`, or its ``model.pt``.
     device : str
-        See :func:`kinmo.train.config.resolve_device`.
+        See :func:`kinmo.train.loop.resolve_device`.
 
     Returns
     -------
@@ -179,14 +179,9 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
     KinmoDataError
         Missing or unreadable checkpoint, or one that is not a kinmo motion GNN.
     """
-    run = Path(run)
-    ckpt = run / "model.pt" if run.is_dir() else run
-    if not ckpt.is_file():
-        raise KinmoDataError(ckpt, "checkpoint is missing (train with `kinmo train gnn`)")
-    payload = read_checkpoint(ckpt, "kinmo-motion-gnn", "motion-GNN")
-    if payload.get("format") != "kinmo-motion-gnn":
-        raise KinmoDataError(ckpt, "not a kinmo motion-GNN checkpoint")
-    try:
+    payload, ckpt = load_checkpoint(run, CHECKPOINT_FORMAT, "motion-GNN", "kinmo train gnn")
+
+    def build() -> tuple[TrainConfig, MotionGNN]:
         raw = payload["config"]
         # checkpoints written before the candidate direction head have no ``axis_mode``:
         # they regress the direction
@@ -195,8 +190,9 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
         config = TrainConfig.model_validate(raw)
         model = MotionGNN(config.model)
         model.load_state_dict(payload["state_dict"])
-    except Exception as e:
-        raise KinmoDataError(ckpt, f"checkpoint does not match the model: {e}") from None
+        return config, model
+
+    config, model = build_or_refuse(ckpt, build)
     dev = resolve_device(device)
     model.to(dev).eval()
     vocab = SemanticVocab(payload.get("vocab", []))
@@ -340,19 +336,9 @@ class TrainResult:
     cpu_seconds: float = 0.0
 
 
-def _fmt(v: float) -> str:
-    if isinstance(v, float):
-        return "" if math.isnan(v) else f"{v:.6g}"
-    return str(v)
-
-
 def _metrics_csv(rows: list[dict[str, float]]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(METRIC_COLUMNS)
-    for r in rows:
-        w.writerow([_fmt(r[c]) for c in METRIC_COLUMNS])
-    return buf.getvalue()
+    """``metrics.csv`` text (NaN: empty cell)."""
+    return rows_csv(rows, METRIC_COLUMNS)
 
 
 def _subsample(members: list[GraphTensors], n_points: int | None,
@@ -428,28 +414,15 @@ def train_gnn(
     if not train_g:
         raise KinmoDataError(where, "the split leaves no labelled graph for training")
 
-    prev_det = torch.are_deterministic_algorithms_enabled()
-    prev_threads = torch.get_num_threads()
-    try:
-        torch.use_deterministic_algorithms(True, warn_only=True)
-        if config.threads > 0:
-            torch.set_num_threads(config.threads)
-        return _train(train_g, test_g, out, config, split, progress, on_epoch)
-    finally:
-        torch.use_deterministic_algorithms(prev_det)
-        torch.set_num_threads(prev_threads)
+    with training_session(config.device, config.seed, config.threads, deterministic=True) as (
+            dist_info, device):
+        return _train(train_g, test_g, out, config, split, progress, on_epoch, dist_info, device)
 
 
 def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config: TrainConfig,
-           split: Split, progress: bool,
-           on_epoch: Callable[[dict[str, float]], None] | None) -> TrainResult:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    dist_info, device = distributed.setup(resolve_device(config.device))
+           split: Split, progress: bool, on_epoch: Callable[[dict[str, float]], None] | None,
+           dist_info: distributed.DistInfo, device: torch.device) -> TrainResult:
     main = dist_info.is_main
-    torch.manual_seed(config.seed)
-    random.seed(config.seed)
-    np.random.seed(config.seed % (2**32))
     vocab = SemanticVocab.from_graphs(train_g) if config.model.semantic_dim > 0 else SemanticVocab()
     mdata = config.model.model_dump()
     mdata["vocab_size"] = len(vocab)
@@ -484,10 +457,8 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
     history: list[dict[str, float]] = []
     t0 = time.perf_counter()
     c0 = time.process_time()
-    columns = [TextColumn("[bold]train gnn[/]"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("{task.fields[info]}"), TimeElapsedColumn()]
-    with Progress(*columns, disable=not (progress and main), transient=False) as bar:
-        task = bar.add_task("epochs", total=config.epochs, info="")
+    with training_bar(progress, "train gnn") as bar:
+        task = bar.task("epochs", config.epochs)
         for epoch in range(1, config.epochs + 1):
             model.train()
             order = torch.randperm(len(train_t), generator=gen).tolist()
@@ -505,11 +476,7 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 batch = collate(members, n_points=config.n_points, generator=gen).to(device)
                 outp = ddp(batch)
                 terms = loss_fn(outp, batch)
-                opt.zero_grad(set_to_none=True)
-                (terms.total * weight).backward()
-                if config.grad_clip > 0:
-                    torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
-                opt.step()
+                optimizer_step(opt, terms.total, model, weight, config.grad_clip)
                 share = weight / dist_info.world_size  # n_rank / n_global (1: one process)
                 sums += [share * float(terms.total.detach()), share * float(terms.type.detach()),
                          share * float(terms.direction.detach()),
@@ -548,7 +515,7 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
             info = f"loss {row['loss']:.3f} acc {row['train_acc']:.3f}"
             if test_t:
                 info += f" | test acc {row['test_acc']:.3f} angle {row['test_angle_deg']:.1f}°"
-            bar.update(task, advance=1, info=info)
+            bar.advance(task, info=info)
             if on_epoch is not None:
                 on_epoch(row)
     seconds = time.perf_counter() - t0
