@@ -5,6 +5,30 @@ from __future__ import annotations
 from typing import Any
 
 
+def _rich_progress(title: str, fields: str) -> Any:
+    """kinmo's rich progress layout on stderr: bold ``title`` and the task description, bar,
+    done/total, ``fields`` (a rich ``TextColumn`` format), elapsed and remaining time."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    return Progress(
+        TextColumn(f"[bold]{title}[/] {{task.description}}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn(fields),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+    )
+
+
 class CountingBar:
     """A rich progress bar (on stderr) with running counters, e.g. of failures.
 
@@ -35,28 +59,10 @@ class CountingBar:
 
     def __enter__(self) -> CountingBar:
         if self.enabled:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
             fields = " ".join(
                 f"[{colour}]{{task.fields[{name}]}} {name}[/]" for name, colour in self.colours.items()
             )
-            self._progress = Progress(
-                TextColumn(f"[bold]{self.title}[/] {{task.description}}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn(fields),
-                TimeElapsedColumn(),
-                TimeRemainingColumn(),
-                console=Console(stderr=True),
-            )
+            self._progress = _rich_progress(self.title, fields)
             self._progress.__enter__()
             self._task = self._progress.add_task(self.description, total=self.total, **self.counts)
         return self
@@ -93,25 +99,7 @@ class TrainingBar:
 
     def __enter__(self) -> TrainingBar:
         if self.enabled:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            self._progress = Progress(
-                TextColumn(f"[bold]{self.title}[/] {{task.description}}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("{task.fields[info]}"),
-                TimeElapsedColumn(),
-                TimeRemainingColumn(),
-                console=Console(stderr=True),
-            )
+            self._progress = _rich_progress(self.title, "{task.fields[info]}")
             self._progress.__enter__()
         return self
 

@@ -120,3 +120,25 @@ def test_ancsh_evaluation_does_not_import_the_trainer():
             "'kinmo.ancsh.semi')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout + out.stderr
+
+
+def test_tiny_presets_shorten_quick_and_the_trainer_clis_read_kinmo_preset(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from kinmo.ancsh.config import preset as ancsh_preset
+    from kinmo.cli import app
+    from kinmo.refine.axis_config import preset_config
+    from kinmo.train.config import preset as gnn_preset
+
+    g, a, s = gnn_preset("tiny"), preset_config("tiny"), ancsh_preset("tiny")
+    assert (g.preset, g.epochs, g.model) == ("tiny", 25, gnn_preset("quick").model)
+    assert (a.preset, a.epochs, a.net) == ("tiny", 2, preset_config("quick").net)
+    assert (s.preset, s.epochs, s.semi_epochs, s.steps_per_epoch, s.frames_per_object) == ("tiny", 1, 1, 2, 1)
+    assert s.width == ancsh_preset("quick").width
+    # KINMO_PRESET is read by every trainer's --preset (a bad one is refused before any work)
+    monkeypatch.setenv("KINMO_PRESET", "huge")
+    for argv in (["train", "gnn", "--data", str(tmp_path), "--out", str(tmp_path / "g")],
+                 ["train", "axis", "--data", str(tmp_path), "--out", str(tmp_path / "a")],
+                 ["train", "ancsh", "--category", "Laptop", "--data", str(tmp_path), "--out", str(tmp_path / "s")]):
+        r = CliRunner().invoke(app, argv)
+        assert r.exit_code == 2 and "unknown preset 'huge'" in r.output, (argv, r.output)

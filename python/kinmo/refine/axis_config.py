@@ -22,7 +22,7 @@ class AxisTrainConfig(BaseModel):
 
     Attributes
     ----------
-    preset : {"quick", "paper", "custom"}
+    preset : {"quick", "paper", "tiny", "custom"}
         Origin of the values (:data:`PRESETS`).
     seed : int
     net : AxisNetConfig
@@ -95,7 +95,7 @@ class AxisTrainConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    preset: Literal["quick", "paper", "custom"] = "custom"
+    preset: Literal["quick", "paper", "tiny", "custom"] = "custom"
     seed: int = 0
     net: AxisNetConfig = Field(default_factory=AxisNetConfig)
     epochs: int = Field(30, ge=1)
@@ -158,6 +158,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "category_min_objects": 5, "category_epochs": 50,
     },
 }
+#: ``tiny``: ``quick`` for 2 epochs, a check that a run goes through in seconds, not results.
+PRESETS["tiny"] = {**PRESETS["quick"], "epochs": 2}
 
 
 def preset_config(preset: str = "quick", **overrides: Any) -> AxisTrainConfig:

@@ -4,9 +4,10 @@ The training data (moving edges, the (rest, positive, negative) triples with art
 states, the train / validation split) are built by :mod:`kinmo.refine.axis_data`; checkpoints
 are written and read by :mod:`kinmo.refine.axis_io`; candidate lines are scored in batches by
 :mod:`kinmo.refine.feasibility`; the configuration (:class:`AxisTrainConfig`,
-:data:`PRESETS`) is :mod:`kinmo.refine.axis_config`. This module holds the selection metric
-and the training loop (534 lines: the per-category fine-tuning shares the loop); the names of
-those modules used elsewhere are re-exported here.
+:data:`PRESETS`) is :mod:`kinmo.refine.axis_config`; the run plumbing (session, optimisation
+step, progress bar, metrics CSV, checkpoints) is :mod:`kinmo.train.loop`, shared with the other
+trainers. This module holds the selection metric and the training loop (the per-category
+fine-tuning shares the loop); the names of those modules used elsewhere are re-exported here.
 
 Each epoch draws up to ``samples_per_shape`` moving edges per training shape (so a keyboard's
 hundred keys do not drown the doors), with randomness from
