@@ -11,7 +11,8 @@ partial scans of one category in three settings (:data:`SETTINGS`):
   and refinement (``kinmo pseudo-label``) are rendered at random articulations of their
   predicted joints and added to the labelled data.
 
-Two presets (:data:`PRESETS`):
+Three presets (:data:`PRESETS`; ``tiny`` is ``quick`` for one epoch of two batches on one
+render per object, a check that a run goes through, as ``KINMO_PRESET=tiny``):
 
 - ``quick``: CPU-sized, a couple of minutes per setting on one core (~0.14 s per batch): 512
   input points, a PointNet++ of base width 16 with (128, 32, 8) centres, 16 scans of

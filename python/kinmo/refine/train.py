@@ -426,8 +426,9 @@ def train_axis_model(
     if isinstance(data, (str, Path)):
         graphs = load_graphs(data)
     else:
-        graphs = sorted((g for g in data if g.has_labels and len(g.sibling_edges) > 0),
-                        key=lambda g: g.shape_id)
+        from kinmo.train.gnn import labelled_graphs
+
+        graphs = sorted(labelled_graphs(data), key=lambda g: g.shape_id)
     tr_idx, va_idx, test_ids = split_graphs(graphs, config, split)
     all_edges = moving_edges(graphs)
     tr_set, va_set = set(tr_idx), set(va_idx)

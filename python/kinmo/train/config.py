@@ -1,6 +1,7 @@
 """Training configuration of the motion GNN and its presets.
 
-Two presets (:data:`PRESETS`):
+Three presets (:data:`PRESETS`; ``tiny`` is ``quick`` for 25 epochs, a check that a run goes
+through, as ``KINMO_PRESET=tiny``):
 
 - ``quick``: CPU-sized. PointNet part encoder over 256 of each part's 1024 points, widths 64,
   2 hierarchy and 3 edge-GNN rounds, 60 epochs of batches of 8 shapes, Adam at 2e-3 with a

@@ -12,7 +12,7 @@ Eq. 1-4 (:mod:`kinmo.models.losses`) and writes a **run folder**:
 - ``metrics.csv``: one row per epoch (:data:`METRIC_COLUMNS`): learning rate, training loss
   terms and edge accuracy, and the same on the test split when it is not empty (edge type
   accuracy, recall of moving edges, edge-level axis angle error in degrees and axis position
-  error as a fraction of the shape's bounding-box diagonal);
+  error as a fraction of the shape's bounding-box diagonal; :mod:`kinmo.train.gnn_metrics`);
 - ``recall.json``: per-class recall of the edge types on the training and test sets at the
   end, and the training time (wall clock and CPU seconds, torch threads, device).
 
@@ -39,7 +39,7 @@ import torch
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TO_COARSE
 from kinmo.errors import KinmoDataError
-from kinmo.features import GraphBatch, GraphTensors, SemanticVocab, collate, graph_tensors, yaw_rotation
+from kinmo.features import GraphTensors, SemanticVocab, collate, graph_tensors, yaw_rotation
 from kinmo.io import write_json, write_text
 from kinmo.models.losses import MotionLoss, class_weights
 from kinmo.models.motion_gnn import ModelConfig, MotionGNN
@@ -55,6 +55,13 @@ from kinmo.train.loop import (
     training_session,
 )
 from kinmo.train.loop import save_checkpoint as _save
+from kinmo.train.gnn_metrics import (
+    edge_metrics,
+    evaluate_edges,
+    merge_metrics,
+    per_class_recall,
+    summarize_metrics,
+)
 from kinmo.train.split import Split, make_split
 
 __all__ = [
@@ -62,6 +69,7 @@ __all__ = [
     "Run",
     "TrainResult",
     "edge_metrics",
+    "labelled_graphs",
     "load_cache",
     "load_run",
     "train_gnn",
@@ -199,114 +207,6 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
     return Run(model, config, vocab, dev, ckpt.parent)
 
 
-def edge_metrics(logits: torch.Tensor, direction: torch.Tensor, origin: torch.Tensor,
-                 batch: GraphBatch, types: str) -> dict[str, Any]:
-    """Edge-level metrics of a labelled batch (SWMP's test protocol).
-
-    Parameters
-    ----------
-    logits : (E, K) float
-    direction : (E, 3) float
-        Predicted unit axis directions (normalised frame).
-    origin : (E, 3) float
-        Predicted axis points (normalised frame).
-    batch : GraphBatch
-        Labelled.
-    types : {"fine", "coarse"}
-
-    Returns
-    -------
-    dict
-        ``n_edges``, ``correct`` (edges with the right type), ``moving`` / ``moving_correct``
-        (edges whose true type has an axis / and predicted right), ``confusion`` ``(K, K)``
-        int64 (rows true, columns predicted), ``angles`` (degrees, ``min(θ, 180-θ)``, over
-        edges whose true type has an axis), ``pos`` (distance of the predicted point to the
-        true axis line over rotating edges, fraction of the shape's AABB diagonal, which is
-        the unit of the normalised frame).
-    """
-    from kinmo.features import moving_fine_mask, rotating_fine_mask
-    from kinmo.models.losses import position_loss
-
-    target = batch.edge_labels(types).cpu()
-    pred = logits.argmax(dim=1).cpu()
-    k = logits.shape[1]
-    conf = torch.bincount(target * k + pred, minlength=k * k).reshape(k, k)
-    fine = batch.edge_fine.cpu()
-    has = (moving_fine_mask()[fine] & batch.has_axis.cpu())
-    rot = (rotating_fine_mask()[fine] & batch.has_axis.cpu())
-    d = direction.detach().cpu()
-    o = origin.detach().cpu()
-    td = batch.axis_direction.cpu()
-    cos = (d[has] * td[has]).sum(1).abs().clamp(max=1.0)
-    angles = torch.rad2deg(torch.acos(cos)).numpy()
-    pos = position_loss(o[rot], batch.axis_origin.cpu()[rot], td[rot]).numpy()
-    return {
-        "n_edges": int(target.numel()),
-        "correct": int((pred == target).sum()),
-        "moving": int(has.sum()),
-        "moving_correct": int(((pred == target) & has).sum()),
-        "confusion": conf.numpy().astype(np.int64),
-        "angles": angles,
-        "pos": pos,
-    }
-
-
-def _merge(acc: dict[str, Any] | None, m: dict[str, Any]) -> dict[str, Any]:
-    if acc is None:
-        return {**m, "angles": [m["angles"]], "pos": [m["pos"]]}
-    for key in ("n_edges", "correct", "moving", "moving_correct"):
-        acc[key] += m[key]
-    acc["confusion"] = acc["confusion"] + m["confusion"]
-    acc["angles"].append(m["angles"])
-    acc["pos"].append(m["pos"])
-    return acc
-
-
-def _summary(acc: dict[str, Any]) -> dict[str, float]:
-    ang = np.concatenate(acc["angles"]) if acc["angles"] else np.zeros(0)
-    pos = np.concatenate(acc["pos"]) if acc["pos"] else np.zeros(0)
-    return {
-        "acc": acc["correct"] / max(acc["n_edges"], 1),
-        "moving_recall": acc["moving_correct"] / acc["moving"] if acc["moving"] else float("nan"),
-        "angle_deg": float(ang.mean()) if ang.size else float("nan"),
-        "pos_dist": float(pos.mean()) if pos.size else float("nan"),
-    }
-
-
-def per_class_recall(confusion: np.ndarray, names: Sequence[str]) -> dict[str, dict[str, float]]:
-    """Recall of every class from a ``(K, K)`` confusion matrix (rows true).
-
-    Returns
-    -------
-    dict
-        ``name -> {"recall": float or NaN when absent, "support": int}``.
-    """
-    out = {}
-    for c, name in enumerate(names):
-        n = int(confusion[c].sum())
-        out[name] = {"recall": float(confusion[c, c] / n) if n else float("nan"), "support": n}
-    return out
-
-
-@torch.no_grad()
-def evaluate_edges(model: MotionGNN, tensors: Sequence[GraphTensors], config: TrainConfig,
-                   device: torch.device, loss_fn: MotionLoss | None = None) -> tuple[dict, float]:
-    """Edge metrics (:func:`edge_metrics`, accumulated) and mean loss over labelled graphs."""
-    model.eval()
-    acc = None
-    losses = []
-    for start in range(0, len(tensors), max(config.batch_size, 1)):
-        batch = collate(tensors[start:start + config.batch_size], n_points=config.n_points)
-        batch = batch.to(device)
-        out = model(batch)
-        if loss_fn is not None:
-            losses.append(float(loss_fn(out, batch).total))
-        acc = _merge(acc, edge_metrics(out.logits, out.direction, out.origin, batch,
-                                       config.model.types))
-    model.train()
-    return acc or {}, float(np.mean(losses)) if losses else float("nan")
-
-
 @dataclass
 class TrainResult:
     """Outcome of :func:`train_gnn`.
@@ -357,7 +257,9 @@ def _subsample(members: list[GraphTensors], n_points: int | None,
     return out
 
 
-def _labelled(graphs: Sequence[PartGraph]) -> list[PartGraph]:
+def labelled_graphs(graphs: Sequence[PartGraph]) -> list[PartGraph]:
+    """The graphs the motion GNN and the axis network train on: with ground-truth labels and
+    at least one sibling edge (in the given order)."""
     return [g for g in graphs if g.has_labels and len(g.sibling_edges) > 0]
 
 
@@ -400,7 +302,7 @@ def train_gnn(
     out = Path(out)
     graphs = list(cache) if not isinstance(cache, (str, Path)) else load_cache(cache)
     where = cache if isinstance(cache, (str, Path)) else out
-    graphs = _labelled(graphs)
+    graphs = labelled_graphs(graphs)
     if not graphs:
         raise KinmoDataError(where, "no labelled (PartNet-Mobility) part graphs to train on")
     by_id = {g.shape_id: g for g in graphs}
@@ -483,7 +385,7 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                          share * float(terms.position.detach())]
                 n_b += 1
                 if weight > 0:
-                    acc = _merge(acc, edge_metrics(outp.logits.detach(), outp.direction.detach(),
+                    acc = merge_metrics(acc, edge_metrics(outp.logits.detach(), outp.direction.detach(),
                                                    outp.origin.detach(), batch, config.model.types))
             if dist_info.enabled:  # the epoch's figures over all ranks
                 acc = acc or {"correct": 0, "n_edges": 0}
@@ -496,11 +398,11 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 "epoch": epoch, "lr": lr,
                 "loss": sums[0] / n_b, "loss_type": sums[1] / n_b,
                 "loss_dir": sums[2] / n_b, "loss_pos": sums[3] / n_b,
-                "train_acc": _summary(acc)["acc"],
+                "train_acc": summarize_metrics(acc)["acc"],
             }
             if test_t and main:  # the test split is evaluated by rank 0 only
                 tacc, tloss = evaluate_edges(model, test_t, config, device, loss_fn)
-                s = _summary(tacc)
+                s = summarize_metrics(tacc)
                 row.update(test_loss=tloss, test_acc=s["acc"],
                            test_moving_recall=s["moving_recall"], test_angle_deg=s["angle_deg"],
                            test_pos_dist=s["pos_dist"])
