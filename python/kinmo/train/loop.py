@@ -19,14 +19,16 @@ losses, not in how a run is set up and written. This module holds that common pa
   the runs), written atomically with :func:`kinmo.io.write_text`;
 - **checkpoints**: :func:`save_checkpoint` writes a ``torch.save`` dict with its
   ``format`` tag atomically (:func:`kinmo.io.atomic_path`); :func:`load_checkpoint` finds a
-  run's ``model.pt`` and reads it safely (:func:`kinmo.io.read_checkpoint`), with one-line
-  errors naming the file.
+  run's ``model.pt`` and reads it safely (:func:`kinmo.io.read_checkpoint`), and
+  :func:`build_or_refuse` turns a model that does not match its checkpoint into one error
+  line naming the file.
 
 Runs stay reproducible: the same seed and thread count give the same weights and metrics.
 """
 
 from __future__ import annotations
 
+import copy
 import csv
 import io
 import math
@@ -87,8 +89,6 @@ def preset_values(presets: Mapping[str, Any], name: str) -> dict[str, Any]:
     p = p() if callable(p) else p
     if hasattr(p, "model_dump"):
         return p.model_dump()
-    import copy
-
     return copy.deepcopy(dict(p))
 
 
