@@ -3,7 +3,7 @@
 On real rendered scans (default: a refrigerator and a two-door cabinet, rendered into a
 temporary folder) this measures, in one process:
 
-- **inference** (:func:`kinmo.ancsh.train.predict_scans`: subsampling, normalisation,
+- **inference** (:func:`kinmo.ancsh.inference.predict_scans`: subsampling, normalisation,
   forward pass) per frame, for the ``quick`` and ``paper`` presets' network sizes (512 points
   / width 16 and 1024 points / width 64), with batches of 1 and of 16 frames; ratios: paper /
   quick, batch of 1 / batch of 16 (what batching saves), and the full network / its
@@ -63,7 +63,8 @@ def main() -> None:
     from kinmo.ancsh.config import preset
     from kinmo.ancsh.dataset import load_samples, normalize_points, scan_category, subsample_indices
     from kinmo.ancsh.evaluate import ground_truth_predictions
-    from kinmo.ancsh.train import _build_model, predict_scans, quiet_estimate, render_objects
+    from kinmo.ancsh.inference import build_model, predict_scans, quiet_estimate
+    from kinmo.ancsh.scans import render_objects
 
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
@@ -87,7 +88,7 @@ def main() -> None:
                            "mean_points": float(np.mean([len(s) for s in scans]))}
             for name in ("quick", "paper"):
                 cfg = preset(name)
-                model = _build_model(cfg, st).to(device).eval()
+                model = build_model(cfg, st).to(device).eval()
                 predict_scans(model, scans[:2], cfg.n_points, device, batch_size=2)  # warm-up
                 t1 = _median_time(lambda: predict_scans(model, scans, cfg.n_points, device, batch_size=1),
                                   args.repeats) / len(scans)

@@ -258,7 +258,7 @@ def test_out_pointing_at_a_file(tmp_path: Path, argv: list[str]) -> None:
 
 
 def _loaders():
-    from kinmo.ancsh.train import load_run as load_ancsh
+    from kinmo.ancsh.inference import load_run as load_ancsh
     from kinmo.refine.train import load_axis_model
     from kinmo.train.gnn import load_run as load_gnn
 

@@ -4,7 +4,8 @@ Both go to one rich console on stderr (:func:`stderr_console`), so a diagnostic 
 progress bar is live is printed above the bar instead of breaking it.
 
 - :class:`CountingBar`: the progress bar of the per-shape stages (prepare, render,
-  pseudo-label, :mod:`kinmo.stages`) with running counters, e.g. of failures.
+  pseudo-label, :mod:`kinmo.stages`) with running counters, e.g. of failures;
+  :class:`TrainingBar`: the epoch / step bar of the training loops (:mod:`kinmo.train.loop`).
 - Diagnostics (shapes skipped or resumed, failed shapes, worker failures, fallbacks) are
   records of the ``kinmo`` logger hierarchy (``logging.getLogger(__name__)`` in the module
   that emits them). :func:`setup_logging` gives that hierarchy one
@@ -21,7 +22,7 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["LOG_ENV", "CountingBar", "log_level", "setup_logging", "stderr_console"]
+__all__ = ["LOG_ENV", "CountingBar", "TrainingBar", "log_level", "setup_logging", "stderr_console"]
 
 #: Environment variable giving the ``kinmo`` loggers' level when ``-v`` is not given.
 LOG_ENV = "KINMO_LOG"
@@ -104,6 +105,29 @@ def setup_logging(verbosity: int = 0, environ: Mapping[str, str] | None = None) 
     return log
 
 
+def _rich_progress(title: str, fields: str) -> Any:
+    """kinmo's rich progress layout on stderr: bold ``title`` and the task description, bar,
+    done/total, ``fields`` (a rich ``TextColumn`` format), elapsed and remaining time."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    return Progress(
+        TextColumn(f"[bold]{title}[/] {{task.description}}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn(fields),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=stderr_console(),
+    )
+
+
 class CountingBar:
     """A rich progress bar (on stderr) with running counters, e.g. of failures.
 
@@ -134,27 +158,10 @@ class CountingBar:
 
     def __enter__(self) -> CountingBar:
         if self.enabled:
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
             fields = " ".join(
                 f"[{colour}]{{task.fields[{name}]}} {name}[/]" for name, colour in self.colours.items()
             )
-            self._progress = Progress(
-                TextColumn(f"[bold]{self.title}[/] {{task.description}}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn(fields),
-                TimeElapsedColumn(),
-                TimeRemainingColumn(),
-                console=stderr_console(),
-            )
+            self._progress = _rich_progress(self.title, fields)
             self._progress.__enter__()
             self._task = self._progress.add_task(self.description, total=self.total, **self.counts)
         return self
@@ -165,6 +172,57 @@ class CountingBar:
             self.counts[name] += int(inc)
         if self._progress is not None:
             self._progress.update(self._task, advance=n, **self.counts)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._progress is not None:
+            self._progress.__exit__(*exc)
+
+
+class TrainingBar:
+    """The rich progress bar (on stderr) of kinmo's training loops (GNN, axis network, ANCSH).
+
+    One bar per task (a training stage), each with a free-text ``info`` field (loss, accuracy)
+    after the step count. A no-op when ``enabled`` is False (e.g. on the ranks other than 0
+    of a ``torchrun`` run). Use as a context manager.
+
+    Parameters
+    ----------
+    enabled : bool
+    title : str
+        Bold prefix of every task, e.g. ``"train gnn"``.
+    """
+
+    def __init__(self, enabled: bool, title: str) -> None:
+        self.enabled, self.title = enabled, title
+        self._progress: Any = None
+
+    def __enter__(self) -> TrainingBar:
+        if self.enabled:
+            self._progress = _rich_progress(self.title, "{task.fields[info]}")
+            self._progress.__enter__()
+        return self
+
+    def task(self, description: str, total: int) -> Any:
+        """Add a task of ``total`` steps; returns its handle (None when disabled)."""
+        if self._progress is None:
+            return None
+        return self._progress.add_task(description, total=total, info="")
+
+    def advance(self, task: Any, n: int = 1, info: str | None = None) -> None:
+        """Count ``n`` steps of ``task``, replacing its info text when given."""
+        if self._progress is not None:
+            fields = {} if info is None else {"info": info}
+            self._progress.update(task, advance=n, **fields)
+
+    def describe(self, task: Any, description: str) -> None:
+        """Replace ``task``'s description."""
+        if self._progress is not None:
+            self._progress.update(task, description=description)
+
+    def log(self, text: str) -> None:
+        """Print a line above the bar (nothing when disabled)."""
+        if self._progress is not None:
+            self._progress.console.print(text, highlight=False, soft_wrap=True)
 
     def __exit__(self, *exc: Any) -> None:
         if self._progress is not None:

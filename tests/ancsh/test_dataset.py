@@ -23,7 +23,7 @@ from kinmo.ancsh.dataset import (
     subsample_indices,
 )
 from kinmo.ancsh.evaluate import frame_truth
-from kinmo.ancsh.train import render_objects
+from kinmo.ancsh.scans import render_objects
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.render.dataset import load_frame
 

@@ -25,7 +25,7 @@ from kinmo.ancsh.evaluate import (
     table2_markdown,
 )
 from kinmo.ancsh.postprocess import JointEstimate, estimate
-from kinmo.ancsh.train import render_objects
+from kinmo.ancsh.scans import render_objects
 from kinmo.render.dataset import load_frame
 
 CABINET = "45463"  # two revolute doors

@@ -15,18 +15,12 @@ from kinmo.ancsh.dataset import ANCSHFrames, load_samples, scan_category
 from kinmo.ancsh.evaluate import ground_truth_predictions
 from kinmo.ancsh.postprocess import estimate
 from kinmo.ancsh.semi import pseudo_sample, scan_confidence, unlabeled_object
-from kinmo.ancsh.train import (
-    _build_model,
-    _labeled_subset,
-    _torch_threads,
-    fit,
-    load_run,
-    predict_scans,
-    render_objects,
-    save_checkpoint,
-    train_ancsh,
-)
+from kinmo.ancsh.fit import fit
+from kinmo.ancsh.inference import build_model, load_run, predict_scans, save_checkpoint
+from kinmo.ancsh.scans import render_objects
+from kinmo.ancsh.train import _labeled_subset, train_ancsh
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.train.loop import torch_threads
 
 LAPTOPS = ["10306", "9968"]
 TINY = dict(n_points=256, cache_points=1024, width=8, n_centers=(64, 16, 4), image_size=96,
@@ -65,7 +59,7 @@ def test_presets_and_overrides():
 def test_a_few_steps_lower_the_loss_and_the_checkpoint_reloads(samples, laptops, tmp_path):
     torch.manual_seed(0)
     cfg = preset("quick", epochs=4, steps_per_epoch=5, **TINY).model_copy(update={"category": "Laptop"})
-    model = _build_model(cfg, laptops.structure)
+    model = build_model(cfg, laptops.structure)
     rows = fit(model, ANCSHFrames(samples, cfg.n_points, seed=0), cfg, cfg.epochs, torch.device("cpu"),
                progress=False)
     losses = [r["loss"] for r in rows]
@@ -76,7 +70,7 @@ def test_a_few_steps_lower_the_loss_and_the_checkpoint_reloads(samples, laptops,
     run = load_run(tmp_path, device="cpu")
     assert run.structure == laptops.structure and run.config == cfg and not run.model.training
     scans = [s.points for s in samples[:2]]
-    with _torch_threads(1):
+    with torch_threads(1):
         a = predict_scans(model, scans, cfg.n_points, seeds=[5, 6])
         b = predict_scans(run.model, scans, cfg.n_points, seeds=[5, 6])
     for (pa, qa), (pb, qb) in zip(a, b):

@@ -16,10 +16,17 @@ Modules:
 - :mod:`kinmo.ancsh.config`: training configuration, the three settings and the presets;
 - :mod:`kinmo.ancsh.semi`: the semi-supervised baseline (self-training on unlabelled
   PartNet scans);
-- :mod:`kinmo.ancsh.train`: rendering, training of one setting (with ``labeled_fraction``
-  for the ratio study), checkpoints and prediction;
+- :mod:`kinmo.ancsh.scans`: rendering the partial scans of a set of objects, a category's
+  shape folders;
+- :mod:`kinmo.ancsh.fit`: the training loop (epochs of seeded batches, ``metrics.csv`` rows);
+- :mod:`kinmo.ancsh.train`: a run of one setting (data, split, ``labeled_fraction`` for the
+  ratio study, renders, stages, run folder);
+- :mod:`kinmo.ancsh.inference`: checkpoints, loading a trained run, the network on scans
+  (what evaluation needs, without the trainer);
 - :mod:`kinmo.ancsh.symmetry`: continuous rotational symmetry of parts, for symmetry-aware
   pose errors;
-- :mod:`kinmo.ancsh.evaluate`: Table 2 (part pose, 3D IoU, joint state and axis errors on
-  held-out objects).
+- :mod:`kinmo.ancsh.frame_metrics`: per-frame ground truth and errors;
+- :mod:`kinmo.ancsh.table2`: Table 2 rows and their CSV / Markdown / rich tables;
+- :mod:`kinmo.ancsh.evaluate`: Table 2 of a category (part pose, 3D IoU, joint state and axis
+  errors on held-out objects).
 """

@@ -1,7 +1,7 @@
 """Table 2 of Liu et al. CVPR 2023: ANCSH on partial scans of held-out objects (``kinmo eval``).
 
 For one category, :func:`evaluate_category` renders (or reuses) scans of the test objects of
-the runs' split (:mod:`kinmo.ancsh.train`), runs every trained model (one row per setting:
+the runs' split (:mod:`kinmo.ancsh.train`; models loaded by :mod:`kinmo.ancsh.inference`), runs every trained model (one row per setting:
 ``supervised``, ``semi``, ``semi-weakly``), post-processes each prediction
 (:func:`kinmo.ancsh.postprocess.estimate`) and compares it with the rendered ground truth
 (:func:`frame_truth`). Per frame (:func:`frame_errors`):
@@ -30,24 +30,41 @@ Outputs in the evaluation folder: ``table2.csv`` (one row per run), ``table2.md`
 
 from __future__ import annotations
 
-import csv
-import io
 import time
 import zlib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from kinmo.ancsh.postprocess import ANCSHEstimate, JointEstimate, PartPose
-from kinmo.ancsh.structure import KinematicStructure, ObjectParts
-from kinmo.ancsh.symmetry import align_about_axis
+from kinmo.ancsh.frame_metrics import (
+    FrameErrors,
+    FrameTruth,
+    frame_errors,
+    frame_truth,
+    ground_truth_estimate,
+    ground_truth_predictions,
+)
+from kinmo.ancsh.structure import KinematicStructure
+from kinmo.ancsh.table2 import (
+    METRICS,
+    SETTING_ORDER,
+    Table2Row,
+    num,
+    paper_table,
+    rich_table,
+    structures_markdown,
+    summarize,
+    table2_csv,
+    table2_markdown,
+)
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.metrics.axis import axis_angle_deg, line_distance
-from kinmo.metrics.pose import box_iou_3d, rotation_error_deg
-from kinmo.paper import PAPER_TABLE2
+
+#: ``table2.csv`` text (:func:`kinmo.ancsh.table2.table2_csv`; this name is kept for the
+#: report's test fixtures).
+_table2_csv = table2_csv
 
 __all__ = [
     "FrameErrors",
@@ -60,333 +77,10 @@ __all__ = [
     "ground_truth_estimate",
     "ground_truth_predictions",
     "paper_table",
+    "rich_table",
     "summarize",
     "table2_markdown",
 ]
-
-SETTING_ORDER = {"supervised": 0, "semi": 1, "semi-weakly": 2}
-
-
-# ---------------------------------------------------------------------------- ground truth
-
-
-@dataclass
-class FrameTruth:
-    """Ground truth of one rendered frame in ANCSH order (camera frame, mesh units).
-
-    Attributes
-    ----------
-    parts : list of PartPose
-        Per ANCSH part: NPCS -> camera similarity, ``box_half`` the half extents of its full
-        rest box in NPCS, ``n_points`` visible points.
-    joints : list of JointEstimate
-        Per joint: origin and unit direction in the camera frame, state (radians / mesh
-        units, 0 at rest), type.
-    """
-
-    parts: list[PartPose]
-    joints: list[JointEstimate]
-
-
-def _orthonormal(r: Any) -> np.ndarray:
-    """The rotation nearest to ``r`` (frames store float32 matrices)."""
-    u, _, vt = np.linalg.svd(np.asarray(r, dtype=np.float64))
-    m = u @ vt
-    if np.linalg.det(m) < 0:
-        u[:, -1] *= -1
-        m = u @ vt
-    return m
-
-
-def frame_truth(frame: Mapping[str, Any], parts: ObjectParts) -> FrameTruth:
-    """Ground truth of a frame (:func:`kinmo.render.dataset.load_frame`) in ANCSH order.
-
-    Parameters
-    ----------
-    frame : mapping
-    parts : ObjectParts
-        The object's mapping onto ANCSH parts (:func:`kinmo.ancsh.dataset.object_parts_of`).
-
-    Returns
-    -------
-    FrameTruth
-
-    Raises
-    ------
-    KinmoDataError
-        A part or joint of ``parts`` is missing from the frame.
-    """
-    meta = frame.get("meta", {})
-    where = f"frame {meta.get('frame', '?')} of {meta.get('key', '?')}"
-    pids = [int(p) for p in np.asarray(frame["part_ids"])]
-    k = parts.structure.n_parts
-    row_of_part: dict[int, int] = {}
-    for r, pid in enumerate(pids):
-        if pid in parts.link_part:
-            row_of_part.setdefault(parts.link_part[pid], r)
-    if sorted(row_of_part) != list(range(k)):
-        raise KinmoDataError(where, f"rigid parts {pids} do not cover the {k} ANCSH parts")
-    point_part = np.array([parts.link_part.get(int(l), -1) for l in np.asarray(frame["link"])], dtype=np.int64)
-    vis = [int((point_part == a).sum()) for a in range(k)]
-    out_parts = []
-    for a in range(k):
-        r = row_of_part[a]
-        lo, hi = np.asarray(frame["part_bounds"][r], dtype=np.float64)
-        out_parts.append(PartPose(
-            _orthonormal(frame["part_rotation"][r]),
-            np.asarray(frame["part_translation"][r], dtype=np.float64),
-            float(frame["part_scale"][r]), (hi - lo) / 2.0, vis[a],
-        ))
-    jids = [int(j) for j in np.asarray(frame["joint_ids"])]
-    kinds = ("revolute", "prismatic", "cylindrical")
-    out_joints = []
-    for j, lid in enumerate(parts.joint_links):
-        if lid not in jids:
-            raise KinmoDataError(where, f"joint {j} (moving link {lid}) is missing")
-        r = jids.index(lid)
-        kind = kinds[int(frame["joint_type"][r])]
-        d = np.asarray(frame["joint_direction"][r], dtype=np.float64)
-        state = float(frame["joint_angle"][r]) if kind == "revolute" else float(frame["joint_translation"][r])
-        out_joints.append(JointEstimate(np.asarray(frame["joint_origin"][r], dtype=np.float64),
-                                        d / np.linalg.norm(d), state, kind))
-    return FrameTruth(out_parts, out_joints)
-
-
-def ground_truth_estimate(truth: FrameTruth, segmentation: np.ndarray | None = None) -> ANCSHEstimate:
-    """An :class:`~kinmo.ancsh.postprocess.ANCSHEstimate` equal to the ground truth (the
-    identity check of the metric path: :func:`frame_errors` of it is zero, IoU one)."""
-    from kinmo.ancsh.pose_fitting import Similarity
-
-    parts = [PartPose(p.rotation.copy(), p.translation.copy(), p.scale, p.box_half.copy(), p.n_points)
-             for p in truth.parts]
-    joints = [JointEstimate(j.origin.copy(), j.direction.copy(), j.state, j.type) for j in truth.joints]
-    seg = np.zeros(0, dtype=np.int64) if segmentation is None else np.asarray(segmentation)
-    return ANCSHEstimate(parts, joints, Similarity(np.eye(3), np.zeros(3), 1.0), seg)
-
-
-def ground_truth_predictions(sample: Any, structure: KinematicStructure, logit: float = 10.0) -> dict[str, np.ndarray]:
-    """Per-point "predictions" equal to a sample's targets (one-hot logits), the input of
-    :func:`kinmo.ancsh.postprocess.estimate` a perfect network would give.
-
-    Parameters
-    ----------
-    sample : FrameSample
-    structure : KinematicStructure
-    logit : float
-        Logit of the true class (others 0).
-
-    Returns
-    -------
-    dict of numpy arrays, ANCSH output layout without batch dimension.
-    """
-    k, j = structure.n_parts, structure.n_joints
-    return {
-        "seg_logits": np.eye(k)[sample.seg] * logit,
-        "npcs": np.repeat(np.asarray(sample.npcs, dtype=np.float64)[:, None], k, axis=1),
-        "naocs": np.asarray(sample.naocs, dtype=np.float64),
-        "heatmap": np.asarray(sample.heatmap, dtype=np.float64),
-        "unitvec": np.asarray(sample.unitvec, dtype=np.float64),
-        "axis": np.asarray(sample.axis, dtype=np.float64),
-        "joint_logits": np.eye(j + 1)[sample.joint] * logit,
-    }
-
-
-# --------------------------------------------------------------------------------- errors
-
-
-@dataclass
-class FrameErrors:
-    """Errors of one estimate against one frame's truth (module docstring).
-
-    Attributes
-    ----------
-    rotation_deg, translation, iou : (K,) float64
-    state, angle_deg, distance : (J,) float64
-        ``state``: degrees (revolute) or mesh units (prismatic); ``distance``: NaN for
-        prismatic joints.
-    """
-
-    rotation_deg: np.ndarray
-    translation: np.ndarray
-    iou: np.ndarray
-    state: np.ndarray
-    angle_deg: np.ndarray
-    distance: np.ndarray
-
-
-def _center(p: PartPose) -> np.ndarray:
-    return p.scale * p.rotation @ np.full(3, 0.5) + p.translation
-
-
-def frame_errors(est: ANCSHEstimate, truth: FrameTruth,
-                 symmetry: Sequence[np.ndarray | None] | None = None) -> FrameErrors:
-    """Per-part and per-joint errors of an estimate (module docstring).
-
-    Parameters
-    ----------
-    est : ANCSHEstimate
-    truth : FrameTruth
-    symmetry : sequence of (3,) float or None, optional
-        Per part: its continuous symmetry axis in NPCS
-        (:func:`kinmo.ancsh.symmetry.part_symmetry_axes`) or None. The pose of a symmetric
-        part is first replaced by its symmetric equivalent closest to the truth
-        (:func:`kinmo.ancsh.symmetry.align_about_axis`), so its rotation error is the angle
-        between the predicted and true axis. Default: no part is symmetric.
-
-    Raises
-    ------
-    ValueError
-        Different numbers of parts or joints (or of symmetry entries).
-    """
-    if len(est.parts) != len(truth.parts) or len(est.joints) != len(truth.joints):
-        raise ValueError(f"estimate has {len(est.parts)} parts / {len(est.joints)} joints, truth "
-                         f"{len(truth.parts)} / {len(truth.joints)}")
-    if symmetry is not None and len(symmetry) != len(truth.parts):
-        raise ValueError(f"{len(symmetry)} symmetry entries for {len(truth.parts)} parts")
-    rot, tra, iou = [], [], []
-    for k, (p, t) in enumerate(zip(est.parts, truth.parts)):
-        if symmetry is not None and symmetry[k] is not None:
-            p = align_about_axis(p, t, symmetry[k])
-        rot.append(rotation_error_deg(p.rotation, t.rotation))
-        tra.append(float(np.linalg.norm(_center(p) - _center(t))))
-        iou.append(box_iou_3d(*p.box(), *t.box()))
-    state, ang, dist = [], [], []
-    for p, t in zip(est.joints, truth.joints):
-        d = np.asarray(p.direction, dtype=np.float64)
-        s = -p.state if float(d @ t.direction) < 0 else p.state
-        if t.type == "revolute":  # angle difference wrapped to [0, 180] degrees
-            state.append(float(np.degrees(abs((s - t.state + np.pi) % (2 * np.pi) - np.pi))))
-            dist.append(float(line_distance(p.origin, d, t.origin, t.direction)))
-        else:
-            state.append(abs(s - t.state))
-            dist.append(float("nan"))
-        ang.append(float(axis_angle_deg(d, t.direction)))
-    f = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
-    return FrameErrors(f(rot), f(tra), f(iou), f(state), f(ang), f(dist))
-
-
-# ---------------------------------------------------------------------------------- table
-
-
-@dataclass
-class Table2Row:
-    """One row of Table 2: mean errors of one run over the test frames.
-
-    Attributes
-    ----------
-    setting, run : str
-        The run's setting and folder.
-    frames : int
-    rotation_deg, translation, iou : (K,) float64
-    state, angle_deg, distance : (J,) float64
-    joint_types : tuple of str
-    training : dict
-        Scans the run trained on (``labeled``, ``pseudo_labeled``, ``pseudo_targets``) and the
-        object counts.
-    """
-
-    setting: str
-    run: str
-    frames: int
-    rotation_deg: np.ndarray
-    translation: np.ndarray
-    iou: np.ndarray
-    state: np.ndarray
-    angle_deg: np.ndarray
-    distance: np.ndarray
-    joint_types: tuple[str, ...]
-    training: dict[str, Any] = field(default_factory=dict)
-
-    def mean(self, name: str) -> float:
-        """Mean over parts / joints of a metric (NaN entries ignored; NaN when none)."""
-        v = np.asarray(getattr(self, name), dtype=np.float64)
-        v = v[np.isfinite(v)]
-        return float(v.mean()) if len(v) else float("nan")
-
-
-_METRICS = ("rotation_deg", "translation", "iou", "state", "angle_deg", "distance")
-
-
-def summarize(setting: str, run: str, errors: Sequence[FrameErrors], joint_types: Sequence[str],
-              training: Mapping[str, Any] | None = None) -> Table2Row:
-    """Mean of per-frame errors (NaNs ignored per entry)."""
-    def m(name: str) -> np.ndarray:
-        a = np.stack([getattr(e, name) for e in errors]) if errors else np.zeros((0, 0))
-        with np.errstate(invalid="ignore"):
-            return np.array([np.nanmean(c) if np.isfinite(c).any() else np.nan for c in a.T])
-    return Table2Row(setting, run, len(errors), *(m(n) for n in _METRICS), tuple(joint_types),
-                     dict(training or {}))
-
-
-def _fmt(x: float, digits: int = 3) -> str:
-    return "—" if not np.isfinite(x) else f"{x:.{digits}f}"
-
-
-def _cell(row: Table2Row, name: str, digits: int) -> str:
-    v = np.asarray(getattr(row, name))
-    finite = v[np.isfinite(v)]
-    if len(v) == 1:
-        return _fmt(float(v[0]), digits)
-    if name in ("state",) and len(set(row.joint_types)) > 1:  # no mean across units
-        return " / ".join(_fmt(float(x), digits) for x in v)
-    mean = float(finite.mean()) if len(finite) else float("nan")
-    return f"{_fmt(mean, digits)} ({' / '.join(_fmt(float(x), digits) for x in v)})"
-
-
-_HEADERS = (
-    ("rotation_deg", "rotation error (°)", 2), ("translation", "translation error", 4),
-    ("iou", "3D IoU", 3), ("state", "joint state error", 3), ("angle_deg", "axis angle error (°)", 2),
-    ("distance", "axis distance", 4),
-)
-_SHORT = {"rotation_deg": "rot. (°)", "translation": "transl.", "iou": "IoU", "state": "state",
-          "angle_deg": "axis (°)", "distance": "axis dist."}
-
-
-def table2_markdown(rows: Sequence[Table2Row], category: str, structure: KinematicStructure,
-                    notes: Sequence[str] = ()) -> str:
-    """Table 2 of the paper for one category as Markdown (module docstring for the metrics)."""
-    state_unit = "°" if set(structure.joint_types) == {"revolute"} else (
-        "mesh units" if set(structure.joint_types) == {"prismatic"} else "° or mesh units")
-    lines = [
-        f"# Table 2 — {category} (structure {structure.signature()})", "",
-        "ANCSH on single-view partial scans of the held-out test objects; means over frames. "
-        "Cells with several parts (joints): mean (part 0 / part 1 / …); part 0 is the base. "
-        f"Joint state error in {state_unit}; translation and axis distance in mesh units.", "",
-        "| setting | frames | training scans (labelled / pseudo-labelled / pseudo-targets) | "
-        + " | ".join(h for _, h, _ in _HEADERS) + " |",
-        "|---|---:|---|" + "---:|" * len(_HEADERS),
-    ]
-    for r in rows:
-        t = r.training
-        tr = f"{t.get('labeled_scans', 0)} / {t.get('pseudo_labeled_scans', 0)} / {t.get('pseudo_target_scans', 0)}"
-        lines.append(f"| {r.setting} | {r.frames} | {tr} | "
-                     + " | ".join(_cell(r, n, d) for n, _, d in _HEADERS) + " |")
-    if notes:
-        lines += [""] + [f"- {n}" for n in notes]
-    return "\n".join(lines) + "\n"
-
-
-def _table2_csv(rows: Sequence[Table2Row], k: int, jn: int) -> str:
-    cols = ["setting", "run", "frames", "labeled_scans", "pseudo_labeled_scans", "pseudo_target_scans"]
-    for n in _METRICS:
-        per, width = ("part", k) if n in ("rotation_deg", "translation", "iou") else ("joint", jn)
-        cols += [f"{n}_mean"] + [f"{n}_{per}{i}" for i in range(width)]
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    for r in rows:
-        t = r.training
-        vals: list[Any] = [r.setting, r.run, r.frames, t.get("labeled_scans", 0),
-                           t.get("pseudo_labeled_scans", 0), t.get("pseudo_target_scans", 0)]
-        for n in _METRICS:
-            vals.append(_num(r.mean(n)))
-            vals += [_num(float(x)) for x in getattr(r, n)]
-        w.writerow(vals)
-    return buf.getvalue()
-
-
-def _num(x: float) -> str:
-    return "" if not np.isfinite(x) else f"{x:.6g}"
 
 
 # ------------------------------------------------------------------------------ the runs
@@ -535,8 +229,9 @@ def evaluate_category(
 
     from kinmo.ancsh.dataset import category_key
     from kinmo.ancsh.structure import structure_slug
-    from kinmo.ancsh.train import load_run
+    from kinmo.ancsh.inference import load_run
     from kinmo.io import write_json, write_text
+    from kinmo.train.loop import rows_csv
 
     t0 = time.perf_counter()
     if not runs:
@@ -602,31 +297,16 @@ def evaluate_category(
     if not multi:
         e = evals[0]
         rows, structure = e.rows, e.structure
-        write_text(paths["csv"], _table2_csv(rows, structure.n_parts, structure.n_joints))
+        write_text(paths["csv"], table2_csv(rows, structure.n_parts, structure.n_joints))
         write_text(paths["markdown"], table2_markdown(rows, name, structure, e.notes))
     else:
         rows = _aggregate(evals)
-        write_text(paths["csv"], _table2_csv(rows, 1, 1))
-        md = [f"# Table 2 — {name} ({len(evals)} kinematic structures)", "",
-              "One ANCSH model per structure; each test object is evaluated with the model of its "
-              "structure. Category row: mean over all test scans of the per-scan mean over parts "
-              "(joints).", "",
-              "| setting | frames | rotation error (°) | translation error | 3D IoU | joint state error | "
-              "axis angle error (°) | axis distance |", "|---|---:|" + "---:|" * 6]
-        for r in rows:
-            md.append(f"| {r.setting} | {r.frames} | " + " | ".join(_cell(r, n, d) for n, _, d in _HEADERS) + " |")
-        md += ["", f"- structures: {'; '.join(f'{e.structure.signature()} ({len(e.test_ids)} test objects)' for e in evals)}"]
-        md += [f"- not evaluated: {m}" for m in missing]
-        for e in evals:
-            md += ["", table2_markdown(e.rows, name, e.structure, e.notes).replace("# Table 2", "## Table 2", 1)]
-        write_text(paths["markdown"], "\n".join(md) + "\n")
+        write_text(paths["csv"], table2_csv(rows, 1, 1))
+        write_text(paths["markdown"], structures_markdown(
+            rows, name, [(e.structure, e.rows, e.notes, len(e.test_ids)) for e in evals], missing))
     head = ["setting", "run", "id", "frame"]
     cols = head + sorted({k for ln in frame_lines for k in ln} - set(head))
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
-    w.writeheader()
-    w.writerows(frame_lines)
-    write_text(paths["frames"], buf.getvalue())
+    write_text(paths["frames"], rows_csv(frame_lines, cols, digits=None, nan="nan"))
     test_ids = [i for e in evals for i in e.test_ids]
     sym = {k: v for e in evals for k, v in e.sym.items()}
     write_json(paths["json"], {
@@ -666,7 +346,7 @@ def _aggregate(evals: Sequence[_StructureEval]) -> list[Table2Row]:
     for setting in settings:
         errs = [fe for e in evals for r, fes in zip(e.rows, e.errors) if r.setting == setting for fe in fes]
         vals = {}
-        for n in _METRICS:
+        for n in METRICS:
             per = np.array([np.nanmean(v) if np.isfinite(v := np.asarray(getattr(fe, n), float)).any() else np.nan
                             for fe in errs])
             vals[n] = np.array([np.nanmean(per) if np.isfinite(per).any() else np.nan])
@@ -677,7 +357,7 @@ def _aggregate(evals: Sequence[_StructureEval]) -> list[Table2Row]:
                     for k, v in r.training.items():
                         training[k] = training.get(k, 0) + v
         rows.append(Table2Row(setting, ", ".join(r.run for e in evals for r in e.rows if r.setting == setting),
-                              len(errs), *(vals[n] for n in _METRICS), ("mean",), training))
+                              len(errs), *(vals[n] for n in METRICS), ("mean",), training))
     return rows
 
 
@@ -696,7 +376,9 @@ def _evaluate_structure(
         A test object a run trained on.
     """
     from kinmo.ancsh.dataset import scan_category
-    from kinmo.ancsh.train import _torch_threads, predict_scans, quiet_estimate, render_objects
+    from kinmo.ancsh.inference import predict_scans, quiet_estimate
+    from kinmo.ancsh.scans import render_objects
+    from kinmo.train.loop import torch_threads
     from kinmo.render.dataset import load_frame
     from kinmo.train.split import Split
 
@@ -747,7 +429,7 @@ def _evaluate_structure(
     all_errs: list[list[FrameErrors]] = []
     frame_lines: list[dict[str, Any]] = []
     for r, info in zip(loaded, infos):
-        with _torch_threads(r.config.threads):
+        with torch_threads(r.config.threads):
             preds = predict_scans(r.model, [fr["points"] for _, fr, _ in frames_data], r.config.n_points,
                                   r.device, seeds)
         errs: list[FrameErrors] = []
@@ -757,9 +439,9 @@ def _evaluate_structure(
             errs.append(e)
             line: dict[str, Any] = {"setting": r.setting, "run": str(r.path), "id": fr["meta"]["key"],
                                     "frame": int(fr["meta"]["frame"])}
-            for n in _METRICS:
+            for n in METRICS:
                 for i, x in enumerate(getattr(e, n)):
-                    line[f"{n}_{i}"] = _num(float(x))
+                    line[f"{n}_{i}"] = num(float(x))
             frame_lines.append(line)
         training = {k: info.get(k, 0) for k in ("labeled_scans", "pseudo_labeled_scans", "pseudo_target_scans")}
         training.update({f"{k}_count": len(info.get(k, [])) for k in
@@ -784,42 +466,3 @@ def _evaluate_structure(
         notes.append("no test part is rotationally symmetric (symmetry-aware errors change nothing)")
     return _StructureEval(structure, loaded, rows, all_errs, frame_lines, test_ids, len(frames_data), failed,
                           sym, notes, refused), cat.category
-
-
-def rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStructure | None) -> Any:
-    """The rows as a :class:`rich.table.Table` (``structure`` None: a category row over
-    several structures)."""
-    from rich.table import Table
-
-    what = structure.signature() if structure is not None else "all structures"
-    t = Table(title=f"Table 2 — {category} ({what}), means over test scans",
-              caption="train scans: labelled + pseudo-labelled + pseudo-targets; cells: mean (per part / joint)")
-    t.add_column("setting", no_wrap=True)
-    t.add_column("frames", justify="right")
-    t.add_column("train scans", justify="right")
-    for n, _, _ in _HEADERS:
-        t.add_column(_SHORT[n], justify="right")
-    for r in rows:
-        tr = r.training
-        t.add_row(r.setting, str(r.frames),
-                  f"{tr.get('labeled_scans', 0)}+{tr.get('pseudo_labeled_scans', 0)}+{tr.get('pseudo_target_scans', 0)}",
-                  *(_cell(r, n, d) for n, _, d in _HEADERS))
-    return t
-
-
-def paper_table(rows: Sequence[Table2Row], category: str) -> Any:
-    """The category's Table 2 row of each setting next to the paper's means
-    (:data:`kinmo.paper.PAPER_TABLE2`), as a :class:`rich.table.Table` (rotation and
-    axis angle error, degrees)."""
-    from rich.table import Table
-
-
-    t = Table(title=f"Table 2 — {category} vs the paper (Liu et al. 2023, mean over its categories)")
-    for c in ("setting", "test scans", "rotation (°)", "paper rotation (°)", "axis angle (°)", "paper axis angle (°)"):
-        t.add_column(c, justify="left" if c == "setting" else "right")
-    for r in rows:
-        ref = PAPER_TABLE2.get(r.setting)
-        t.add_row(r.setting, str(r.frames), _fmt(r.mean("rotation_deg"), 2),
-                  f"{ref['rotation']:.2f}" if ref else "–", _fmt(r.mean("angle_deg"), 2),
-                  f"{ref['angle']:.2f}" if ref else "–")
-    return t

@@ -24,7 +24,7 @@ inlier ratio of at least ``min_inlier_ratio`` (the share of its points within th
 inlier threshold, 5 % of the scan's radius, of its fitted pose), at least two parts are seen
 and at least :data:`MIN_IN_CUBE` of the points map into the NPCS cube through their part's
 pose (a degenerate pose, e.g. a tiny scale, sends them far outside); the ``pseudo_keep_fraction`` of the candidates with the highest inlier ratio are kept
-(:func:`kinmo.ancsh.train.train_ancsh`).
+(:func:`semi_pseudo_targets`, called by :func:`kinmo.ancsh.train.train_ancsh`).
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ from kinmo.ancsh.structure import KinematicStructure
 from kinmo.ancsh.targets import joint_targets
 from kinmo.errors import KinmoDataError
 
-__all__ = ["CUBE_MARGIN", "MIN_IN_CUBE", "pose_npcs", "pseudo_sample", "scan_confidence", "softmax",
-           "unlabeled_object"]
+__all__ = ["CUBE_MARGIN", "MIN_IN_CUBE", "RECORD_COLUMNS", "pose_npcs", "pseudo_sample", "records_csv",
+           "scan_confidence", "semi_pseudo_targets", "softmax", "unlabeled_object"]
 
 #: Margin of the unit cube within which pose-mapped NPCS count as valid.
 CUBE_MARGIN = 0.05
@@ -119,7 +119,7 @@ def scan_confidence(points: np.ndarray, pred: Mapping[str, np.ndarray], est: ANC
     points : (N, 3) float
         The scan points the network saw, camera frame.
     pred : mapping
-        Network output of the scan (:func:`kinmo.ancsh.train.predict_scans`).
+        Network output of the scan (:func:`kinmo.ancsh.inference.predict_scans`).
     est : ANCSHEstimate
         Its post-processing.
 
@@ -222,3 +222,97 @@ def pseudo_sample(
         unitvec=tg["unitvec"].astype(np.float32), axis=tg["axis"].astype(np.float32),
         joint=tg["joint"].astype(np.int64), position_mask=tg["position_mask"].astype(bool),
     )
+
+
+#: Columns of ``pseudo_targets.csv``: one row per unlabelled scan.
+RECORD_COLUMNS = ("id", "frame", "n_points", "seg_confidence", "inlier_ratio", "parts_seen", "in_cube", "kept")
+
+
+def records_csv(records: list[dict[str, Any]]) -> str:
+    """``pseudo_targets.csv`` text (:data:`RECORD_COLUMNS`) of :func:`semi_pseudo_targets`'s records."""
+    from kinmo.train.loop import rows_csv
+
+    return rows_csv(records, RECORD_COLUMNS, digits=None, nan="nan")
+
+
+def semi_pseudo_targets(
+    model: Any, cat: Any, structure: KinematicStructure, partnet: Path, test_ids: set[str],
+    out: Path, scans_dir: Path, cfg: Any, device: Any, progress: bool,
+) -> tuple[list[FrameSample], list[dict[str, Any]]]:
+    """Render the category's PartNet shapes at rest, label them with ``model``, keep the
+    confident scans (module docstring).
+
+    Parameters
+    ----------
+    model : ANCSH
+        The supervised stage's network (on ``device``).
+    cat : CategoryObjects
+    structure : KinematicStructure
+    partnet : Path
+        PartNet dataset folder (the unlabelled shapes).
+    test_ids : set of str
+        Shapes never used (test objects of the split).
+    out : Path
+        Run folder (``objects/unlabeled`` gets the wrappers of :func:`unlabeled_object`).
+    scans_dir : Path
+        Render cache (``unlabeled/``).
+    cfg : ANCSHConfig
+        Frames per shape, thresholds, ``pseudo_keep_fraction``, seeds.
+    device : torch.device
+    progress : bool
+
+    Returns
+    -------
+    kept : list of FrameSample
+        The pseudo-targeted scans.
+    records : list of dict
+        One per scan (:data:`RECORD_COLUMNS`), ``kept`` telling which were.
+    """
+    import math
+
+    from kinmo.ancsh.inference import predict_scans, quiet_estimate
+    from kinmo.ancsh.scans import category_folders, render_objects
+    from kinmo.render.dataset import load_frame
+
+    shapes = {k: f for k, f in category_folders(partnet, cat.category).items()
+              if (f / "objs").is_dir() and k not in test_ids}
+    wrappers: dict[str, Path] = {}
+    for k, f in sorted(shapes.items()):
+        try:
+            wrappers[k] = unlabeled_object(f, out / "objects" / "unlabeled" / k)
+        except KinmoDataError:
+            continue
+    files, _ = render_objects(wrappers, out / "objects" / "unlabeled", scans_dir / "unlabeled",
+                              cfg.unlabeled_frames_per_object, cfg, progress)
+    frames = [load_frame(f) for f in files]
+    frames = [fr for fr in frames if len(fr["points"]) >= 32]
+    seeds = [int(fr["meta"]["frame"]) + 1000 * i for i, fr in enumerate(frames)]
+    preds = predict_scans(model, [fr["points"] for fr in frames], cfg.n_points, device, seeds)
+    kept: list[FrameSample] = []
+    records: list[dict[str, Any]] = []
+    candidates: list[tuple[float, int, np.ndarray, dict[str, np.ndarray], Any]] = []
+    for fr, (pts, pred) in zip(frames, preds):
+        key, index = str(fr["meta"]["key"]), int(fr["meta"]["frame"])
+        rec: dict[str, Any] = {"id": key, "frame": index, "n_points": len(fr["points"])}
+        try:
+            est = quiet_estimate(pts, pred, structure, theta=cfg.theta, seed=cfg.seed)
+        except (ValueError, np.linalg.LinAlgError):
+            rec.update(seg_confidence="", inlier_ratio="", parts_seen=0, kept=False)
+            records.append(rec)
+            continue
+        conf = scan_confidence(pts, pred, est)
+        ok = (conf["seg_confidence"] >= cfg.min_seg_confidence and conf["inlier_ratio"] >= cfg.min_inlier_ratio
+              and conf["parts_seen"] >= 2 and conf["in_cube"] >= MIN_IN_CUBE)
+        rec.update(seg_confidence=round(conf["seg_confidence"], 4), inlier_ratio=round(conf["inlier_ratio"], 4),
+                   parts_seen=conf["parts_seen"], in_cube=round(conf["in_cube"], 4), kept=False)
+        records.append(rec)
+        if ok:
+            candidates.append((conf["inlier_ratio"], len(records) - 1, pts, pred, est))
+    # the most consistent share of the confident scans (ties: scan order)
+    candidates.sort(key=lambda c: (-c[0], c[1]))
+    n_keep = int(math.ceil(cfg.pseudo_keep_fraction * len(candidates)))
+    for _, i, pts, pred, est in sorted(candidates[:n_keep], key=lambda c: c[1]):
+        records[i]["kept"] = True
+        kept.append(pseudo_sample(str(records[i]["id"]), int(records[i]["frame"]), pts, pred, est, structure,
+                                  cfg.theta))
+    return kept, records

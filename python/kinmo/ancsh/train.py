@@ -47,12 +47,7 @@ point sampling.
 
 from __future__ import annotations
 
-import csv
-import io
-import math
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -61,27 +56,32 @@ import numpy as np
 import torch
 
 from kinmo.ancsh.config import ANCSHConfig
-from kinmo.ancsh.dataset import (
-    ANCSHFrames,
-    CategoryObjects,
-    FrameSample,
-    category_key,
-    load_samples,
-    normalize_points,
-    object_parts_of,
-    scan_category,
-    subsample_indices,
+from kinmo.ancsh.dataset import ANCSHFrames, load_samples, object_parts_of, scan_category
+from kinmo.ancsh.fit import METRIC_COLUMNS, fit, metrics_csv
+from kinmo.ancsh.inference import (
+    ANCSHRun,
+    build_model,
+    load_run,
+    predict_scans,
+    quiet_estimate,
+    save_checkpoint,
 )
-from kinmo.ancsh.model import ANCSH, ancsh_loss
+from kinmo.ancsh.scans import all_categories, category_folders, render_objects
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
+from kinmo.io import write_json, write_text
 from kinmo.train import distributed
+from kinmo.train.loop import training_session
+
+#: ``metrics.csv`` text of a run (:func:`kinmo.ancsh.fit.metrics_csv`; this name is kept for
+#: the report's test fixtures).
+_metrics_csv = metrics_csv
 
 __all__ = [
     "METRIC_COLUMNS",
     "ANCSHRun",
     "TrainResult",
+    "fit",
     "load_run",
     "predict_scans",
     "quiet_estimate",
@@ -89,250 +89,6 @@ __all__ = [
     "save_checkpoint",
     "train_ancsh",
 ]
-
-METRIC_COLUMNS: tuple[str, ...] = (
-    "stage", "epoch", "lr", "loss", "loss_seg", "loss_npcs", "loss_naocs", "loss_heatmap",
-    "loss_unitvec", "loss_axis", "loss_joint_cls", "seg_acc", "scans", "seconds",
-)
-_TERMS = ("seg", "npcs", "naocs", "heatmap", "unitvec", "axis", "joint_cls")
-CHECKPOINT_FORMAT = "kinmo-ancsh"
-
-
-# ------------------------------------------------------------------------------ run I/O
-
-
-@dataclass
-class ANCSHRun:
-    """A trained ANCSH model loaded from a run folder.
-
-    Attributes
-    ----------
-    model : ANCSH
-        In eval mode, on ``device``.
-    config : ANCSHConfig
-    structure : KinematicStructure
-    device : torch.device
-    path : Path
-        The run folder.
-    """
-
-    model: ANCSH
-    config: ANCSHConfig
-    structure: KinematicStructure
-    device: torch.device
-    path: Path
-
-    @property
-    def category(self) -> str:
-        return self.config.category
-
-    @property
-    def setting(self) -> str:
-        return self.config.setting
-
-
-def _build_model(config: ANCSHConfig, structure: KinematicStructure) -> ANCSH:
-    return ANCSH(structure.n_parts, structure.n_joints, config.width, tuple(config.n_centers),
-                 tuple(config.radii))
-
-
-def save_checkpoint(path: str | Path, model: ANCSH, config: ANCSHConfig, structure: KinematicStructure,
-                    epoch: int) -> None:
-    """Write ``model.pt`` atomically: state dict, config, structure, epoch."""
-    payload = {
-        "format": CHECKPOINT_FORMAT,
-        "version": 1,
-        "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
-        "config": config.model_dump(mode="json"),
-        "structure": {"parents": list(structure.parents), "joint_types": list(structure.joint_types)},
-        "epoch": int(epoch),
-    }
-    with atomic_path(path) as tmp:
-        torch.save(payload, tmp)
-
-
-def load_run(run: str | Path, device: str = "auto") -> ANCSHRun:
-    """Load a trained ANCSH from a run folder (or its ``model.pt``).
-
-    Parameters
-    ----------
-    run : str or Path
-    device : str
-        ``"auto"``, ``"cpu"``, ``"cuda"`` ...
-
-    Returns
-    -------
-    ANCSHRun
-
-    Raises
-    ------
-    KinmoDataError
-        Missing or unreadable checkpoint, or not a kinmo ANCSH checkpoint.
-    """
-    from kinmo.train.config import resolve_device
-
-    run = Path(run)
-    ckpt = run / "model.pt" if run.is_dir() else run
-    if not ckpt.is_file():
-        raise KinmoDataError(ckpt, "checkpoint is missing (train with `kinmo train ancsh`)")
-    payload = read_checkpoint(ckpt, CHECKPOINT_FORMAT, "ANCSH")
-    if payload.get("format") != CHECKPOINT_FORMAT:
-        raise KinmoDataError(ckpt, "not a kinmo ANCSH checkpoint")
-    try:
-        config = ANCSHConfig.model_validate(payload["config"])
-        st = payload["structure"]
-        structure = KinematicStructure(tuple(st["parents"]), tuple(st["joint_types"]))
-        model = _build_model(config, structure)
-        model.load_state_dict(payload["state_dict"])
-    except Exception as e:
-        raise KinmoDataError(ckpt, f"checkpoint does not match the model: {e}") from None
-    dev = resolve_device(device)
-    model.to(dev).eval()
-    return ANCSHRun(model, config, structure, dev, ckpt.parent)
-
-
-@torch.no_grad()
-def predict_scans(
-    model: ANCSH,
-    scans: Sequence[np.ndarray],
-    n_points: int,
-    device: torch.device | str = "cpu",
-    seeds: Sequence[int] | None = None,
-    batch_size: int = 16,
-) -> list[tuple[np.ndarray, dict[str, np.ndarray]]]:
-    """Run ANCSH on partial scans.
-
-    Each scan is subsampled to ``n_points`` (:func:`kinmo.ancsh.dataset.subsample_indices`,
-    generator seeded by ``seeds[i]``) and normalised (:func:`normalize_points`) as in training.
-
-    Parameters
-    ----------
-    model : ANCSH
-    scans : sequence of (M_i, 3) float
-        Camera-frame points.
-    n_points : int
-    device : torch.device or str
-    seeds : sequence of int, optional
-        Per scan (default ``0, 1, ...``).
-    batch_size : int
-
-    Returns
-    -------
-    list of (points, pred)
-        ``points`` (n_points, 3) float64: the camera-frame points the network saw; ``pred``:
-        numpy arrays of :class:`~kinmo.ancsh.model.ANCSH` output without the batch dimension
-        (the input of :func:`kinmo.ancsh.postprocess.estimate`).
-    """
-    was_training = model.training
-    model.eval()
-    seeds = list(range(len(scans))) if seeds is None else list(seeds)
-    out: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
-    try:
-        for b0 in range(0, len(scans), batch_size):
-            pts, xyz = [], []
-            for s, seed in zip(scans[b0:b0 + batch_size], seeds[b0:b0 + batch_size]):
-                s = np.asarray(s, dtype=np.float64)
-                p = s[subsample_indices(len(s), n_points, np.random.default_rng(seed))]
-                pts.append(p)
-                xyz.append(normalize_points(p)[0])
-            pred = model(torch.from_numpy(np.stack(xyz)).to(device))
-            pred = {k: v.detach().cpu().numpy() for k, v in pred.items()}
-            for i, p in enumerate(pts):
-                out.append((p, {k: v[i] for k, v in pred.items()}))
-    finally:
-        model.train(was_training)
-    return out
-
-
-def quiet_estimate(points: np.ndarray, pred: dict[str, np.ndarray], structure: KinematicStructure,
-                   **kwargs: Any) -> Any:
-    """:func:`kinmo.ancsh.postprocess.estimate` without numpy / scipy overflow warnings
-    (expected for the wild predictions of an undertrained network)."""
-    import warnings
-
-    from kinmo.ancsh.postprocess import estimate
-
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return estimate(points, pred, structure, **kwargs)
-
-
-# ----------------------------------------------------------------------------- rendering
-
-
-def _link_objects(folders: dict[str, Path], objects_dir: Path) -> None:
-    """``objects_dir/<key>`` -> folder symbolic links, exactly ``folders``."""
-    objects_dir.mkdir(parents=True, exist_ok=True)
-    for p in objects_dir.iterdir():
-        if p.is_symlink() and p.name not in folders:
-            p.unlink()
-    for key, f in folders.items():
-        link = objects_dir / key
-        target = Path(f).resolve()
-        if link.is_symlink():
-            if link.resolve() == target:
-                continue
-            link.unlink()
-        elif link.exists():
-            continue  # a real folder (e.g. a wrapper written there): render it as is
-        link.symlink_to(target, target_is_directory=True)
-
-
-def render_objects(
-    folders: dict[str, Path],
-    objects_dir: str | Path,
-    scans_dir: str | Path,
-    frames: int,
-    config: ANCSHConfig,
-    progress: bool = True,
-    seed_offset: int = 0,
-) -> tuple[list[Path], dict[str, str]]:
-    """Render ``frames`` partial scans of each object (resuming up-to-date frames).
-
-    Parameters
-    ----------
-    folders : dict of str to Path
-        Object key -> PartNet-Mobility-format folder.
-    objects_dir : str or Path
-        Folder of symbolic links to the objects (the render root).
-    scans_dir : str or Path
-        Output of :func:`kinmo.render.dataset.render_dataset` (``<key>/<frame>.npz``).
-    frames : int
-    config : ANCSHConfig
-        ``image_size``, ``seed``, ``render_workers``.
-    progress : bool
-    seed_offset : int
-        Added to ``config.seed`` for the render seed.
-
-    Returns
-    -------
-    files : list of Path
-        The frames rendered or up to date, sorted.
-    failed : dict of str to str
-        Object key -> reason for objects that failed.
-    """
-    from kinmo.render.dataset import RenderConfig, render_dataset
-
-    objects_dir, scans_dir = Path(objects_dir), Path(scans_dir)
-    if not folders:
-        return [], {}
-    _link_objects(folders, objects_dir)
-    rc = RenderConfig(width=config.image_size, height=config.image_size, seed=config.seed + seed_offset)
-    res = render_dataset(objects_dir, scans_dir, frames, rc, workers=config.render_workers,
-                         progress=progress)
-    files: list[Path] = []
-    failed: dict[str, str] = {}
-    for r in res.rows:
-        if r.id not in folders:
-            continue
-        if r.status in ("ok", "skipped"):
-            files.append(scans_dir / r.file)
-        else:
-            failed.setdefault(r.id, r.error)
-    return sorted(files), failed
-
-
-# ---------------------------------------------------------------------------- training
 
 
 @dataclass
@@ -358,201 +114,6 @@ class TrainResult:
     data: dict[str, Any]
     seconds: float = 0.0
 
-
-def _metrics_csv(rows: list[dict[str, Any]]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(METRIC_COLUMNS), lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: r.get(k, "") for k in METRIC_COLUMNS})
-    return buf.getvalue()
-
-
-def _lr_at(config: ANCSHConfig, step: int, total: int, epoch: int) -> float:
-    if config.schedule == "cosine":
-        return config.lr * 0.5 * (1.0 + math.cos(math.pi * step / max(1, total)))
-    if config.schedule == "step":
-        return config.lr * config.step_gamma ** (epoch // config.step_size)
-    return config.lr
-
-
-class _Progress:
-    """A rich progress bar over optimisation steps (no-op when disabled)."""
-
-    def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled
-        self._p: Any = None
-
-    def __enter__(self) -> _Progress:
-        if self.enabled:
-            from rich.console import Console
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
-            self._p = Progress(TextColumn("[bold]ancsh[/] {task.description}"), BarColumn(),
-                               MofNCompleteColumn(), TextColumn("loss {task.fields[loss]}"),
-                               TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True))
-            self._p.__enter__()
-        return self
-
-    def task(self, label: str, total: int) -> Any:
-        return None if self._p is None else self._p.add_task(label, total=total, loss="-")
-
-    def advance(self, task: Any, loss: float) -> None:
-        if self._p is not None:
-            self._p.update(task, advance=1, loss=f"{loss:.3f}")
-
-    def __exit__(self, *exc: Any) -> None:
-        if self._p is not None:
-            self._p.__exit__(*exc)
-
-
-def fit(
-    model: ANCSH,
-    dataset: ANCSHFrames,
-    config: ANCSHConfig,
-    epochs: int,
-    device: torch.device,
-    stage: str = "train",
-    stage_index: int = 0,
-    on_epoch: Callable[[dict[str, Any]], None] | None = None,
-    progress: bool = True,
-) -> list[dict[str, Any]]:
-    """Train ``model`` on ``dataset`` for ``epochs`` epochs (Adam, ``config`` schedule).
-
-    Parameters
-    ----------
-    model : ANCSH
-        Trained in place (on ``device``).
-    dataset : ANCSHFrames
-    config : ANCSHConfig
-        ``steps_per_epoch``, ``batch_size``, ``lr``, ``weight_decay``, ``schedule``,
-        ``grad_clip``, ``seed``.
-    epochs : int
-    device : torch.device
-    stage : str
-        Label of the rows (``"train"``, ``"semi"``).
-    stage_index : int
-        Seeds the batch order of this stage (``[seed, stage_index]``).
-    on_epoch : callable, optional
-        Called with each epoch's metrics row.
-    progress : bool
-
-    Returns
-    -------
-    list of dict
-        One row per epoch (:data:`METRIC_COLUMNS`).
-    """
-    with _torch_threads(config.threads):
-        return _fit(model, dataset, config, epochs, device, stage, stage_index, on_epoch, progress)
-
-
-@contextmanager
-def _torch_threads(n: int) -> Iterator[None]:
-    """torch's CPU threads set to ``n`` (0: unchanged) for the duration."""
-    old = torch.get_num_threads()
-    if n > 0:
-        torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
-
-
-def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, device: torch.device,
-         stage: str, stage_index: int, on_epoch: Callable[[dict[str, Any]], None] | None,
-         progress: bool) -> list[dict[str, Any]]:
-    from torch.utils.data import default_collate
-
-    steps = config.steps_per_epoch or max(1, math.ceil(len(dataset) / config.batch_size))
-    total = steps * epochs
-    opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    rng = np.random.default_rng([config.seed, stage_index])
-    order: list[int] = []
-    rows: list[dict[str, Any]] = []
-    step = 0
-    model.to(device)
-    ddp = distributed.wrap(model)  # torchrun: DistributedDataParallel (kinmo.train.distributed)
-    dist_info = distributed.info()
-    with _Progress(progress and dist_info.is_main) as bar:
-        task = bar.task(f"{config.category} {config.setting} [{stage}]", total)
-        for epoch in range(epochs):
-            model.train()
-            t0 = time.perf_counter()
-            sums = dict.fromkeys(("total", *_TERMS), 0.0)
-            correct = seen = 0
-            lr = config.lr
-            for _ in range(steps):
-                idx = []
-                while len(idx) < config.batch_size:
-                    if not order:
-                        order = [int(i) for i in rng.permutation(len(dataset))]
-                    idx.append(order.pop())
-                lr = _lr_at(config, step, total, epoch)
-                for g in opt.param_groups:
-                    g["lr"] = lr
-                # every rank draws the whole global batch (same random stream), keeps its shard
-                items, weight = distributed.shard([dataset.sample(i, rng) for i in idx])
-                batch = default_collate(items)
-                batch = {k: v.to(device) for k, v in batch.items()}
-                pred = ddp(batch["xyz"])
-                terms = ancsh_loss(pred, batch)
-                opt.zero_grad(set_to_none=True)
-                (terms["total"] * weight).backward()
-                if config.grad_clip > 0:
-                    torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
-                opt.step()
-                step += 1
-                share = weight / dist_info.world_size  # this rank's share of the global batch
-                for k in sums:
-                    sums[k] += share * float(terms[k].detach())
-                if weight > 0:
-                    with torch.no_grad():
-                        correct += int((pred["seg_logits"].argmax(-1) == batch["seg"]).sum())
-                        seen += batch["seg"].numel()
-                bar.advance(task, float(terms["total"].detach()))
-            if dist_info.enabled:  # the epoch's figures over all ranks
-                *totals, correct, seen = distributed.all_sum([*sums.values(), correct, seen])
-                sums = dict(zip(sums, totals))
-            row = {"stage": stage, "epoch": epoch + 1, "lr": round(lr, 8),
-                   "loss": round(sums["total"] / steps, 6),
-                   **{f"loss_{k}": round(sums[k] / steps, 6) for k in _TERMS},
-                   "seg_acc": round(correct / max(1, seen), 6), "scans": len(dataset),
-                   "seconds": round(time.perf_counter() - t0, 3)}
-            rows.append(row)
-            if on_epoch is not None:
-                on_epoch(row)
-    return rows
-
-
-def _all_categories(root: Path) -> tuple[list[str], list[str]]:
-    """Ids and categories of every PartNet-Mobility object under ``root``."""
-    from kinmo.data.readers import find_shapes, read_meta
-
-    ids, cats = [], []
-    for f in find_shapes(root):
-        if not (f / "mobility_v2.json").is_file():
-            continue
-        try:
-            cats.append(read_meta(f)[0])
-        except KinmoDataError:
-            cats.append("unknown")
-        ids.append(f.name)
-    return ids, cats
-
-
-def _category_folders(root: Path, category: str) -> dict[str, Path]:
-    """Shape folders of ``category`` under ``root`` (either format), by folder name."""
-    from kinmo.data.readers import find_shapes, read_meta
-
-    out: dict[str, Path] = {}
-    for f in find_shapes(root):
-        try:
-            cat = read_meta(f)[0]
-        except KinmoDataError:
-            continue
-        if category_key(cat) == category_key(category):
-            out[f.name] = f
-    return out
 
 
 def _labeled_subset(ids: list[str], fraction: float, seed: int) -> list[str]:
@@ -651,7 +212,8 @@ def train_ancsh(
         Unknown setting.
     """
     from kinmo.ancsh.config import SETTINGS, preset
-    from kinmo.train.config import resolve_device
+    from kinmo.ancsh.semi import records_csv, semi_pseudo_targets
+    from kinmo.train.loop import resolve_device
     from kinmo.train.split import Split, make_split
 
     if setting not in SETTINGS:
@@ -684,7 +246,7 @@ def train_ancsh(
     if split is not None:
         sp = Split.load(split)
     else:
-        ids, cats = _all_categories(data)
+        ids, cats = all_categories(data)
         sp = make_split(ids, cats, cfg.test_fraction, cfg.seed)
     if main:
         sp.save(out / "split.json")
@@ -723,7 +285,7 @@ def train_ancsh(
         proot = Path(pseudo)  # type: ignore[arg-type]
         if not proot.is_dir():
             raise KinmoError(f"{proot}: folder of pseudo-labelled shapes is missing (--pseudo)")
-        pfolders = {k: f for k, f in _category_folders(proot, cat.category).items()
+        pfolders = {k: f for k, f in category_folders(proot, cat.category).items()
                     if (f / "mobility_v2.json").is_file()}
         pparts: dict[str, ObjectParts | None] = {}
         ignored: dict[str, str] = {}
@@ -760,16 +322,14 @@ def train_ancsh(
         raise KinmoError(f"category {cat.category}: no usable training scan was rendered ({failed})")
 
     # model and training
-    _, device = distributed.setup(resolve_device(cfg.device))
-    with _torch_threads(cfg.threads):
-        torch.manual_seed(cfg.seed)
-        model = _build_model(cfg, structure).to(device)
+    with training_session(cfg.device, cfg.seed, cfg.threads) as (_, device):
+        model = build_model(cfg, structure).to(device)
         history: list[dict[str, Any]] = []
 
         def on_epoch(row: dict[str, Any]) -> None:
             history.append(row)
             if main:
-                write_text(out / "metrics.csv", _metrics_csv(history))
+                write_text(out / "metrics.csv", metrics_csv(history))
                 save_checkpoint(out / "model.pt", model, cfg, structure, len(history))
 
         ds = ANCSHFrames(samples, cfg.n_points, cfg.seed, cfg.jitter)
@@ -782,10 +342,10 @@ def train_ancsh(
 
         if setting == "semi":
             with distributed.main_first():
-                psamples, records = _semi_pseudo_targets(model, cat, structure, Path(partnet), test_ids,
+                psamples, records = semi_pseudo_targets(model, cat, structure, Path(partnet), test_ids,
                                                          out, scans_dir, cfg, device, progress)
             if main:
-                write_text(out / "pseudo_targets.csv", _records_csv(records))
+                write_text(out / "pseudo_targets.csv", records_csv(records))
             info["unlabeled_objects"] = sorted({r["id"] for r in records})
             info["unlabeled_scans"] = len(records)
             info["pseudo_target_scans"] = len(psamples)
@@ -817,68 +377,3 @@ def _init_weights(init: str | Path, cfg: ANCSHConfig, structure: KinematicStruct
         raise KinmoError(f"{init}: trained on objects {sorted(used)}, this run labels {sorted(labeled_ids)} "
                          "(another split or labelled fraction)")
     return run.model.state_dict()
-
-
-_RECORD_COLUMNS = ("id", "frame", "n_points", "seg_confidence", "inlier_ratio", "parts_seen", "in_cube", "kept")
-
-
-def _records_csv(records: list[dict[str, Any]]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(_RECORD_COLUMNS), lineterminator="\n", extrasaction="ignore")
-    w.writeheader()
-    for r in records:
-        w.writerow(r)
-    return buf.getvalue()
-
-
-def _semi_pseudo_targets(
-    model: ANCSH, cat: CategoryObjects, structure: KinematicStructure, partnet: Path, test_ids: set[str],
-    out: Path, scans_dir: Path, cfg: ANCSHConfig, device: torch.device, progress: bool,
-) -> tuple[list[FrameSample], list[dict[str, Any]]]:
-    """Render the category's PartNet shapes at rest, label them with ``model``, keep the
-    confident scans (:mod:`kinmo.ancsh.semi`)."""
-    from kinmo.ancsh.semi import MIN_IN_CUBE, pseudo_sample, scan_confidence, unlabeled_object
-    from kinmo.render.dataset import load_frame
-
-    shapes = {k: f for k, f in _category_folders(partnet, cat.category).items()
-              if (f / "objs").is_dir() and k not in test_ids}
-    wrappers: dict[str, Path] = {}
-    for k, f in sorted(shapes.items()):
-        try:
-            wrappers[k] = unlabeled_object(f, out / "objects" / "unlabeled" / k)
-        except KinmoDataError:
-            continue
-    files, _ = render_objects(wrappers, out / "objects" / "unlabeled", scans_dir / "unlabeled",
-                              cfg.unlabeled_frames_per_object, cfg, progress)
-    frames = [load_frame(f) for f in files]
-    frames = [fr for fr in frames if len(fr["points"]) >= 32]
-    seeds = [int(fr["meta"]["frame"]) + 1000 * i for i, fr in enumerate(frames)]
-    preds = predict_scans(model, [fr["points"] for fr in frames], cfg.n_points, device, seeds)
-    kept: list[FrameSample] = []
-    records: list[dict[str, Any]] = []
-    candidates: list[tuple[float, int, np.ndarray, dict[str, np.ndarray], Any]] = []
-    for fr, (pts, pred) in zip(frames, preds):
-        key, index = str(fr["meta"]["key"]), int(fr["meta"]["frame"])
-        rec: dict[str, Any] = {"id": key, "frame": index, "n_points": len(fr["points"])}
-        try:
-            est = quiet_estimate(pts, pred, structure, theta=cfg.theta, seed=cfg.seed)
-        except (ValueError, np.linalg.LinAlgError):
-            rec.update(seg_confidence="", inlier_ratio="", parts_seen=0, kept=False)
-            records.append(rec)
-            continue
-        conf = scan_confidence(pts, pred, est)
-        ok = (conf["seg_confidence"] >= cfg.min_seg_confidence and conf["inlier_ratio"] >= cfg.min_inlier_ratio
-              and conf["parts_seen"] >= 2 and conf["in_cube"] >= MIN_IN_CUBE)
-        rec.update(seg_confidence=round(conf["seg_confidence"], 4), inlier_ratio=round(conf["inlier_ratio"], 4),
-                   parts_seen=conf["parts_seen"], in_cube=round(conf["in_cube"], 4), kept=False)
-        records.append(rec)
-        if ok:
-            candidates.append((conf["inlier_ratio"], len(records) - 1, pts, pred, est))
-    # the most consistent share of the confident scans (ties: scan order)
-    candidates.sort(key=lambda c: (-c[0], c[1]))
-    n_keep = int(math.ceil(cfg.pseudo_keep_fraction * len(candidates)))
-    for _, i, pts, pred, est in sorted(candidates[:n_keep], key=lambda c: c[1]):
-        records[i]["kept"] = True
-        kept.append(pseudo_sample(str(records[i]["id"]), int(records[i]["frame"]), pts, pred, est, structure,
-                                  cfg.theta))
-    return kept, records

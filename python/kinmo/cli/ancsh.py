@@ -37,7 +37,7 @@ def train_ancsh_cmd(
     category: str = typer.Option(..., "--category", "-c", help="Object category, any case or snake_case (laptop, storage_furniture)."),
     setting: str = typer.Option("supervised", "--setting", "-s", help="supervised, semi (self-training on unlabelled PartNet scans) or semi-weakly (adds `kinmo pseudo-label` shapes)."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder (default: runs/ancsh/<category>/<setting>)."),  # noqa: UP007
-    preset: str = typer.Option("quick", "--preset", help="quick (CPU, minutes) or paper (ANCSH's sizes, GPU)."),
+    preset: str = typer.Option("quick", "--preset", envvar="KINMO_PRESET", help="quick (CPU, minutes), paper (ANCSH's sizes, GPU) or tiny (seconds: a check, not results)."),
     labeled_fraction: Optional[float] = typer.Option(None, "--labeled-fraction", min=0.0, max=1.0, help="Share of the labelled training objects used (default: 1)."),  # noqa: UP007
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the split, renders, initialisation and sampling (default: 0)."),  # noqa: UP007
     data: Optional[Path] = typer.Option(None, "--data", "-d", help="PartNet-Mobility dataset folder (default: $KINMO_DATA/partnet-mobility)."),  # noqa: UP007

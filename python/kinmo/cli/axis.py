@@ -14,7 +14,7 @@ from kinmo.cli._apps import train_app
 def train_axis_cmd(
     data: Path = typer.Option(..., "--data", "-d", help="Cache folder of `kinmo prepare` (PartNet-Mobility)."),
     out: Path = typer.Option(..., "--out", "-o", help="Run folder to write (model.pt, last.pt, config.json, metrics.csv)."),
-    preset: str = typer.Option("quick", "--preset", help="quick (CPU, minutes) or paper (the paper code's network, GPU)."),
+    preset: str = typer.Option("quick", "--preset", envvar="KINMO_PRESET", help="quick (CPU, minutes), paper (the paper code's network, GPU) or tiny (seconds: a check, not results)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (also the default split's)."),
     split: Optional[Path] = typer.Option(None, "--split", help="The GNN run's split.json: its test shapes are never used."),  # noqa: UP007
     epochs: Optional[int] = typer.Option(None, "--epochs", min=1, help="Override the preset's epochs."),  # noqa: UP007

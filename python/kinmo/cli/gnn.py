@@ -14,7 +14,7 @@ from kinmo.cli._apps import train_app
 def train_gnn_cmd(
     data: Path = typer.Option(..., "--data", "-d", help="Cache folder of `kinmo prepare` (PartNet-Mobility)."),
     out: Path = typer.Option(..., "--out", "-o", help="Run folder to write (model.pt, config.json, metrics.csv, split.json)."),
-    preset: str = typer.Option("quick", "--preset", help="quick (CPU, minutes) or paper (the paper's sizes, GPU)."),
+    preset: str = typer.Option("quick", "--preset", envvar="KINMO_PRESET", help="quick (CPU, minutes), paper (the paper's sizes, GPU) or tiny (seconds: a check, not results)."),
     types: Optional[str] = typer.Option(None, "--types", help="fine (10 types) or coarse (5 types) [default: fine]."),  # noqa: UP007
     epochs: Optional[int] = typer.Option(None, "--epochs", min=1, help="Override the preset's epochs."),  # noqa: UP007
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed [default: 0]."),  # noqa: UP007

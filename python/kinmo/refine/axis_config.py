@@ -7,7 +7,6 @@ Used by :mod:`kinmo.refine.train` (the loop, which re-exports these names) and
 
 from __future__ import annotations
 
-import json
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -23,7 +22,7 @@ class AxisTrainConfig(BaseModel):
 
     Attributes
     ----------
-    preset : {"quick", "paper", "custom"}
+    preset : {"quick", "paper", "tiny", "custom"}
         Origin of the values (:data:`PRESETS`).
     seed : int
     net : AxisNetConfig
@@ -96,7 +95,7 @@ class AxisTrainConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    preset: Literal["quick", "paper", "custom"] = "custom"
+    preset: Literal["quick", "paper", "tiny", "custom"] = "custom"
     seed: int = 0
     net: AxisNetConfig = Field(default_factory=AxisNetConfig)
     epochs: int = Field(30, ge=1)
@@ -159,6 +158,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "category_min_objects": 5, "category_epochs": 50,
     },
 }
+#: ``tiny``: ``quick`` for 2 epochs, a check that a run goes through in seconds, not results.
+PRESETS["tiny"] = {**PRESETS["quick"], "epochs": 2}
 
 
 def preset_config(preset: str = "quick", **overrides: Any) -> AxisTrainConfig:
@@ -169,9 +170,9 @@ def preset_config(preset: str = "quick", **overrides: Any) -> AxisTrainConfig:
     ValueError
         Unknown preset or invalid values.
     """
-    if preset not in PRESETS:
-        raise ValueError(f"preset: expected one of {', '.join(PRESETS)}, got {preset!r}")
-    values: dict[str, Any] = json.loads(json.dumps(PRESETS[preset]))
+    from kinmo.train.loop import preset_values
+
+    values = preset_values(PRESETS, preset)
     net = dict(values.pop("net"))
     net.update(overrides.pop("net", {}) or {})
     values.update(overrides)

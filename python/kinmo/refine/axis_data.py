@@ -380,9 +380,9 @@ def load_graphs(data: str | Path) -> list[PartGraph]:
     KinmoDataError
         The folder does not exist or holds no labelled graph (message names it).
     """
-    from kinmo.train.gnn import load_cache
+    from kinmo.train.gnn import labelled_graphs, load_cache
 
-    graphs = [g for g in load_cache(data) if g.has_labels and len(g.sibling_edges) > 0]
+    graphs = labelled_graphs(load_cache(data))
     if not graphs:
         raise KinmoDataError(data, "no labelled (PartNet-Mobility) part graphs in the cache")
     return sorted(graphs, key=lambda g: g.shape_id)

@@ -11,8 +11,8 @@ falls back to the global network. Both are accepted by
 
 Checkpoints are ``torch.save`` dicts with ``format = "kinmo-axis-selection"``, the state dict
 and the network configuration (:class:`~kinmo.refine.axis_net.AxisNetConfig`), written
-atomically (:func:`kinmo.io.atomic_path`) and read with :func:`kinmo.io.read_checkpoint`
-(``weights_only=True``).
+atomically and read safely (``weights_only=True``) by :func:`kinmo.train.loop.save_checkpoint`
+and :func:`kinmo.train.loop.load_checkpoint`.
 """
 
 from __future__ import annotations
@@ -23,10 +23,12 @@ from pathlib import Path
 from typing import Any
 
 from kinmo.errors import KinmoDataError
-from kinmo.io import atomic_path, read_checkpoint
 from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
 
 __all__ = ["AxisModelSet", "load_axis_model", "load_axis_models", "save_axis_model"]
+
+#: ``format`` tag of the checkpoints.
+CHECKPOINT_FORMAT = "kinmo-axis-selection"
 
 #: Index of the per-category networks inside a run folder.
 CATEGORIES_FILE = "categories.json"
@@ -47,30 +49,22 @@ def save_axis_model(path: str | Path, model: AxisSelectionNet, **extra: Any) -> 
     -------
     Path
     """
-    import torch
+    from kinmo.train.loop import save_checkpoint
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
-    blob = {"format": "kinmo-axis-selection", "version": 1, "state_dict": state,
-            "net": model.config.model_dump(), **extra}
-    with atomic_path(path) as tmp:
-        torch.save(blob, tmp)
-    return path
+    return save_checkpoint(path, CHECKPOINT_FORMAT, model, net=model.config.model_dump(), **extra)
 
 
 def _read_checkpoint(p: Path, device: str) -> AxisSelectionNet:
-    if not p.is_file():
-        raise KinmoDataError(p, "no axis-selection checkpoint (train one with `kinmo train axis`)")
-    blob = read_checkpoint(p, "kinmo-axis-selection", "axis-selection")  # one line if damaged
-    try:
-        if "net" not in blob:
-            raise ValueError("not a kinmo axis-selection checkpoint")
+    from kinmo.train.loop import build_or_refuse, load_checkpoint
+
+    blob, p = load_checkpoint(p, CHECKPOINT_FORMAT, "axis-selection", "kinmo train axis")
+
+    def build() -> AxisSelectionNet:
         model = AxisSelectionNet(AxisNetConfig(**blob["net"]))
         model.load_state_dict(blob["state_dict"])
-    except Exception as e:  # torch raises many types for corrupt or foreign files
-        raise KinmoDataError(p, f"cannot read axis-selection checkpoint: {e}") from None
-    return model.to(device).eval()
+        return model
+
+    return build_or_refuse(p, build).to(device).eval()
 
 
 def _category_index(run: Path) -> dict[str, str]:

@@ -4,9 +4,10 @@ The training data (moving edges, the (rest, positive, negative) triples with art
 states, the train / validation split) are built by :mod:`kinmo.refine.axis_data`; checkpoints
 are written and read by :mod:`kinmo.refine.axis_io`; candidate lines are scored in batches by
 :mod:`kinmo.refine.feasibility`; the configuration (:class:`AxisTrainConfig`,
-:data:`PRESETS`) is :mod:`kinmo.refine.axis_config`. This module holds the selection metric
-and the training loop (534 lines: the per-category fine-tuning shares the loop); the names of
-those modules used elsewhere are re-exported here.
+:data:`PRESETS`) is :mod:`kinmo.refine.axis_config`; the run plumbing (session, optimisation
+step, progress bar, metrics CSV, checkpoints) is :mod:`kinmo.train.loop`, shared with the other
+trainers. This module holds the selection metric and the training loop (the per-category
+fine-tuning shares the loop); the names of those modules used elsewhere are re-exported here.
 
 Each epoch draws up to ``samples_per_shape`` moving edges per training shape (so a keyboard's
 hundred keys do not drown the doors), with randomness from
@@ -35,8 +36,6 @@ tried category). All files are written atomically.
 from __future__ import annotations
 
 import copy
-import csv
-import io
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -50,7 +49,9 @@ from kinmo.data.graph import PartGraph
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json, write_text
 from kinmo.refine.axis_config import PRESETS, AxisTrainConfig, preset_config
+from kinmo.progress import TrainingBar
 from kinmo.train import distributed
+from kinmo.train.loop import optimizer_step, rows_csv, training_bar, training_session
 from kinmo.refine.axis_data import (
     MovingEdge,
     _diag,
@@ -239,22 +240,9 @@ class TrainResult:
     categories_kept: list[str] = field(default_factory=list)
 
 
-def _device(name: str):
-    import torch
-
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
-
-
-
 def _metrics_csv(rows: list[dict[str, float]]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(METRIC_COLUMNS), lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    return buf.getvalue()
+    """``metrics.csv`` text (NaN written ``nan``: epochs without validation)."""
+    return rows_csv(rows, METRIC_COLUMNS, nan="nan")
 
 
 def _run_batches(model, opt, graphs, edges, config, rng, device, train: bool,
@@ -281,11 +269,8 @@ def _run_batches(model, opt, graphs, edges, config, rng, device, train: bool,
             logits = model.head(torch.cat([fr, fr]), torch.cat([fp, fn]))
             target = torch.cat([torch.ones(b), torch.zeros(b)]).to(device)
             loss = F.binary_cross_entropy_with_logits(logits, target)
-        if train:
-            opt.zero_grad()
-            (loss * weight).backward()
-            distributed.sync_gradients(model)  # the mean gradient over the ranks
-            opt.step()
+        if train:  # sync: the mean gradient over the ranks
+            optimizer_step(opt, loss, model, weight, sync=True)
         if weight > 0:
             losses += float(loss.detach()) * 2 * b
             accs += float(((logits > 0).float() == target).float().sum())
@@ -314,8 +299,8 @@ def _epoch_edges(edges: Sequence[MovingEdge], per_shape: int, rng: np.random.Gen
 def _fit(
     model: AxisSelectionNet, graphs: Sequence[PartGraph], tr_edges: Sequence[MovingEdge],
     va_edges: Sequence[MovingEdge], config: AxisTrainConfig, epochs: int, lr: float,
-    bar: _Progress, label: str, on_epoch: Callable[[int, dict[str, float], bool], None],
-    seed_offset: int = 0,
+    bar: TrainingBar, task: Any, label: str,
+    on_epoch: Callable[[int, dict[str, float], bool], None], seed_offset: int = 0,
 ) -> tuple[list[dict[str, float]], int, dict[str, Any]]:
     """Train ``model`` in place; returns the epoch rows, the best epoch and its state dict."""
     import torch
@@ -330,9 +315,9 @@ def _fit(
         t0 = time.perf_counter()
         rng = np.random.default_rng([config.seed, epoch + seed_offset])
         ep_edges = _epoch_edges(tr_edges, config.samples_per_shape, rng)
-        bar.describe(f"{label} epoch {epoch}/{epochs}")
+        bar.describe(task, f"{label} epoch {epoch}/{epochs}")
         tl, ta = _run_batches(model, opt, graphs, ep_edges, config, rng, device, True,
-                              bar.advance)
+                              lambda: bar.advance(task))
         sched.step()
         vl = va = vs = vch = vc = float("nan")
         validate = bool(va_edges) and (epoch % config.val_every == 0 or epoch == epochs)
@@ -360,7 +345,8 @@ def _fit(
 
 def _category_networks(
     base: AxisSelectionNet, graphs: Sequence[PartGraph], tr_edges: Sequence[MovingEdge],
-    va_edges: Sequence[MovingEdge], config: AxisTrainConfig, out: Path, bar: _Progress,
+    va_edges: Sequence[MovingEdge], config: AxisTrainConfig, out: Path, bar: TrainingBar,
+    task: Any,
 ) -> list[dict[str, Any]]:
     """Fine-tune per-category copies of ``base`` (rule: :class:`AxisTrainConfig`)."""
     objs: dict[str, set[int]] = {}
@@ -378,7 +364,7 @@ def _category_networks(
         model = copy.deepcopy(base)
         _, best_epoch, best_state = _fit(
             model, graphs, cat_tr, cat_val, config, config.category_epochs,
-            config.lr * config.category_lr_scale, bar, cat, lambda *_: None,
+            config.lr * config.category_lr_scale, bar, task, cat, lambda *_: None,
             seed_offset=10**4 * (n_cat + 1))
         model.load_state_dict(best_state)
         c_acc = selection_accuracy(model, graphs, cat_val, config, seed=config.seed)[0]
@@ -398,12 +384,7 @@ def _category_networks(
     write_json(out / CATEGORIES_FILE, {"rule": {
         "min_train_objects": config.category_min_objects, "min_val_objects": 1,
         "kept_when": "category_select_acc > global_select_acc"}, "categories": kept})
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(CATEGORY_COLUMNS), lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    write_text(out / "categories.csv", buf.getvalue())
+    write_text(out / "categories.csv", rows_csv(rows, CATEGORY_COLUMNS, nan="nan"))
     return rows
 
 
@@ -439,16 +420,15 @@ def train_axis_model(
     KinmoDataError
         No labelled graphs with moving joints.
     """
-    import torch
-
     config = config or preset_config("quick")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if isinstance(data, (str, Path)):
         graphs = load_graphs(data)
     else:
-        graphs = sorted((g for g in data if g.has_labels and len(g.sibling_edges) > 0),
-                        key=lambda g: g.shape_id)
+        from kinmo.train.gnn import labelled_graphs
+
+        graphs = sorted(labelled_graphs(data), key=lambda g: g.shape_id)
     tr_idx, va_idx, test_ids = split_graphs(graphs, config, split)
     all_edges = moving_edges(graphs)
     tr_set, va_set = set(tr_idx), set(va_idx)
@@ -460,91 +440,45 @@ def train_axis_model(
                           key=lambda e: (e.graph, e.edge))
     if not tr_edges:
         raise KinmoDataError(str(data), "no moving joints in the training graphs")
-    if config.threads:
-        torch.set_num_threads(config.threads)
-    torch.manual_seed(config.seed)
-    dist_info, device = distributed.setup(_device(config.device))  # torchrun: rank 0 writes
-    model = AxisSelectionNet(config.net).to(device)
-    if dist_info.is_main:
-        write_json(out / "config.json", {
-            "kind": "axis-selection",
-            "config": config.model_dump(mode="json"),
-            "data": str(data) if isinstance(data, (str, Path)) else None,
-            "split": {"train": [graphs[k].shape_id for k in tr_idx],
-                      "val": [graphs[k].shape_id for k in va_idx], "test": test_ids},
-            "n_train_edges": len(tr_edges),
-            "n_val_edges": len(va_edges),
-        })
-    per_graph: dict[int, int] = {}
-    for e in tr_edges:
-        per_graph[e.graph] = per_graph.get(e.graph, 0) + 1
-    steps = math.ceil(sum(min(config.samples_per_shape, n) for n in per_graph.values())
-                      / config.batch_size)
-    rows: list[dict[str, float]] = []
-
-    def on_epoch(epoch: int, row: dict[str, float], better: bool) -> None:
-        rows.append(row)
-        if not dist_info.is_main:
-            return
-        extra = {"epoch": epoch, "metrics": row, "train_config": config.model_dump(mode="json")}
-        save_axis_model(out / "last.pt", model, **extra)
-        if better:
-            save_axis_model(out / "model.pt", model, **extra)
-        write_text(out / "metrics.csv", _metrics_csv(rows))
-
-    with _Progress(progress and dist_info.is_main, config.epochs * steps) as bar:
-        _, best_epoch, best_state = _fit(model, graphs, tr_edges, va_edges, config,
-                                         config.epochs, config.lr, bar, "axis net", on_epoch)
-        kept: list[str] = []
+    with training_session(config.device, config.seed, config.threads) as (dist_info, device):
+        model = AxisSelectionNet(config.net).to(device)  # torchrun: rank 0 writes
         if dist_info.is_main:
-            (out / CATEGORIES_FILE).unlink(missing_ok=True)  # a stale index of an earlier run
-        if config.category_min_objects > 0:
-            model.load_state_dict(best_state)
-            cats = _category_networks(model, graphs, tr_edges, va_edges, config, out, bar)
-            kept = [r["category"] for r in cats if r["kept"]]
+            write_json(out / "config.json", {
+                "kind": "axis-selection",
+                "config": config.model_dump(mode="json"),
+                "data": str(data) if isinstance(data, (str, Path)) else None,
+                "split": {"train": [graphs[k].shape_id for k in tr_idx],
+                          "val": [graphs[k].shape_id for k in va_idx], "test": test_ids},
+                "n_train_edges": len(tr_edges),
+                "n_val_edges": len(va_edges),
+            })
+        per_graph: dict[int, int] = {}
+        for e in tr_edges:
+            per_graph[e.graph] = per_graph.get(e.graph, 0) + 1
+        steps = math.ceil(sum(min(config.samples_per_shape, n) for n in per_graph.values())
+                          / config.batch_size)
+        rows: list[dict[str, float]] = []
+
+        def on_epoch(epoch: int, row: dict[str, float], better: bool) -> None:
+            rows.append(row)
+            if not dist_info.is_main:
+                return
+            extra = {"epoch": epoch, "metrics": row, "train_config": config.model_dump(mode="json")}
+            save_axis_model(out / "last.pt", model, **extra)
+            if better:
+                save_axis_model(out / "model.pt", model, **extra)
+            write_text(out / "metrics.csv", _metrics_csv(rows))
+
+        with training_bar(progress, "train axis") as bar:
+            task = bar.task("axis net", config.epochs * steps)
+            _, best_epoch, best_state = _fit(model, graphs, tr_edges, va_edges, config,
+                                             config.epochs, config.lr, bar, task, "axis net",
+                                             on_epoch)
+            kept: list[str] = []
+            if dist_info.is_main:
+                (out / CATEGORIES_FILE).unlink(missing_ok=True)  # a stale index of an earlier run
+            if config.category_min_objects > 0:
+                model.load_state_dict(best_state)
+                cats = _category_networks(model, graphs, tr_edges, va_edges, config, out, bar, task)
+                kept = [r["category"] for r in cats if r["kept"]]
     return TrainResult(out, rows, best_epoch, len(tr_edges), len(va_edges), kept)
-
-
-class _Progress:
-    """A rich progress bar (or nothing), advanced per training step."""
-
-    def __init__(self, enabled: bool, total: int) -> None:
-        self.enabled = enabled
-        self.total = total
-        self._p = None
-        self._task = None
-
-    def __enter__(self) -> _Progress:
-        if self.enabled:
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            self._p = Progress(TextColumn("{task.description}"), BarColumn(),
-                               MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
-            self._p.__enter__()
-            self._task = self._p.add_task("axis net", total=self.total)
-        return self
-
-    def describe(self, text: str) -> None:
-        if self._p is not None:
-            self._p.update(self._task, description=text)
-
-    def advance(self) -> None:
-        if self._p is not None:
-            self._p.advance(self._task)
-
-    def log(self, text: str) -> None:
-        if self._p is not None:
-            self._p.console.print(text)
-
-    def __exit__(self, *exc: Any) -> None:
-        if self._p is not None:
-            self._p.__exit__(*exc)
-
-

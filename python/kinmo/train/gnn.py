@@ -12,7 +12,7 @@ Eq. 1-4 (:mod:`kinmo.models.losses`) and writes a **run folder**:
 - ``metrics.csv``: one row per epoch (:data:`METRIC_COLUMNS`): learning rate, training loss
   terms and edge accuracy, and the same on the test split when it is not empty (edge type
   accuracy, recall of moving edges, edge-level axis angle error in degrees and axis position
-  error as a fraction of the shape's bounding-box diagonal);
+  error as a fraction of the shape's bounding-box diagonal; :mod:`kinmo.train.gnn_metrics`);
 - ``recall.json``: per-class recall of the edge types on the training and test sets at the
   end, and the training time (wall clock and CPU seconds, torch threads, device).
 
@@ -26,10 +26,7 @@ graphs, each rank training on its shard, rank 0 writing the run folder.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
-import random
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -42,12 +39,29 @@ import torch
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TO_COARSE
 from kinmo.errors import KinmoDataError
-from kinmo.features import GraphBatch, GraphTensors, SemanticVocab, collate, graph_tensors, yaw_rotation
-from kinmo.io import atomic_path, read_checkpoint, write_json, write_text
+from kinmo.features import GraphTensors, SemanticVocab, collate, graph_tensors, yaw_rotation
+from kinmo.io import write_json, write_text
 from kinmo.models.losses import MotionLoss, class_weights
 from kinmo.models.motion_gnn import ModelConfig, MotionGNN
 from kinmo.train import distributed
-from kinmo.train.config import TrainConfig, resolve_device
+from kinmo.train.config import TrainConfig
+from kinmo.train.loop import (
+    build_or_refuse,
+    load_checkpoint,
+    optimizer_step,
+    resolve_device,
+    rows_csv,
+    training_bar,
+    training_session,
+)
+from kinmo.train.loop import save_checkpoint as _save
+from kinmo.train.gnn_metrics import (
+    edge_metrics,
+    evaluate_edges,
+    merge_metrics,
+    per_class_recall,
+    summarize_metrics,
+)
 from kinmo.train.split import Split, make_split
 
 __all__ = [
@@ -55,6 +69,7 @@ __all__ = [
     "Run",
     "TrainResult",
     "edge_metrics",
+    "labelled_graphs",
     "load_cache",
     "load_run",
     "train_gnn",
@@ -65,6 +80,9 @@ METRIC_COLUMNS: tuple[str, ...] = (
     "test_loss", "test_acc", "test_moving_recall", "test_angle_deg", "test_pos_dist", "seconds",
 )
 
+
+#: ``format`` tag of the checkpoints (:func:`kinmo.train.loop.save_checkpoint`).
+CHECKPOINT_FORMAT = "kinmo-motion-gnn"
 
 _COARSE_LUT = torch.tensor(FINE_TO_COARSE, dtype=torch.int64)
 
@@ -146,18 +164,8 @@ class Run:
 def save_checkpoint(path: Path, model: MotionGNN, config: TrainConfig, vocab: SemanticVocab,
                     weights: torch.Tensor | None, epoch: int) -> None:
     """Write ``model.pt`` atomically (state dict + config + vocabulary)."""
-    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
-    payload = {
-        "format": "kinmo-motion-gnn",
-        "version": 1,
-        "state_dict": state,
-        "config": config.model_dump(),
-        "vocab": vocab.names,
-        "class_weights": None if weights is None else weights.cpu(),
-        "epoch": epoch,
-    }
-    with atomic_path(path) as tmp:
-        torch.save(payload, tmp)
+    _save(path, CHECKPOINT_FORMAT, model, config=config.model_dump(), vocab=vocab.names,
+          class_weights=None if weights is None else weights.cpu(), epoch=epoch)
 
 
 def load_run(run: str | Path, device: str = "auto") -> Run:
@@ -168,7 +176,7 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
     run : str or Path
         Run folder written by :func:`train_gnn`, or its ``model.pt``.
     device : str
-        See :func:`kinmo.train.config.resolve_device`.
+        See :func:`kinmo.train.loop.resolve_device`.
 
     Returns
     -------
@@ -179,14 +187,9 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
     KinmoDataError
         Missing or unreadable checkpoint, or one that is not a kinmo motion GNN.
     """
-    run = Path(run)
-    ckpt = run / "model.pt" if run.is_dir() else run
-    if not ckpt.is_file():
-        raise KinmoDataError(ckpt, "checkpoint is missing (train with `kinmo train gnn`)")
-    payload = read_checkpoint(ckpt, "kinmo-motion-gnn", "motion-GNN")
-    if payload.get("format") != "kinmo-motion-gnn":
-        raise KinmoDataError(ckpt, "not a kinmo motion-GNN checkpoint")
-    try:
+    payload, ckpt = load_checkpoint(run, CHECKPOINT_FORMAT, "motion-GNN", "kinmo train gnn")
+
+    def build() -> tuple[TrainConfig, MotionGNN]:
         raw = payload["config"]
         # checkpoints written before the candidate direction head have no ``axis_mode``:
         # they regress the direction
@@ -195,120 +198,13 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
         config = TrainConfig.model_validate(raw)
         model = MotionGNN(config.model)
         model.load_state_dict(payload["state_dict"])
-    except Exception as e:
-        raise KinmoDataError(ckpt, f"checkpoint does not match the model: {e}") from None
+        return config, model
+
+    config, model = build_or_refuse(ckpt, build)
     dev = resolve_device(device)
     model.to(dev).eval()
     vocab = SemanticVocab(payload.get("vocab", []))
     return Run(model, config, vocab, dev, ckpt.parent)
-
-
-def edge_metrics(logits: torch.Tensor, direction: torch.Tensor, origin: torch.Tensor,
-                 batch: GraphBatch, types: str) -> dict[str, Any]:
-    """Edge-level metrics of a labelled batch (SWMP's test protocol).
-
-    Parameters
-    ----------
-    logits : (E, K) float
-    direction : (E, 3) float
-        Predicted unit axis directions (normalised frame).
-    origin : (E, 3) float
-        Predicted axis points (normalised frame).
-    batch : GraphBatch
-        Labelled.
-    types : {"fine", "coarse"}
-
-    Returns
-    -------
-    dict
-        ``n_edges``, ``correct`` (edges with the right type), ``moving`` / ``moving_correct``
-        (edges whose true type has an axis / and predicted right), ``confusion`` ``(K, K)``
-        int64 (rows true, columns predicted), ``angles`` (degrees, ``min(θ, 180-θ)``, over
-        edges whose true type has an axis), ``pos`` (distance of the predicted point to the
-        true axis line over rotating edges, fraction of the shape's AABB diagonal, which is
-        the unit of the normalised frame).
-    """
-    from kinmo.features import moving_fine_mask, rotating_fine_mask
-    from kinmo.models.losses import position_loss
-
-    target = batch.edge_labels(types).cpu()
-    pred = logits.argmax(dim=1).cpu()
-    k = logits.shape[1]
-    conf = torch.bincount(target * k + pred, minlength=k * k).reshape(k, k)
-    fine = batch.edge_fine.cpu()
-    has = (moving_fine_mask()[fine] & batch.has_axis.cpu())
-    rot = (rotating_fine_mask()[fine] & batch.has_axis.cpu())
-    d = direction.detach().cpu()
-    o = origin.detach().cpu()
-    td = batch.axis_direction.cpu()
-    cos = (d[has] * td[has]).sum(1).abs().clamp(max=1.0)
-    angles = torch.rad2deg(torch.acos(cos)).numpy()
-    pos = position_loss(o[rot], batch.axis_origin.cpu()[rot], td[rot]).numpy()
-    return {
-        "n_edges": int(target.numel()),
-        "correct": int((pred == target).sum()),
-        "moving": int(has.sum()),
-        "moving_correct": int(((pred == target) & has).sum()),
-        "confusion": conf.numpy().astype(np.int64),
-        "angles": angles,
-        "pos": pos,
-    }
-
-
-def _merge(acc: dict[str, Any] | None, m: dict[str, Any]) -> dict[str, Any]:
-    if acc is None:
-        return {**m, "angles": [m["angles"]], "pos": [m["pos"]]}
-    for key in ("n_edges", "correct", "moving", "moving_correct"):
-        acc[key] += m[key]
-    acc["confusion"] = acc["confusion"] + m["confusion"]
-    acc["angles"].append(m["angles"])
-    acc["pos"].append(m["pos"])
-    return acc
-
-
-def _summary(acc: dict[str, Any]) -> dict[str, float]:
-    ang = np.concatenate(acc["angles"]) if acc["angles"] else np.zeros(0)
-    pos = np.concatenate(acc["pos"]) if acc["pos"] else np.zeros(0)
-    return {
-        "acc": acc["correct"] / max(acc["n_edges"], 1),
-        "moving_recall": acc["moving_correct"] / acc["moving"] if acc["moving"] else float("nan"),
-        "angle_deg": float(ang.mean()) if ang.size else float("nan"),
-        "pos_dist": float(pos.mean()) if pos.size else float("nan"),
-    }
-
-
-def per_class_recall(confusion: np.ndarray, names: Sequence[str]) -> dict[str, dict[str, float]]:
-    """Recall of every class from a ``(K, K)`` confusion matrix (rows true).
-
-    Returns
-    -------
-    dict
-        ``name -> {"recall": float or NaN when absent, "support": int}``.
-    """
-    out = {}
-    for c, name in enumerate(names):
-        n = int(confusion[c].sum())
-        out[name] = {"recall": float(confusion[c, c] / n) if n else float("nan"), "support": n}
-    return out
-
-
-@torch.no_grad()
-def evaluate_edges(model: MotionGNN, tensors: Sequence[GraphTensors], config: TrainConfig,
-                   device: torch.device, loss_fn: MotionLoss | None = None) -> tuple[dict, float]:
-    """Edge metrics (:func:`edge_metrics`, accumulated) and mean loss over labelled graphs."""
-    model.eval()
-    acc = None
-    losses = []
-    for start in range(0, len(tensors), max(config.batch_size, 1)):
-        batch = collate(tensors[start:start + config.batch_size], n_points=config.n_points)
-        batch = batch.to(device)
-        out = model(batch)
-        if loss_fn is not None:
-            losses.append(float(loss_fn(out, batch).total))
-        acc = _merge(acc, edge_metrics(out.logits, out.direction, out.origin, batch,
-                                       config.model.types))
-    model.train()
-    return acc or {}, float(np.mean(losses)) if losses else float("nan")
 
 
 @dataclass
@@ -340,19 +236,9 @@ class TrainResult:
     cpu_seconds: float = 0.0
 
 
-def _fmt(v: float) -> str:
-    if isinstance(v, float):
-        return "" if math.isnan(v) else f"{v:.6g}"
-    return str(v)
-
-
 def _metrics_csv(rows: list[dict[str, float]]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(METRIC_COLUMNS)
-    for r in rows:
-        w.writerow([_fmt(r[c]) for c in METRIC_COLUMNS])
-    return buf.getvalue()
+    """``metrics.csv`` text (NaN: empty cell)."""
+    return rows_csv(rows, METRIC_COLUMNS)
 
 
 def _subsample(members: list[GraphTensors], n_points: int | None,
@@ -371,7 +257,9 @@ def _subsample(members: list[GraphTensors], n_points: int | None,
     return out
 
 
-def _labelled(graphs: Sequence[PartGraph]) -> list[PartGraph]:
+def labelled_graphs(graphs: Sequence[PartGraph]) -> list[PartGraph]:
+    """The graphs the motion GNN and the axis network train on: with ground-truth labels and
+    at least one sibling edge (in the given order)."""
     return [g for g in graphs if g.has_labels and len(g.sibling_edges) > 0]
 
 
@@ -414,7 +302,7 @@ def train_gnn(
     out = Path(out)
     graphs = list(cache) if not isinstance(cache, (str, Path)) else load_cache(cache)
     where = cache if isinstance(cache, (str, Path)) else out
-    graphs = _labelled(graphs)
+    graphs = labelled_graphs(graphs)
     if not graphs:
         raise KinmoDataError(where, "no labelled (PartNet-Mobility) part graphs to train on")
     by_id = {g.shape_id: g for g in graphs}
@@ -428,28 +316,15 @@ def train_gnn(
     if not train_g:
         raise KinmoDataError(where, "the split leaves no labelled graph for training")
 
-    prev_det = torch.are_deterministic_algorithms_enabled()
-    prev_threads = torch.get_num_threads()
-    try:
-        torch.use_deterministic_algorithms(True, warn_only=True)
-        if config.threads > 0:
-            torch.set_num_threads(config.threads)
-        return _train(train_g, test_g, out, config, split, progress, on_epoch)
-    finally:
-        torch.use_deterministic_algorithms(prev_det)
-        torch.set_num_threads(prev_threads)
+    with training_session(config.device, config.seed, config.threads, deterministic=True) as (
+            dist_info, device):
+        return _train(train_g, test_g, out, config, split, progress, on_epoch, dist_info, device)
 
 
 def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config: TrainConfig,
-           split: Split, progress: bool,
-           on_epoch: Callable[[dict[str, float]], None] | None) -> TrainResult:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    dist_info, device = distributed.setup(resolve_device(config.device))
+           split: Split, progress: bool, on_epoch: Callable[[dict[str, float]], None] | None,
+           dist_info: distributed.DistInfo, device: torch.device) -> TrainResult:
     main = dist_info.is_main
-    torch.manual_seed(config.seed)
-    random.seed(config.seed)
-    np.random.seed(config.seed % (2**32))
     vocab = SemanticVocab.from_graphs(train_g) if config.model.semantic_dim > 0 else SemanticVocab()
     mdata = config.model.model_dump()
     mdata["vocab_size"] = len(vocab)
@@ -484,10 +359,8 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
     history: list[dict[str, float]] = []
     t0 = time.perf_counter()
     c0 = time.process_time()
-    columns = [TextColumn("[bold]train gnn[/]"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("{task.fields[info]}"), TimeElapsedColumn()]
-    with Progress(*columns, disable=not (progress and main), transient=False) as bar:
-        task = bar.add_task("epochs", total=config.epochs, info="")
+    with training_bar(progress, "train gnn") as bar:
+        task = bar.task("epochs", config.epochs)
         for epoch in range(1, config.epochs + 1):
             model.train()
             order = torch.randperm(len(train_t), generator=gen).tolist()
@@ -505,18 +378,14 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 batch = collate(members, n_points=config.n_points, generator=gen).to(device)
                 outp = ddp(batch)
                 terms = loss_fn(outp, batch)
-                opt.zero_grad(set_to_none=True)
-                (terms.total * weight).backward()
-                if config.grad_clip > 0:
-                    torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
-                opt.step()
+                optimizer_step(opt, terms.total, model, weight, config.grad_clip)
                 share = weight / dist_info.world_size  # n_rank / n_global (1: one process)
                 sums += [share * float(terms.total.detach()), share * float(terms.type.detach()),
                          share * float(terms.direction.detach()),
                          share * float(terms.position.detach())]
                 n_b += 1
                 if weight > 0:
-                    acc = _merge(acc, edge_metrics(outp.logits.detach(), outp.direction.detach(),
+                    acc = merge_metrics(acc, edge_metrics(outp.logits.detach(), outp.direction.detach(),
                                                    outp.origin.detach(), batch, config.model.types))
             if dist_info.enabled:  # the epoch's figures over all ranks
                 acc = acc or {"correct": 0, "n_edges": 0}
@@ -529,11 +398,11 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 "epoch": epoch, "lr": lr,
                 "loss": sums[0] / n_b, "loss_type": sums[1] / n_b,
                 "loss_dir": sums[2] / n_b, "loss_pos": sums[3] / n_b,
-                "train_acc": _summary(acc)["acc"],
+                "train_acc": summarize_metrics(acc)["acc"],
             }
             if test_t and main:  # the test split is evaluated by rank 0 only
                 tacc, tloss = evaluate_edges(model, test_t, config, device, loss_fn)
-                s = _summary(tacc)
+                s = summarize_metrics(tacc)
                 row.update(test_loss=tloss, test_acc=s["acc"],
                            test_moving_recall=s["moving_recall"], test_angle_deg=s["angle_deg"],
                            test_pos_dist=s["pos_dist"])
@@ -548,7 +417,7 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
             info = f"loss {row['loss']:.3f} acc {row['train_acc']:.3f}"
             if test_t:
                 info += f" | test acc {row['test_acc']:.3f} angle {row['test_angle_deg']:.1f}°"
-            bar.update(task, advance=1, info=info)
+            bar.advance(task, info=info)
             if on_epoch is not None:
                 on_epoch(row)
     seconds = time.perf_counter() - t0

@@ -1,0 +1,155 @@
+"""The ANCSH training loop: Adam with the configured schedule over seeded batches of scans.
+
+:func:`fit` trains an :class:`~kinmo.ancsh.model.ANCSH` on an
+:class:`~kinmo.ancsh.dataset.ANCSHFrames` for a number of epochs of ``steps_per_epoch``
+batches (one pass over the scans when ``None``), with the loss of
+:func:`kinmo.ancsh.model.ancsh_loss` (Li et al. CVPR 2020, Sec. 4). The batch order comes from
+``numpy.random.default_rng([seed, stage_index])`` and the learning rate follows
+``config.schedule`` per step (:func:`lr_at`). Under ``torchrun`` every rank draws the whole
+global batch and keeps its shard (:mod:`kinmo.train.distributed`). Each epoch gives one row
+of ``metrics.csv`` (:data:`METRIC_COLUMNS`, :func:`metrics_csv`). The run set-up around it
+(data, rendering, stages, checkpoints) is :func:`kinmo.ancsh.train.train_ancsh`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import torch
+
+from kinmo.ancsh.config import ANCSHConfig
+from kinmo.ancsh.dataset import ANCSHFrames
+from kinmo.ancsh.model import ANCSH, ancsh_loss
+from kinmo.train import distributed
+from kinmo.train.loop import optimizer_step, rows_csv, torch_threads, training_bar
+
+__all__ = ["METRIC_COLUMNS", "fit", "lr_at", "metrics_csv"]
+
+#: Columns of ``metrics.csv``: one row per epoch of each stage.
+METRIC_COLUMNS: tuple[str, ...] = (
+    "stage", "epoch", "lr", "loss", "loss_seg", "loss_npcs", "loss_naocs", "loss_heatmap",
+    "loss_unitvec", "loss_axis", "loss_joint_cls", "seg_acc", "scans", "seconds",
+)
+_TERMS = ("seg", "npcs", "naocs", "heatmap", "unitvec", "axis", "joint_cls")
+
+
+def metrics_csv(rows: list[dict[str, Any]]) -> str:
+    """``metrics.csv`` text (values as rounded by the loop, NaN written ``nan``)."""
+    return rows_csv(rows, METRIC_COLUMNS, digits=None, nan="nan")
+
+
+def lr_at(config: ANCSHConfig, step: int, total: int, epoch: int) -> float:
+    """Learning rate at optimisation ``step`` of ``total`` (``epoch`` 0-based) for ``config.schedule``:
+    ``cosine`` (per step, to 0), ``step`` (x ``step_gamma`` every ``step_size`` epochs) or
+    ``constant``."""
+    if config.schedule == "cosine":
+        return config.lr * 0.5 * (1.0 + math.cos(math.pi * step / max(1, total)))
+    if config.schedule == "step":
+        return config.lr * config.step_gamma ** (epoch // config.step_size)
+    return config.lr
+
+
+def fit(
+    model: ANCSH,
+    dataset: ANCSHFrames,
+    config: ANCSHConfig,
+    epochs: int,
+    device: torch.device,
+    stage: str = "train",
+    stage_index: int = 0,
+    on_epoch: Callable[[dict[str, Any]], None] | None = None,
+    progress: bool = True,
+) -> list[dict[str, Any]]:
+    """Train ``model`` on ``dataset`` for ``epochs`` epochs (Adam, ``config`` schedule).
+
+    Parameters
+    ----------
+    model : ANCSH
+        Trained in place (on ``device``).
+    dataset : ANCSHFrames
+    config : ANCSHConfig
+        ``steps_per_epoch``, ``batch_size``, ``lr``, ``weight_decay``, ``schedule``,
+        ``grad_clip``, ``seed``.
+    epochs : int
+    device : torch.device
+    stage : str
+        Label of the rows (``"train"``, ``"semi"``).
+    stage_index : int
+        Seeds the batch order of this stage (``[seed, stage_index]``).
+    on_epoch : callable, optional
+        Called with each epoch's metrics row.
+    progress : bool
+
+    Returns
+    -------
+    list of dict
+        One row per epoch (:data:`METRIC_COLUMNS`).
+    """
+    with torch_threads(config.threads):
+        return _fit(model, dataset, config, epochs, device, stage, stage_index, on_epoch, progress)
+
+
+def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, device: torch.device,
+         stage: str, stage_index: int, on_epoch: Callable[[dict[str, Any]], None] | None,
+         progress: bool) -> list[dict[str, Any]]:
+    from torch.utils.data import default_collate
+
+    steps = config.steps_per_epoch or max(1, math.ceil(len(dataset) / config.batch_size))
+    total = steps * epochs
+    opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    rng = np.random.default_rng([config.seed, stage_index])
+    order: list[int] = []
+    rows: list[dict[str, Any]] = []
+    step = 0
+    model.to(device)
+    ddp = distributed.wrap(model)  # torchrun: DistributedDataParallel (kinmo.train.distributed)
+    dist_info = distributed.info()
+    with training_bar(progress, "ancsh") as bar:
+        task = bar.task(f"{config.category} {config.setting} [{stage}]", total)
+        for epoch in range(epochs):
+            model.train()
+            t0 = time.perf_counter()
+            sums = dict.fromkeys(("total", *_TERMS), 0.0)
+            correct = seen = 0
+            lr = config.lr
+            for _ in range(steps):
+                idx = []
+                while len(idx) < config.batch_size:
+                    if not order:
+                        order = [int(i) for i in rng.permutation(len(dataset))]
+                    idx.append(order.pop())
+                lr = lr_at(config, step, total, epoch)
+                for g in opt.param_groups:
+                    g["lr"] = lr
+                # every rank draws the whole global batch (same random stream), keeps its shard
+                items, weight = distributed.shard([dataset.sample(i, rng) for i in idx])
+                batch = default_collate(items)
+                batch = {k: v.to(device) for k, v in batch.items()}
+                pred = ddp(batch["xyz"])
+                terms = ancsh_loss(pred, batch)
+                optimizer_step(opt, terms["total"], model, weight, config.grad_clip)
+                step += 1
+                share = weight / dist_info.world_size  # this rank's share of the global batch
+                for k in sums:
+                    sums[k] += share * float(terms[k].detach())
+                if weight > 0:
+                    with torch.no_grad():
+                        correct += int((pred["seg_logits"].argmax(-1) == batch["seg"]).sum())
+                        seen += batch["seg"].numel()
+                bar.advance(task, info=f"loss {float(terms['total'].detach()):.3f}")
+            if dist_info.enabled:  # the epoch's figures over all ranks
+                *totals, correct, seen = distributed.all_sum([*sums.values(), correct, seen])
+                sums = dict(zip(sums, totals))
+            row = {"stage": stage, "epoch": epoch + 1, "lr": round(lr, 8),
+                   "loss": round(sums["total"] / steps, 6),
+                   **{f"loss_{k}": round(sums[k] / steps, 6) for k in _TERMS},
+                   "seg_acc": round(correct / max(1, seen), 6), "scans": len(dataset),
+                   "seconds": round(time.perf_counter() - t0, 3)}
+            rows.append(row)
+            if on_epoch is not None:
+                on_epoch(row)
+    return rows
