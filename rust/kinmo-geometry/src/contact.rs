@@ -153,7 +153,8 @@ impl MeshBvh {
             .faces()
             .iter()
             .map(|f| {
-                let t = [v[f[0] as usize], v[f[1] as usize], v[f[2] as usize]].map(|p| p * scale);
+                let t = [v[f[0] as usize], v[f[1] as usize], v[f[2] as usize]]
+                    .map(|p| crate::mesh::flush_tiny(&(p * scale)));
                 (t, normal(&t))
             })
             .collect();

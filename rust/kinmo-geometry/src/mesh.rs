@@ -124,6 +124,22 @@ pub fn triangle_area(a: &Point3<f64>, b: &Point3<f64>, c: &Point3<f64>) -> f64 {
     0.5 * (b - a).cross(&(c - a)).norm()
 }
 
+/// Coordinates smaller than this in magnitude are flushed to zero before parry builds a
+/// BVH ([`flush_tiny`]).
+///
+/// parry's binned BVH build divides by the extent of the leaves' centres; an extent in the
+/// subnormal range (all triangles within ~1e-300 of each other) overflows that division
+/// and panics inside parry. After flushing, any non-zero difference of two coordinates is
+/// at least ~1e-166 (the spacing of f64 values near 1e-150), so the division stays finite.
+/// 1e-150 mesh units is far below any geometry kinmo handles (meshes are in metres or unit
+/// boxes), and every caller applies it after scaling to unit magnitude where it scales.
+pub const TINY_COORDINATE: f64 = 1e-150;
+
+/// `p` with every coordinate of magnitude below [`TINY_COORDINATE`] set to zero.
+pub fn flush_tiny(p: &Point3<f64>) -> Point3<f64> {
+    p.map(|x| if x.abs() < TINY_COORDINATE { 0.0 } else { x })
+}
+
 /// Check that all coordinates are finite.
 ///
 /// # Errors

@@ -210,7 +210,12 @@ impl SweepObstacle {
             .unwrap_or(0.0);
         // `TriMesh::new` guarantees finite vertices and in-range indices; parry only
         // refuses an empty index buffer, excluded above.
-        let mesh = ParryMesh::new(mesh.vertices().to_vec(), mesh.faces().to_vec()).ok();
+        let flushed = mesh
+            .vertices()
+            .iter()
+            .map(crate::mesh::flush_tiny)
+            .collect();
+        let mesh = ParryMesh::new(flushed, mesh.faces().to_vec()).ok();
         Ok(Self { mesh, diagonal })
     }
 
