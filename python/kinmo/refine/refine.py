@@ -462,7 +462,7 @@ def select_edge(
         confidence; the direction's sign is the one the collision proxy (or the network)
         finds freer.
     """
-    from kinmo.refine.selector import FEATURES, candidate_features, edge_candidates
+    from kinmo.refine.selector import FEATURE_GROUPS, FEATURES, candidate_features, edge_candidates
 
     cfg = config or RefineConfig()
     rng = np.random.default_rng(cfg.seed if rng is None else rng)
@@ -475,8 +475,10 @@ def select_edge(
     net_sign = None
     if "feasibility" in ranker.features and axis_model is not None:
         feas, net_sign = _network_feasibility(graph, i, j, cands, axis_model, cfg, rng)
+    proxy = net_sign is not None or any(f in ranker.features for f in FEATURE_GROUPS["collision"])
     x, sign = candidate_features(graph, i, j, edge, cands, frames, priors, gnn_direction,
-                                 gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic)
+                                 gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic,
+                                 proxy=proxy)
     p = ranker.probabilities(x)
     b = int(np.argmax(p))
     sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,

@@ -378,6 +378,7 @@ def candidate_features(
     seed: int = 0,
     semantic: SemanticPrior | None = None,
     exclude: str | None = None,
+    proxy: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-candidate features (:data:`FEATURES`) and the less-colliding sign of each line.
 
@@ -412,6 +413,10 @@ def candidate_features(
         without it ``sem_prior`` is 1/3 for every line (drops out of the per-edge softmax).
     exclude : str, optional
         Shape id left out of the semantic prior (out-of-fold fits on training objects).
+    proxy : bool
+        Compute the point proxy of the collision (``collide_*``, zeros otherwise). Skipped
+        only with ``meshes`` (the sweep then gives the sign); a ranker without ``collide_*``
+        features does not need it.
 
     Returns
     -------
@@ -457,7 +462,7 @@ def candidate_features(
 
     # collision proxy: static samples newly inside the moving part's (slightly shrunk) box
     sign = np.ones(c, dtype=np.int64)
-    if static.shape[0]:
+    if static.shape[0] and (proxy or meshes is None):
         shrink = np.maximum(half * 0.9, half - 0.02 * diag)
         local0 = (static - centre) @ axes.T
         rest = np.all(np.abs(local0) < shrink, axis=1)
