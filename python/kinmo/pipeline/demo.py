@@ -36,7 +36,8 @@ def run_demo(
     :func:`run_pipeline` with the ``quick`` preset shortened for 2 CPU cores: motion GNNs 25
     epochs, axis network 8, ANCSH 16 epochs of 15 steps (+4 semi-supervised) on 3 scans per
     object, Table 1 renders for the gallery, and the report. With the defaults this was
-    measured at 158 CPU-seconds (2 min 27 s wall on 2 cores, 1.45 GB peak memory).
+    measured at 158 CPU-seconds (2 min 27 s wall on 2 cores, 1.45 GB peak memory) before the
+    ranker stage; with it (and the paper selector's Table 1) 192 CPU-seconds, 1.46 GB.
 
     Parameters
     ----------

@@ -17,7 +17,7 @@ from kinmo.pipeline.config import PipelineConfig
 from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
 from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
 from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
-from kinmo.runs import SYNTH_EXTRA_FILE
+from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
 
 __all__ = ["RANKER_FOLDS", "RANKER_TYPES", "SPLIT_TEST_FRACTION", "run_pipeline"]
 
@@ -95,10 +95,10 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     # 10. report
     from kinmo.report import write_report
 
-    write_json(out / "pipeline_result.json", json.loads(res.model_dump_json()))  # the report shows the times
+    write_json(out / RESULT_FILE, json.loads(res.model_dump_json()))  # the report shows the times
     rep = ctx.clock.run("report", lambda: write_report(out, out / "report"))
     res.report = rep.html
-    write_json(out / "pipeline_result.json", json.loads(res.model_dump_json()))
+    write_json(out / RESULT_FILE, json.loads(res.model_dump_json()))
     tot = res.total()
     log(f"[bold]total[/]: {tot.wall_s:.1f} s wall, {tot.cpu_s:.1f} s CPU")
     return res
@@ -182,6 +182,8 @@ class _Context:
         names = sorted(p.name for p in find_shapes(cfg.labeled))
         key = {"labeled": str(cfg.labeled), "seed": cfg.seed, "test_fraction": SPLIT_TEST_FRACTION,
                "shapes": hashlib.sha256("\n".join(names).encode()).hexdigest()[:16]}
+        if not split_file.is_file():  # removed by hand: made again
+            (out / ".split.done").unlink(missing_ok=True)
         _stage(out, key, lambda: structure_split(cfg.labeled, SPLIT_TEST_FRACTION, seed=cfg.seed).save(split_file),
                self.console.print, "split", self.clock, marker_name=".split.done")
         self.res.split = split_file

@@ -35,12 +35,9 @@ from kinmo.report import artefacts as _artefacts
 from kinmo.report.artefacts import *  # noqa: F403 (the artefact types, re-exported)
 from kinmo.report.artefacts import CsvTable, RunArtefacts, SynthExtra, combine_table2, read_csv
 from kinmo.report.recognise import ARTEFACTS, CONVERTERS, SKIP_DIRS, SKIP_IMAGE_DIRS, _rel, gallery, png_size
-from kinmo.runs import SYNTH_EXTRA_FILE  # the file of a generated-shapes run
+from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
 
 __all__ = [*_artefacts.__all__, "ARTEFACTS", "RESULT_FILE", "STAGE_KINDS", "collect_run", "png_size"]
-
-#: The file of ``kinmo train all`` naming every stage's outputs.
-RESULT_FILE = "pipeline_result.json"
 
 #: Stage of ``pipeline_result.json`` -> the kind of artefact its folders hold (an attribute of
 #: :class:`RunArtefacts`). Other stages (``split``, ``prepare``, ``ranker``) are not shown.
