@@ -17,8 +17,9 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert res.exit_code == 0, res.output
     run = out / "run"
     # every stage left its product
-    for sub in ("cache/labeled/manifest.csv", "cache/unlabeled/manifest.csv", "gnn_fine/model.pt",
-                "gnn_coarse/model.pt", "gnn_fine/split.json", "axis", "pseudo/summary.csv",
+    for sub in ("split.json", "cache/labeled/manifest.csv", "cache/unlabeled/manifest.csv", "gnn_fine/model.pt",
+                "gnn_coarse/model.pt", "axis", "ranker/ranker.json", "pseudo/summary.csv",
+                "eval/pre-segmented-paper/table1.csv",
                 "ancsh/Laptop/supervised/model.pt", "ancsh/Laptop/semi/model.pt",
                 "ancsh/Laptop/semi-weakly/model.pt", "report/index.html", "report/report.md"):
         assert (run / sub).exists(), sub
@@ -39,8 +40,30 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert "Table 1" in html and "Table 2" in html
     result = json.loads((run / "pipeline_result.json").read_text())
     assert result["categories"] == ["Laptop"]
+    # the split was made once, first, and recorded; every model trained on it
+    split = json.loads((run / "split.json").read_text())
+    assert result["split"] == str(run / "split.json") and result["stages"]["split"] == [str(run / "split.json")]
+    assert json.loads((run / "gnn_fine/split.json").read_text())["test"] == split["test"]
+    assert list(result["timings"])[:2] == ["generate 12 labelled + 6 unlabelled objects", "split"]
+    # the learned selector: fit on out-of-fold GNNs of the training objects only (fold GNNs
+    # of the tiny preset's epochs), used by Table 1's OBB rows and by the pseudo-labels
+    assert result["selector"] == "learned" and result["stages"]["ranker"] == [str(run / "ranker")]
+    ranker = json.loads((run / "ranker/ranker.json").read_text())
+    assert ranker["meta"]["trained_on"]["split"] == str(run / "split.json")
+    assert json.loads((run / "ranker/folds.json").read_text())["fine"]["epochs"] == 25
+    fold_ids = {i for d in (run / "ranker/folds").iterdir() for i in json.loads((d / "split.json").read_text())["test"]}
+    assert fold_ids == set(split["train"])
+    ranker_file = str(run / "ranker" / "ranker.json")
+    for t1 in ("eval/pre-segmented", "pseudo"):
+        refine = json.loads((run / t1 / ".done").read_text())
+        refine = refine.get("refine") or refine["pseudo"]["refine"]
+        assert (refine["selector"], refine["ranker"]) == ("ranker", ranker_file), t1
+    assert json.loads((run / "eval/pre-segmented-paper/.done").read_text())["refine"]["selector"] == "paper"
+    kept = list((run / "pseudo").glob("*/scores.json"))
+    assert kept and all(json.loads(p.read_text())["options"]["refine"]["ranker"] == ranker_file for p in kept)
+    assert result["stages"]["table1"] == [str(run / "eval/pre-segmented"), str(run / "eval/pre-segmented-paper")]
     # the gallery shows the Table 1 renders of the test shapes, one per shape and model
-    test = json.loads((run / "gnn_fine/split.json").read_text())["test"]
+    test = split["test"]
     renders = run / "eval/pre-segmented/renders"
     assert test and {p.stem for p in (renders / "GNN_fine").glob("*.png")} == set(test)
     assert {p.name for p in renders.iterdir()} == {"GNN_fine", "GNN_coarse", "OBB_fine", "OBB_coarse"}
@@ -48,8 +71,9 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert gallery.count("<img") == 4 * len(test) and "data:image/png;base64," in gallery
     # every stage was timed, and the overview shows the times
     timings = result["timings"]
-    assert {"generate 12 labelled + 6 unlabelled objects", "prepare labelled", "train gnn (fine)", "train axis",
-            "eval pre-segmented (Table 1)",
+    assert {"generate 12 labelled + 6 unlabelled objects", "split", "prepare labelled", "train gnn (fine)",
+            "train axis", "train ranker", "eval pre-segmented (Table 1)",
+            "eval pre-segmented, paper selector (Table 1)",
             "pseudo-label", "train ancsh Laptop (semi-weakly)", "eval Laptop (Table 2)", "report"} <= set(timings)
     assert all(t["ran"] and t["cpu_s"] >= 0 and t["wall_s"] >= 0 for t in timings.values())
     assert timings["train gnn (fine)"]["cpu_s"] > 0

@@ -42,7 +42,7 @@ def test_generated_labeled_objects_join_training_only(runs):
     out, first, _ = runs
     v = out / "synth-extra-labeled-4"
     assert first.synth_extra == v
-    base = Split.load(out / "gnn_fine" / "split.json")
+    base = Split.load(out / "split.json")
     with_gen = Split.load(v / "split.json")
     generated = {p.name for p in (v / "data" / "partnet-mobility").iterdir() if p.is_dir()}
     assert len(generated) == 4 and all(g.startswith("900007") for g in generated)
@@ -53,6 +53,8 @@ def test_generated_labeled_objects_join_training_only(runs):
     info = json.loads((v / "synth_extra.json").read_text())
     assert info["n"] == 4 and info["as"] == "labeled" and info["test"] == base.test
     assert info["categories"] == CATS
+    # the baseline's ranker (fit on real training objects) selects the axes of both
+    assert not (v / "ranker").exists() and first.stages["synth-extra: ranker"] == [str(out / "ranker")]
     # both Table 1 evaluations cover the same real test objects
     t_base = _rows(out / "eval/pre-segmented/table1.csv")
     t_gen = _rows(v / "eval/pre-segmented/table1.csv")
@@ -94,7 +96,9 @@ def test_report_compares_with_and_without(runs):
     assert "`synth-extra-unlabeled-2`: 2 generated objects" in section
     assert "never see unlabelled shapes" in section
     rows = [r for r in section.splitlines() if r.startswith("| OBB_fine | angle err edges")]
-    assert len(rows) == 1 and len(rows[0].split("|")) == 7
+    assert len(rows) == 2 and all(len(r.split("|")) == 7 for r in rows)  # learned and paper selector
+    assert "#### Table 1 (eval/pre-segmented/table1.csv)" in section
+    assert "#### Table 1 (eval/pre-segmented-paper/table1.csv)" in section
     assert "Table 1: the generated shapes" in section
     # the runs with generated shapes stay out of the other sections
     assert "synth-extra-" not in main and "synth-extra-" not in md.split("## Training")[1]

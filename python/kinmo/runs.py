@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["DEFAULT_RUN", "SYNTH_EXTRA_FILE"]
+__all__ = ["DEFAULT_RUN", "RESULT_FILE", "SYNTH_EXTRA_FILE"]
 
 #: Run folder of ``kinmo train all`` when ``--out`` is not given (relative to the working
 #: folder); ``kinmo eval`` looks for the last run there.
@@ -14,3 +14,7 @@ DEFAULT_RUN = Path("runs") / "all"
 
 #: File of a generated-shapes run (``out/synth-extra-*/``) describing it (read by the report).
 SYNTH_EXTRA_FILE = "synth_extra.json"
+
+#: File of ``kinmo train all`` naming every stage's outputs and times
+#: (:class:`kinmo.pipeline.PipelineResult`; the report reads it first).
+RESULT_FILE = "pipeline_result.json"

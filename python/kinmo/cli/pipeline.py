@@ -30,8 +30,11 @@ def train_all(
                                  help="labeled or unlabeled: how the generated objects are used."),
     synth_seed: int | None = typer.Option(None, "--synth-seed",
                                           help="Seed of the generated objects (default seed+500)."),
+    selector: str = typer.Option("learned", "--selector",
+                                 help="learned (a ranker fit on out-of-fold GNNs; Table 1 adds the paper's rows) "
+                                      "or paper (0.5/0.3/0.2): how refinement picks an axis."),
 ) -> None:
-    """Prepare, train the motion GNN and the axis network, pseudo-label, render and train
+    """Prepare, train the motion GNN, the axis network and the ranker, pseudo-label, render and train
     ANCSH in three settings, evaluate (Tables 1 and 2) and write the report.
 
     Data, without --labeled / --unlabeled: for each of PartNet-Mobility (labelled) and PartNet
@@ -62,6 +65,7 @@ def train_all(
             preset="quick" if preset == "tiny" else preset, categories=category or None,
             labeled_fraction=labeled_fraction, seed=seed, workers=workers, skip_ancsh=skip_ancsh,
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
+            selector=selector,
             **(TINY if preset == "tiny" else {}),
         )
         res = run_pipeline(cfg, console=console)

@@ -455,8 +455,10 @@ def _overview(art: RunArtefacts) -> list[Block]:
                      if found else f"run `{HINTS[kind][1]}`"])
         marks[(i, 1)] = "better" if found else "worse"
     blocks: list[Block] = [Table(["artefact", "status", "files"], rows, align="lll", marks=marks,
-                                 caption="Artefacts are recognised by file name and columns "
-                                         "anywhere under the run folder.")]
+                                 caption=("Artefacts are the outputs of the stages named in "
+                                          "pipeline_result.json." if art.from_result else
+                                          "Artefacts are recognised by file name and columns "
+                                          "anywhere under the run folder."))]
     for rel, problem in art.problems:
         blocks.append(Note(f"{rel}: {problem}", "problem"))
     if art.timings:

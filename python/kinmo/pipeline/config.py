@@ -1,0 +1,118 @@
+"""The configuration of ``kinmo train all`` (:class:`PipelineConfig`) and its ``tiny`` preset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = ["SETTINGS", "TINY", "PipelineConfig"]
+
+SETTINGS = ("supervised", "semi", "semi-weakly")
+
+
+class PipelineConfig(BaseModel):
+    """Everything ``kinmo train all`` depends on.
+
+    Attributes
+    ----------
+    labeled : Path
+        PartNet-Mobility folders (labelled objects).
+    unlabeled : Path or None
+        PartNet folders (unlabelled shapes) to pseudo-label; ``None`` skips pseudo-labels and
+        the ``semi`` / ``semi-weakly`` settings.
+    out : Path
+        Run folder.
+    preset : {"quick", "paper"}
+        Preset of every model (``quick``: 2 CPU cores; ``paper``: the paper's sizes, a GPU).
+    categories : list of str or None
+        ANCSH categories; ``None``: :func:`default_categories`.
+    settings : list of str
+        ANCSH settings to train.
+    labeled_fraction : float
+        Fraction of the labelled training objects ANCSH sees (paper ratio study: 0.3, 0.5,
+        0.8, 1.0).
+    seed : int
+    workers : int
+        Worker processes of the per-shape stages (0: one per core).
+    gnn_epochs, axis_epochs, ancsh_epochs, semi_epochs : int or None
+        Override the presets' epochs (tiny demo runs).
+    frames_per_object : int or None
+        Override the rendered scans per object.
+    ancsh_steps_per_epoch : int or None
+    threshold : float
+        Pseudo-label score threshold (paper: 0.6).
+    render : bool
+        Render the Table 1 predictions of the test shapes (moving parts coloured, predicted
+        and true axes) for the report's gallery.
+    refine : bool
+        Train the axis-selection network and add the refined (``OBB_*``) rows to Table 1;
+        without it, no pseudo-labels (they need it), so ``unlabeled`` must be None and
+        ``synth_as`` ``labeled``.
+    skip_ancsh : bool
+        Stop after the pseudo-labels: no ANCSH, no Table 2.
+    synth_extra : int
+        Generate this many objects (:func:`kinmo.synth.generate_dataset`, of the labelled
+        data's categories that it supports) and train and evaluate everything again with
+        them added, into ``out/synth-extra-<synth_as>-<N>/``; the baseline's stages are
+        shared with a run without generated shapes in the same folder, so several such runs
+        can be added to one. The report compares them on the real test objects (the paper's
+        study with generated DSG-Net shapes, Sec. 4.3).
+    synth_as : {"labeled", "unlabeled"}
+        ``labeled``: the generated objects join the labelled training objects (motion GNN,
+        axis network, ANCSH); ``unlabeled``: they join the PartNet shapes to pseudo-label
+        (the GNN and axis network of the baseline label them; ANCSH ``semi`` and
+        ``semi-weakly`` are trained again).
+    synth_seed : int or None
+        Seed of the generated objects (default ``seed + 500``).
+    selector : {"learned", "paper"}
+        How refinement picks a candidate axis (Table 1's ``OBB_*`` rows, pseudo-labels):
+        ``learned`` (kinmo extension, issue 11): the ranker of
+        :func:`kinmo.refine.fit_selector.train_ranker`, fit in the ``ranker`` stage on
+        out-of-fold GNN predictions of the training objects (fold GNNs of this preset);
+        Table 1 then also gets the paper selector's rows (``eval/pre-segmented-paper/``).
+        ``paper``: the paper's 0.5 feasibility + 0.3 direction + 0.2 position, no ranker.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    labeled: Path
+    unlabeled: Path | None = None
+    out: Path
+    preset: Literal["quick", "paper"] = "quick"
+    categories: list[str] | None = None
+    settings: list[Literal["supervised", "semi", "semi-weakly"]] = Field(default_factory=lambda: list(SETTINGS))
+    labeled_fraction: float = Field(1.0, gt=0, le=1)
+    seed: int = 0
+    workers: int = Field(0, ge=0)
+    gnn_epochs: int | None = Field(None, ge=1)
+    axis_epochs: int | None = Field(None, ge=1)
+    ancsh_epochs: int | None = Field(None, ge=1)
+    semi_epochs: int | None = Field(None, ge=1)
+    ancsh_steps_per_epoch: int | None = Field(None, ge=1)
+    frames_per_object: int | None = Field(None, ge=1)
+    threshold: float = Field(0.6, ge=0, le=1)
+    render: bool = True
+    refine: bool = True
+    skip_ancsh: bool = False
+    synth_extra: int = Field(0, ge=0, le=100000)
+    synth_as: Literal["labeled", "unlabeled"] = "labeled"
+    synth_seed: int | None = Field(None, ge=0, le=99999)
+    selector: Literal["learned", "paper"] = "learned"
+
+    @model_validator(mode="after")
+    def _check(self) -> PipelineConfig:
+        if not self.refine and self.unlabeled is not None:
+            raise ValueError("pseudo-labels need the axis network: without refine, give no unlabelled data")
+        if not self.refine and self.synth_extra and self.synth_as == "unlabeled":
+            raise ValueError("generated unlabelled shapes are pseudo-labelled with the axis network: keep refine")
+        return self
+
+
+#: ``--preset tiny`` of ``kinmo train all`` (and ``kinmo demo --tiny``): the quick preset cut to
+#: seconds per stage, to check that everything runs (tests, a first try); not for results.
+TINY = {"gnn_epochs": 25, "axis_epochs": 2, "ancsh_epochs": 1, "semi_epochs": 1, "ancsh_steps_per_epoch": 2,
+        "frames_per_object": 1}
+
+

@@ -1,0 +1,466 @@
+"""The stages of ``kinmo train all`` in order (:func:`run_pipeline`; the layout of the run
+folder is in :mod:`kinmo.pipeline`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from kinmo.errors import KinmoDataError
+from kinmo.io import write_json
+from kinmo.pipeline.config import PipelineConfig
+from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
+from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
+from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
+from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
+
+__all__ = ["RANKER_FOLDS", "RANKER_TYPES", "SPLIT_TEST_FRACTION", "run_pipeline"]
+
+#: Share of the labelled objects held out for testing (:func:`structure_split`).
+SPLIT_TEST_FRACTION = 0.25
+#: Out-of-fold GNNs of the ranker stage: folds and type sets (``kinmo train ranker``'s defaults).
+RANKER_FOLDS = 3
+RANKER_TYPES = ("fine", "coarse")
+
+
+def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True,
+                 timings: dict[str, StageTiming] | None = None) -> PipelineResult:
+    """Run every stage of the pipeline (module docstring), resuming finished stages.
+
+    Parameters
+    ----------
+    cfg : PipelineConfig
+    console : rich.console.Console, optional
+        Where stage headers and the time of every stage go.
+    progress : bool
+        Show each stage's progress bar.
+    timings : dict of str to StageTiming, optional
+        Times of stages run before (``kinmo demo``'s data generation), put first in the
+        result's ``timings``.
+
+    Returns
+    -------
+    PipelineResult
+
+    Raises
+    ------
+    KinmoDataError
+        A dataset folder is missing.
+    KinmoError
+        ``synth_extra`` with labelled data of which no category can be generated.
+    """
+    from rich.console import Console
+
+    console = console or Console(stderr=True)
+    log = console.print
+    if not cfg.labeled.is_dir():
+        raise KinmoDataError(cfg.labeled, "labelled dataset folder does not exist")
+    if cfg.unlabeled is not None and not cfg.unlabeled.is_dir():
+        raise KinmoDataError(cfg.unlabeled, "unlabelled dataset folder does not exist")
+    out = cfg.out
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "pipeline.json", json.loads(cfg.model_dump_json()))
+    res = PipelineResult(out=out, timings=dict(timings or {}))
+    ctx = _Context(cfg, res, _Clock(res.timings, log), console, progress)
+
+    # 1. the train/test split, made once before any training and used by every model
+    split_file, split_digest = ctx.split()
+
+    # 2. prepare
+    from kinmo.prepare import PrepareConfig
+
+    cache_l, cache_u = out / "cache" / "labeled", out / "cache" / "unlabeled"
+    prep = PrepareConfig(seed=cfg.seed)
+    ctx.prepare(cfg.labeled, cache_l, prep, "prepare labelled")
+    if cfg.unlabeled is not None:
+        ctx.prepare(cfg.unlabeled, cache_u, prep, "prepare unlabelled")
+    res.stages["prepare"] = [str(cache_l)] + ([str(cache_u)] if cfg.unlabeled else [])
+    synth_cats = _synth_categories(cache_l) if cfg.synth_extra > 0 else []  # fails before training
+
+    # 3.-8. models and tables on the labelled (and unlabelled) data
+    baseline = _Variant(
+        out=out, graphs=cache_l, split=split_file, labeled=cfg.labeled, unlabeled=cfg.unlabeled,
+        unlabeled_cache=cache_u if cfg.unlabeled is not None else None, key={"split": split_digest}, prefix="")
+    ctx.models_and_tables(baseline, cache_l)
+
+    # 9. the same with generated shapes added (the paper's DSG-Net study, Sec. 4.3)
+    if cfg.synth_extra > 0:
+        ctx.synth_extra(baseline, cache_l, prep, synth_cats)
+
+    # 10. report
+    from kinmo.report import write_report
+
+    write_json(out / RESULT_FILE, json.loads(res.model_dump_json()))  # the report shows the times
+    rep = ctx.clock.run("report", lambda: write_report(out, out / "report"))
+    res.report = rep.html
+    write_json(out / RESULT_FILE, json.loads(res.model_dump_json()))
+    tot = res.total()
+    log(f"[bold]total[/]: {tot.wall_s:.1f} s wall, {tot.cpu_s:.1f} s CPU")
+    return res
+
+
+
+
+@dataclasses.dataclass
+class _Variant:
+    """What one set of models is trained and evaluated on.
+
+    Attributes
+    ----------
+    out : Path
+        Its folder (``gnn_fine/``, ``axis/``, ``eval/``... below it).
+    graphs : Path or list
+        Labelled part graphs for the motion GNN and the axis network (a cache or graphs).
+    split : Path
+        Split file (the ``split`` stage's ``out/split.json``, or the baseline's with the
+        generated objects added to training).
+    labeled : Path
+        PartNet-Mobility folder ANCSH renders its labelled objects from.
+    unlabeled, unlabeled_cache : Path or None
+        PartNet folder to pseudo-label and its cache.
+    key : dict
+        Added to every stage's key.
+    prefix : str
+        Prefix of the stage names.
+    reuse : dict of str to Path
+        Finished runs of the baseline to use instead of training (``gnn_fine``,
+        ``gnn_coarse``, ``axis``, ``ranker``, ``ancsh/<Category>/supervised``).
+    """
+
+    out: Path
+    graphs: Any
+    split: Path
+    labeled: Path
+    unlabeled: Path | None
+    unlabeled_cache: Path | None
+    key: dict[str, Any]
+    prefix: str
+    reuse: dict[str, Path] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class _Context:
+    """The state one :func:`run_pipeline` call shares between its stages."""
+
+    cfg: PipelineConfig
+    res: PipelineResult
+    clock: _Clock
+    console: Any
+    progress: bool
+    #: ANCSH models per category (:func:`ancsh_plan`), set by the main run's ANCSH stage.
+    plan: dict[str, list[Any]] = dataclasses.field(default_factory=dict)
+
+    def stage(self, folder: Path, key: dict[str, Any], run: Callable[[], Any], name: str) -> bool:
+        return _stage(folder, key, run, self.console.print, name, self.clock)
+
+    def prepare(self, src: Path, cache: Path, prep: Any, name: str) -> None:
+        from kinmo.prepare import prepare_dataset
+
+        self.stage(cache, {"src": str(src), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
+            src, cache, prep, workers=self.cfg.workers, progress=self.progress), name)
+
+    def split(self) -> tuple[Path, str]:
+        """The ``split`` stage: :func:`structure_split` of the labelled data into
+        ``out/split.json`` (kept while the data's folders and the seed are the same).
+
+        Returns
+        -------
+        (Path, str)
+            The split file and a digest of its content (part of every later stage's key).
+        """
+        import hashlib
+
+        from kinmo.data.readers import find_shapes
+
+        cfg, out = self.cfg, self.cfg.out
+        split_file = out / "split.json"
+        names = sorted(p.name for p in find_shapes(cfg.labeled))
+        key = {"labeled": str(cfg.labeled), "seed": cfg.seed, "test_fraction": SPLIT_TEST_FRACTION,
+               "shapes": hashlib.sha256("\n".join(names).encode()).hexdigest()[:16]}
+        if not split_file.is_file():  # removed by hand: made again
+            (out / ".split.done").unlink(missing_ok=True)
+        _stage(out, key, lambda: structure_split(cfg.labeled, SPLIT_TEST_FRACTION, seed=cfg.seed).save(split_file),
+               self.console.print, "split", self.clock, marker_name=".split.done")
+        self.res.split = split_file
+        self.res.stages["split"] = [str(split_file)]
+        return split_file, hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]
+
+    def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
+        """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
+        fit on out-of-fold GNN predictions of ``v``'s training objects
+        (:func:`kinmo.refine.fit_selector.train_ranker`) into ``out/ranker/``.
+
+        Returns
+        -------
+        Path or None
+            Its ``ranker.json``; None with ``selector="paper"`` or without refinement.
+        """
+        cfg = self.cfg
+        if not cfg.refine or cfg.selector != "learned":
+            return None
+        folder = v.reuse.get("ranker", v.out / "ranker")
+        if "ranker" not in v.reuse:
+            key = {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES), "epochs": cfg.gnn_epochs}}
+            self.stage(folder, key, lambda: _train_ranker(cfg, v, folder, self.progress),
+                       f"{v.prefix}train ranker")
+        self.res.stages[f"{v.prefix}ranker"] = [str(folder)]
+        return folder / "ranker.json"
+
+    def models_and_tables(self, v: _Variant, eval_cache: Path) -> None:
+        """Motion GNNs, axis network, ranker, Table 1, pseudo-labels, ANCSH and Table 2 of ``v``."""
+        cfg, res, progress, console = self.cfg, self.res, self.progress, self.console
+        log = console.print
+        out = v.out
+        base = {"seed": cfg.seed, "preset": cfg.preset, **v.key}
+        # the training graphs, loaded once and only if a stage runs (several caches: concatenated)
+        graphs = functools.cache(functools.partial(_graphs, v.graphs))
+        split_file = v.split
+
+        # 3. motion GNN, fine and coarse types (Sec. 3.1-3.2)
+        from kinmo.train.config import preset as gnn_preset
+        from kinmo.train.gnn import train_gnn
+
+        gnn_runs: dict[str, Path] = {}
+        for types in ("fine", "coarse"):
+            if f"gnn_{types}" in v.reuse:
+                gnn_runs[types] = v.reuse[f"gnn_{types}"]
+                continue
+            run_dir = out / f"gnn_{types}"
+            gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs)
+            self.stage(run_dir, {**base, "gnn": gcfg.model_dump()},
+                       lambda gcfg=gcfg, run_dir=run_dir: train_gnn(
+                           graphs(), run_dir, gcfg, split=split_file, progress=progress),
+                       f"{v.prefix}train gnn ({types})")
+            gnn_runs[types] = run_dir
+        res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
+
+        # 4. axis-selection network (Sec. 3.3)
+        from kinmo.refine.train import preset_config as axis_preset
+        from kinmo.refine.train import train_axis_model
+
+        axis_dir = v.reuse.get("axis", out / "axis")
+        if "axis" not in v.reuse and cfg.refine:
+            acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
+                               seed=cfg.seed)
+            self.stage(axis_dir, {**base, "axis": acfg.model_dump()}, lambda: train_axis_model(
+                graphs(), axis_dir, acfg, split=split_file, progress=progress), f"{v.prefix}train axis")
+        if cfg.refine:
+            res.stages[f"{v.prefix}axis"] = [str(axis_dir)]
+            res.selector = cfg.selector
+
+        # 5. the learned candidate selector (kinmo extension)
+        ranker = self.ranker(v, base)
+        from kinmo.refine.refine import RefineConfig
+
+        refine = (RefineConfig(selector="ranker", ranker=str(ranker)) if ranker is not None else RefineConfig())
+
+        # 6. Table 1 on the held-out pre-segmented shapes (always the real labelled ones),
+        # with renders of the predictions for the report's gallery; with the learned
+        # selector, the paper selector's OBB rows too (eval/pre-segmented-paper)
+        from kinmo.evaluate.pre_segmented import run_evaluation
+
+        render = cfg.render and not v.prefix  # the gallery shows the main run
+        if not ("gnn_fine" in v.reuse and "axis" in v.reuse):
+            evals = [(out / "eval" / "pre-segmented", refine, render, "")]
+            if ranker is not None:
+                evals.append((out / "eval" / "pre-segmented-paper", RefineConfig(), False, ", paper selector"))
+            for t1, rcfg, rend, what in evals:
+                self.stage(t1, {**base, "models": [str(p) for p in gnn_runs.values()],
+                                "axis": str(axis_dir) if cfg.refine else None,
+                                "data": str(eval_cache), "render": rend,
+                                **({"refine": rcfg.model_dump(mode="json")} if ranker is not None else {})},
+                           lambda t1=t1, rcfg=rcfg, rend=rend: run_evaluation(
+                               [gnn_runs["fine"], gnn_runs["coarse"]], eval_cache, out=t1, split=split_file,
+                               render=rend, progress=progress, axis_model=axis_dir if cfg.refine else None,
+                               refine_config=rcfg),
+                           f"{v.prefix}eval pre-segmented{what} (Table 1)")
+                res.stages.setdefault(f"{v.prefix}table1", []).append(str(t1))
+
+        # 7. pseudo-labels on the unlabelled shapes (Sec. 3.3)
+        pseudo = out / "pseudo"
+        if v.unlabeled is not None:
+            from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
+
+            pcfg = PseudoLabelConfig(threshold=cfg.threshold, refine=refine)
+            self.stage(pseudo, {**base, "pseudo": pcfg.model_dump()},
+                       lambda: pseudo_label_dataset(
+                           v.unlabeled, gnn_runs["fine"], axis_dir, pseudo, pcfg, workers=cfg.workers,
+                           cache=v.unlabeled_cache, progress=progress), f"{v.prefix}pseudo-label")
+            res.stages[f"{v.prefix}pseudo"] = [str(pseudo)]
+
+        # 8. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
+        if cfg.skip_ancsh:
+            return
+        from kinmo.ancsh.config import preset as ancsh_preset
+        from kinmo.ancsh.evaluate import evaluate_category
+        from kinmo.ancsh.train import train_ancsh
+
+        if not v.prefix:
+            plan, res.skipped_categories = ancsh_plan(cfg.labeled, split_file, cfg.categories)
+            res.categories = sorted(plan)
+            res.structures = {c: [g.structure.signature() for g in gs] for c, gs in plan.items()}
+            for cat, why in res.skipped_categories.items():
+                log(f"[dim]ANCSH: {cat} left out: {why}[/]")
+            write_json(out / "ancsh" / ANCSH_PLAN_FILE, {
+                "trained": {c: [{"structure": g.structure.signature(), "train": list(g.train), "test": list(g.test)}
+                                for g in gs] for c, gs in plan.items()},
+                "skipped": res.skipped_categories})
+            self.plan = plan
+        settings = [s for s in cfg.settings if s == "supervised" or v.unlabeled is not None]
+        scans = cfg.out / "scans"  # one render cache for every variant: scans of the same objects
+        overrides = {
+            "epochs": cfg.ancsh_epochs, "semi_epochs": cfg.semi_epochs,
+            "steps_per_epoch": cfg.ancsh_steps_per_epoch, "frames_per_object": cfg.frames_per_object,
+            "unlabeled_frames_per_object": cfg.frames_per_object,
+            "test_frames_per_object": cfg.frames_per_object,
+            "labeled_fraction": cfg.labeled_fraction, "seed": cfg.seed,
+        }
+        ac = ancsh_preset(cfg.preset, **{k: val for k, val in overrides.items() if val is not None})
+        from kinmo.ancsh.structure import structure_slug
+
+        for cat in res.categories:
+            groups = self.plan[cat]
+            runs: list[Path] = []
+            for g in groups:
+                # one structure: ancsh/<Category>/<setting>; several: ancsh/<Category>/<structure>/<setting>
+                sub = structure_slug(g.structure) if len(groups) > 1 else ""
+                label = f"{cat} {g.structure.signature()}" if sub else cat
+                st = {"parents": list(g.structure.parents), "joint_types": list(g.structure.joint_types)}
+                group_runs: list[Path] = []
+                for setting in settings:
+                    reused = v.reuse.get(f"ancsh/{cat}/{sub + '/' if sub else ''}{setting}")
+                    if reused is not None:
+                        group_runs.append(reused)
+                        continue
+                    run_dir = out / "ancsh" / cat / sub / setting
+                    # semi starts from the supervised run's weights: its supervised stage would
+                    # reproduce them
+                    init = (group_runs[0] if setting == "semi" and group_runs and settings[0] == "supervised"
+                            else None)
+                    self.stage(run_dir, {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
+                                         **({"structure": st} if sub else {}),
+                                         **({"init": str(init)} if init is not None else {})},
+                               lambda run_dir=run_dir, setting=setting, cat=cat, init=init, g=g: train_ancsh(
+                                   cat, setting, run_dir, ac, data=v.labeled, partnet=v.unlabeled,
+                                   pseudo=pseudo if v.unlabeled is not None else None, split=split_file,
+                                   scans=scans, init=init, progress=progress, console=console,
+                                   structure=g.structure),
+                               f"{v.prefix}train ancsh {label} ({setting})")
+                    group_runs.append(run_dir)
+                runs += group_runs
+            res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
+            if not any(g.test for g in groups):
+                log(f"[dim]ANCSH: {cat}: no test object of a trained structure, no Table 2 row[/]")
+                continue
+            ev = out / "eval" / cat
+            self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
+                       lambda runs=runs, ev=ev, cat=cat: evaluate_category(
+                           cat, runs, data=cfg.labeled, out=ev, scans=scans, frames=cfg.frames_per_object,
+                           seed=cfg.seed, progress=progress, console=console),
+                       f"{v.prefix}eval {cat} (Table 2)")
+            res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
+
+    def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
+        """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
+        ``out/synth-extra-<labeled|unlabeled>-<N>/`` (:data:`SYNTH_EXTRA_FILE` says how)."""
+        from kinmo.synth import SYNTH_VERSION, generate_dataset
+        from kinmo.train.gnn import load_cache
+        from kinmo.train.split import Split
+
+        cfg, res = self.cfg, self.res
+        vout = cfg.out / f"synth-extra-{cfg.synth_as}-{cfg.synth_extra}"
+        seed = cfg.synth_seed if cfg.synth_seed is not None else cfg.seed + 500
+        labeled = cfg.synth_as == "labeled"
+        info = {"n": cfg.synth_extra, "as": cfg.synth_as, "seed": seed, "categories": cats,
+                "synth_version": SYNTH_VERSION}
+        gen = vout / "data" / ("partnet-mobility" if labeled else "partnet")
+        self.stage(gen, info, lambda: generate_dataset(gen, cfg.synth_extra, seed, categories=cats,
+                                                       partnet=not labeled, progress=self.progress),
+                   "synth-extra: generate")
+        key = {"synth_extra": info}
+        base_split = Split.load(cfg.out / "split.json")
+        if labeled:
+            gcache = vout / "cache" / "generated"
+            self.prepare(gen, gcache, prep, "synth-extra: prepare generated")
+            gen_graphs = load_cache(gcache)
+            # the baseline's split with every generated object added to training: the test
+            # objects stay the real held-out ones
+            split = Split(sorted(base_split.train + [g.shape_id for g in gen_graphs]), base_split.test,
+                          {**base_split.categories, **{g.shape_id: g.category for g in gen_graphs}},
+                          base_split.seed, base_split.test_fraction)
+            split_file = vout / "split.json"
+            split.save(split_file)
+            merged = _link_folder(vout / "data" / "labeled", [cfg.labeled, gen])
+            # the baseline's ranker (fit on the real training objects) selects the axes
+            v = _Variant(out=vout, graphs=[cache_l, gcache], split=split_file, labeled=merged,
+                         unlabeled=cfg.unlabeled, unlabeled_cache=baseline.unlabeled_cache, key=key,
+                         prefix="synth-extra: ", reuse={"ranker": cfg.out / "ranker"})
+        else:
+            merged = _link_folder(vout / "data" / "unlabeled", [p for p in (cfg.unlabeled, gen) if p is not None])
+            ucache = vout / "cache" / "unlabeled"
+            self.prepare(merged, ucache, prep, "synth-extra: prepare unlabelled")
+            reuse = {"gnn_fine": cfg.out / "gnn_fine", "gnn_coarse": cfg.out / "gnn_coarse", "axis": cfg.out / "axis",
+                     "ranker": cfg.out / "ranker"}
+            from kinmo.ancsh.structure import structure_slug
+
+            for c, gs in self.plan.items():
+                subs = [structure_slug(g.structure) + "/" for g in gs] if len(gs) > 1 else [""]
+                reuse.update({f"ancsh/{c}/{sub}supervised": cfg.out / "ancsh" / c / sub / "supervised"
+                              for sub in subs})
+            v = _Variant(out=vout, graphs=cache_l, split=cfg.out / "split.json", labeled=cfg.labeled,
+                         unlabeled=merged, unlabeled_cache=ucache, key=key, prefix="synth-extra: ", reuse=reuse)
+        used_by = (["motion GNN"] + (["axis network"] if cfg.refine else [])
+                   + ([] if cfg.skip_ancsh else ["ANCSH"])) if labeled else ["pseudo-labels", "ANCSH"]
+        write_json(vout / SYNTH_EXTRA_FILE, {**info, "baseline": "..", "generated": str(gen),
+                                             "used_by": used_by, "test": base_split.test})
+        self.models_and_tables(v, cache_l)
+        res.synth_extra = vout
+
+
+
+
+def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool) -> None:
+    """Fit the ranker of ``v`` into ``folder`` (:func:`kinmo.refine.fit_selector.train_ranker`
+    on ``v``'s cache and split, fold GNNs of ``cfg.preset``).
+
+    ``train_ranker`` trains the fold GNNs with the preset's epochs and skips a fold whose
+    ``folds/<types>_<f>/model.pt`` exists; with ``cfg.gnn_epochs`` (``--preset tiny``, the
+    demo) the folds are trained here first with those epochs, on the same folds
+    (:func:`kinmo.refine.fit_selector.fold_ids` of the split's training ids). ``folds.json``
+    holds the fold GNNs' configuration: folds of another one are trained again.
+    """
+    import shutil
+
+    from kinmo.refine.fit_selector import fold_ids, train_ranker
+    from kinmo.train.config import preset as gnn_preset
+    from kinmo.train.gnn import load_cache, train_gnn
+    from kinmo.train.split import Split
+
+    configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="cpu")
+               for t in RANKER_TYPES}
+    stamp = json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}, sort_keys=True)
+    if (folder / "folds.json").is_file() and (folder / "folds.json").read_text() != stamp:
+        shutil.rmtree(folder / "folds", ignore_errors=True)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json(folder / "folds.json", json.loads(stamp))
+    if cfg.gnn_epochs is not None:
+        train = set(Split.load(v.split).train)
+        by_id = {g.shape_id: g for g in load_cache(v.graphs) if g.shape_id in train and g.has_labels}
+        ids = sorted(by_id)
+        cats = {i: by_id[i].category for i in ids}
+        folds = fold_ids(ids, [cats[i] for i in ids], RANKER_FOLDS, cfg.seed)
+        for t, gcfg in configs.items():
+            for f in range(RANKER_FOLDS):
+                run_dir = folder / "folds" / f"{t}_{f}"
+                if not (run_dir / "model.pt").is_file():
+                    held = [i for i, ff in zip(ids, folds) if ff == f]
+                    rest = [i for i, ff in zip(ids, folds) if ff != f]
+                    train_gnn([by_id[i] for i in ids], run_dir, gcfg,
+                              Split(rest, held, cats, cfg.seed, 1.0 / RANKER_FOLDS), progress=progress)
+    train_ranker(v.graphs, folder, v.split, folds=RANKER_FOLDS, preset=cfg.preset, types=RANKER_TYPES,
+                 seed=cfg.seed, threads=1, progress=progress)

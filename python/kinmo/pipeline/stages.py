@@ -1,0 +1,127 @@
+"""The stage runner of ``kinmo train all``: resumable stages (a ``.done`` file holding the
+stage's configuration), their timings, and the run's result (``pipeline_result.json``)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from kinmo.io import write_text
+
+__all__ = ["PipelineResult", "StageTiming"]
+
+
+class StageTiming(BaseModel):
+    """Time one stage took.
+
+    Attributes
+    ----------
+    wall_s : float
+        Wall-clock seconds.
+    cpu_s : float
+        CPU seconds (user + system) of this process and of the worker processes that ended
+        during the stage.
+    ran : bool
+        False when the stage was up to date (skipped).
+    """
+
+    wall_s: float
+    cpu_s: float
+    ran: bool = True
+
+
+class PipelineResult(BaseModel):
+    """Where the stages wrote their results, and how long each took (``pipeline_result.json``,
+    read first by ``kinmo report``).
+
+    Attributes
+    ----------
+    out : Path
+        The run folder as given (the stage paths start with it).
+    stages : dict of str to list of str
+        Stage (``split``, ``prepare``, ``gnn``, ``axis``, ``ranker``, ``table1``, ``pseudo``,
+        ``ancsh``, ``table2``; prefixed ``synth-extra: `` for the run with generated shapes)
+        → the files or folders it wrote.
+    split : Path or None
+        The train/test split every model of the run used (``out/split.json``).
+    selector : str or None
+        The candidate selector of the ``OBB_*`` rows and the pseudo-labels (``learned`` or
+        ``paper``; None without refinement).
+    """
+
+    out: Path
+    split: Path | None = None
+    selector: str | None = None
+    stages: dict[str, list[str]] = Field(default_factory=dict)
+    categories: list[str] = Field(default_factory=list)
+    skipped_categories: dict[str, str] = Field(default_factory=dict)
+    structures: dict[str, list[str]] = Field(default_factory=dict)
+    report: Path | None = None
+    timings: dict[str, StageTiming] = Field(default_factory=dict)
+    synth_extra: Path | None = None
+
+    def total(self) -> StageTiming:
+        """The sum over the stages."""
+        return StageTiming(wall_s=sum(t.wall_s for t in self.timings.values()),
+                           cpu_s=sum(t.cpu_s for t in self.timings.values()),
+                           ran=any(t.ran for t in self.timings.values()))
+
+
+def _cpu_seconds() -> float:
+    """User + system CPU seconds of this process and its finished children."""
+    import resource
+
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+class _Clock:
+    """Times the stages of a run into ``timings`` and prints one line per stage."""
+
+    def __init__(self, timings: dict[str, StageTiming], log: Callable[[str], None]) -> None:
+        self.timings, self.log = timings, log
+
+    def run(self, name: str, fn: Callable[[], Any]) -> Any:
+        """Call ``fn``, record its wall and CPU time as stage ``name``, print them."""
+        import time
+
+        w0, c0 = time.perf_counter(), _cpu_seconds()
+        value = fn()
+        t = StageTiming(wall_s=round(time.perf_counter() - w0, 2), cpu_s=round(_cpu_seconds() - c0, 2))
+        self.timings[name] = t
+        self.log(f"[green]{name}[/]: {t.wall_s:.1f} s wall, {t.cpu_s:.1f} s CPU")
+        return value
+
+    def skipped(self, name: str) -> None:
+        """Record stage ``name`` as up to date (not run)."""
+        self.timings[name] = StageTiming(wall_s=0.0, cpu_s=0.0, ran=False)
+
+
+def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Callable[[str], None], name: str,
+           clock: _Clock | None = None, marker_name: str = ".done") -> bool:
+    """Run ``run`` unless ``folder/<marker_name>`` holds ``key``; returns True if it ran.
+
+    With a ``clock``, the stage's time is recorded under ``name``. A stage writing one file
+    into a folder shared with others (the split) gets its own ``marker_name``.
+    """
+    marker = folder / marker_name
+    text = json.dumps(key, sort_keys=True, default=str)
+    if marker.is_file() and marker.read_text() == text:
+        log(f"[dim]{name}: up to date ({folder})[/]")
+        if clock is not None:
+            clock.skipped(name)
+        return False
+    log(f"[bold cyan]{name}[/] -> {folder}")
+    if clock is not None:
+        clock.run(name, run)
+    else:
+        run()
+    folder.mkdir(parents=True, exist_ok=True)
+    write_text(marker, text)
+    return True
+
+
