@@ -426,41 +426,22 @@ class _Context:
 
 def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool) -> None:
     """Fit the ranker of ``v`` into ``folder`` (:func:`kinmo.refine.fit_selector.train_ranker`
-    on ``v``'s cache and split, fold GNNs of ``cfg.preset``).
+    on ``v``'s cache and split, fold GNNs of ``cfg.preset`` and ``cfg.gnn_epochs``).
 
-    ``train_ranker`` trains the fold GNNs with the preset's epochs and skips a fold whose
-    ``folds/<types>_<f>/model.pt`` exists; with ``cfg.gnn_epochs`` (``--preset tiny``, the
-    demo) the folds are trained here first with those epochs, on the same folds
-    (:func:`kinmo.refine.fit_selector.fold_ids` of the split's training ids). ``folds.json``
-    holds the fold GNNs' configuration: folds of another one are trained again.
+    ``train_ranker`` skips a fold whose ``folds/<types>_<f>/model.pt`` exists; ``folds.json``
+    holds the fold GNNs' configuration, and folds of another one are trained again.
     """
     import shutil
 
-    from kinmo.refine.fit_selector import fold_ids, train_ranker
+    from kinmo.refine.fit_selector import train_ranker
     from kinmo.train.config import preset as gnn_preset
-    from kinmo.train.gnn import load_cache, train_gnn
-    from kinmo.train.split import Split
 
     configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="cpu")
                for t in RANKER_TYPES}
-    stamp = json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}, sort_keys=True)
-    if (folder / "folds.json").is_file() and (folder / "folds.json").read_text() != stamp:
+    stamp = json.loads(json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}))
+    if (folder / "folds.json").is_file() and json.loads((folder / "folds.json").read_text()) != stamp:
         shutil.rmtree(folder / "folds", ignore_errors=True)
     folder.mkdir(parents=True, exist_ok=True)
-    write_json(folder / "folds.json", json.loads(stamp))
-    if cfg.gnn_epochs is not None:
-        train = set(Split.load(v.split).train)
-        by_id = {g.shape_id: g for g in load_cache(v.graphs) if g.shape_id in train and g.has_labels}
-        ids = sorted(by_id)
-        cats = {i: by_id[i].category for i in ids}
-        folds = fold_ids(ids, [cats[i] for i in ids], RANKER_FOLDS, cfg.seed)
-        for t, gcfg in configs.items():
-            for f in range(RANKER_FOLDS):
-                run_dir = folder / "folds" / f"{t}_{f}"
-                if not (run_dir / "model.pt").is_file():
-                    held = [i for i, ff in zip(ids, folds) if ff == f]
-                    rest = [i for i, ff in zip(ids, folds) if ff != f]
-                    train_gnn([by_id[i] for i in ids], run_dir, gcfg,
-                              Split(rest, held, cats, cfg.seed, 1.0 / RANKER_FOLDS), progress=progress)
+    write_json(folder / "folds.json", stamp)
     train_ranker(v.graphs, folder, v.split, folds=RANKER_FOLDS, preset=cfg.preset, types=RANKER_TYPES,
-                 seed=cfg.seed, threads=1, progress=progress)
+                 seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs)

@@ -70,7 +70,8 @@ def fold_ids(ids: Sequence[str], categories: Sequence[str], k: int, seed: int = 
 
 def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
                     k: int = 3, preset: str = "quick", types: str = "fine", seed: int = 0,
-                    threads: int = 1, progress: bool = False) -> dict[str, object]:
+                    threads: int = 1, progress: bool = False, epochs: int | None = None
+                    ) -> dict[str, object]:
     """Out-of-fold predictions of the training objects (module docstring).
 
     Parameters
@@ -85,6 +86,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
     k, preset, types, seed, threads
         Folds and the GNN's training options (:func:`kinmo.train.config.preset`).
     progress : bool
+    epochs : int, optional
+        The fold GNNs' epochs instead of the preset's (``kinmo train all --preset tiny``).
 
     Returns
     -------
@@ -106,7 +109,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         rest = [i for i, ff in zip(ids, folds) if ff != f]
         run_dir = out / "folds" / f"{types}_{f}"
         if not (run_dir / "model.pt").is_file():
-            cfg = make_preset(preset, types=types, seed=seed, threads=threads, device="cpu")
+            cfg = make_preset(preset, types=types, seed=seed, threads=threads, device="cpu",
+                              epochs=epochs)
             split = Split(rest, held, {i: by_id[i].category for i in ids}, seed, 1.0 / k)
             train_gnn([by_id[i] for i in ids], run_dir, cfg, split, progress=progress)
         run = load_run(run_dir, "cpu")
@@ -298,7 +302,8 @@ DEFAULT_FEATURES: tuple[str, ...] = tuple(
 
 def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds: int = 3,
                  preset: str = "quick", types: Sequence[str] = ("fine", "coarse"), seed: int = 0,
-                 threads: int = 1, progress: bool = True) -> tuple[Ranker, dict]:
+                 threads: int = 1, progress: bool = True, epochs: int | None = None
+                 ) -> tuple[Ranker, dict]:
     """``kinmo train ranker``: OOF GNNs on the split's training objects, then the ranker.
 
     Parameters
@@ -311,6 +316,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
         The GNN runs' ``split.json``: only its ``train`` ids are used.
     folds, preset, seed, threads
         OOF folds and the fold GNNs' training options.
+    epochs : int, optional
+        The fold GNNs' epochs instead of the preset's.
     types : sequence of {"fine", "coarse"}
         Fold GNNs of these type sets; their groups are pooled (one ranker serves both).
     progress : bool
@@ -340,7 +347,7 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     parts = []
     for t in types:
         preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,
-                                seed=seed, threads=threads, progress=progress)
+                                seed=seed, threads=threads, progress=progress, epochs=epochs)
         parts.append(collect_groups(list(preds.values()), seed=seed, semantic=semantic))
     groups = EdgeGroups(*[[v for p in parts for v in getattr(p, f)]
                           for f in EdgeGroups.__dataclass_fields__])
