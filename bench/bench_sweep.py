@@ -27,6 +27,10 @@ Usage::
 
     RAYON_NUM_THREADS=1 python bench/bench_sweep.py [--quick] [--shapes 45001,12252,...]
 
+Also :func:`kinmo.geometry.line_mesh_distance` (exact, by projecting the mesh along each
+line; Rust, rayon over lines) on the same candidate lines and obstacle against the same
+projection vectorised in numpy (``numpy_line_mesh_distance``), with the largest difference.
+
 Prints a table and writes ``bench/results/sweep.csv``.
 """
 
@@ -187,6 +191,40 @@ def trimesh_sweep(points, mesh, intersector, origins, dirs, kinds, ranges, skin,
     return free, coll
 
 
+def numpy_line_mesh_distance(origins, dirs, vertices, faces):
+    """Baseline of :func:`kinmo.geometry.line_mesh_distance`, vectorised numpy: project the
+    mesh along each line onto the orthogonal plane, then the 2D distance from the line's trace
+    to every projected triangle (0 inside), the minimum over triangles."""
+    out = np.empty(len(origins))
+    for c, (o, u) in enumerate(zip(origins, dirs)):
+        u = u / np.linalg.norm(u)
+        a = np.eye(3)[np.argmin(np.abs(u))]
+        e1 = np.cross(u, a)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(u, e1)
+        p = (vertices - o) @ np.stack([e1, e2], 1)  # (V, 2)
+        t = p[faces]  # (F, 3, 2)
+        a_, b_, c_ = t[:, 0], t[:, 1], t[:, 2]
+
+        def cross(x, y):
+            return x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0]
+
+        s0, s1, s2 = cross(a_, b_), cross(b_, c_), cross(c_, a_)
+        inside = ((s0 >= 0) & (s1 >= 0) & (s2 >= 0)) | ((s0 <= 0) & (s1 <= 0) & (s2 <= 0))
+        inside &= (s0 + s1 + s2) != 0
+
+        def seg(x, y):
+            dd = y - x
+            l2 = (dd ** 2).sum(1)
+            tt = np.clip(-(x * dd).sum(1) / np.where(l2 > 0, l2, 1.0), 0.0, 1.0)
+            q = x + tt[:, None] * dd
+            return (q ** 2).sum(1)
+
+        d2 = np.minimum(np.minimum(seg(a_, b_), seg(b_, c_)), seg(c_, a_))
+        out[c] = 0.0 if inside.any() else float(np.sqrt(d2.min()))
+    return out
+
+
 def _agreement(a, b):
     (fa, ca), (fb, cb) = a, b
     df, dc = np.abs(fa - fb), np.abs(ca - cb)
@@ -221,6 +259,18 @@ def run(bench: Bench, shape_ids: list[str]) -> None:
 
         got = rust()
         reps = bench.reps(7, 2)
+        from kinmo.geometry import line_mesh_distance
+
+        lines = np.ascontiguousarray(o), np.ascontiguousarray(d)
+        lm = line_mesh_distance(*lines, ov, of)
+        lm_ref = numpy_line_mesh_distance(*lines, ov, of)
+        row = bench.compare(
+            "line_mesh_distance", f"{name}: {len(o)} lines x {len(of)} faces",
+            lambda: line_mesh_distance(*lines, ov, of), "numpy, same projection",
+            lambda: numpy_line_mesh_distance(*lines, ov, of), reps,
+            baseline_repeats=bench.reps(3, 1), unit="max |diff|",
+            value=float(np.abs(lm - lm_ref).max()),
+        )
         if Embree is not None:
             emb = Embree(mesh)
             ref = trimesh_sweep(pts, mesh, emb, o, d, k, r, skin)
