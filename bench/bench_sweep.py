@@ -20,8 +20,8 @@ of the outputs is the share of candidate-signs whose ``free_fraction`` and
 ``colliding_fraction`` differ by at most 0.02, and the largest difference.
 
 Needs ``rtree`` (trimesh's ``ray_triangle`` and ``proximity``) and ``embreex`` (Embree),
-which the test environment does not install: ``pip install rtree embreex`` first (bench-only;
-to be listed in the ``bench`` extra of ``pyproject.toml``).
+which the test environment does not install: they are in the ``bench`` extra of
+``pyproject.toml`` (``pip install rtree embreex``).
 
 Usage::
 
