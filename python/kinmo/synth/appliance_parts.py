@@ -11,15 +11,13 @@ import numpy as np
 import trimesh
 
 from kinmo.synth.assembly import Motion, Node
-from kinmo.synth.components import foot_base, shell
+from kinmo.synth.components import FRONT, foot_base, shell
 from kinmo.synth.primitives import box, cylinder
 
-__all__ = ["FRONT", "UP", "body_base", "body_walls", "rotary_knob"]
+__all__ = ["UP", "body_base", "body_walls", "rotary_knob"]
 
 #: The up direction (y) of the object frame.
 UP = np.array([0.0, 1.0, 0.0])
-#: The front normal (+z) of the object frame.
-FRONT = np.array([0.0, 0.0, 1.0])
 
 
 def rotary_knob(

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinmo.synth.appliance_parts import FRONT, UP, body_base, body_walls, rotary_knob
+from kinmo.synth.appliance_parts import UP, body_base, body_walls, rotary_knob
 from kinmo.synth.assembly import LinkSpec, Motion, Node, SynthObject
-from kinmo.synth.components import Rect, door, drawer, feet, open_box
+from kinmo.synth.components import FRONT, Rect, door, drawer, feet, open_box
 from kinmo.synth.primitives import box, cylinder
 
 __all__ = ["dishwasher", "microwave", "oven", "refrigerator"]
