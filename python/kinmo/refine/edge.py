@@ -35,6 +35,7 @@ from kinmo.refine.candidates import (
     merge_candidates,
 )
 from kinmo.refine.config import RefineConfig
+from kinmo.refine.features import FEATURE_GROUPS, FEATURES
 from kinmo.refine.motions import (
     candidate_motions,
     network_inputs,
@@ -46,6 +47,7 @@ from kinmo.refine.scoring import (
     line_feasibility,
     score_candidates,
 )
+from kinmo.refine.selector import candidate_features, edge_candidates
 
 __all__ = ["EdgeRefinement", "refine_edge", "select_edge"]
 
@@ -244,9 +246,6 @@ def select_edge(
         confidence; the direction's sign is the one the collision proxy (or the network)
         finds freer.
     """
-    from kinmo.refine.features import FEATURE_GROUPS, FEATURES
-    from kinmo.refine.selector import candidate_features, edge_candidates
-
     cfg = config or RefineConfig()
     rng = np.random.default_rng(cfg.seed if rng is None else rng)
     i, j = (int(x) for x in graph.sibling_edges[edge])
