@@ -25,6 +25,10 @@ Features (all float32, normalised frame):
 Labels (PartNet-Mobility graphs): the fine type of each edge, the unit axis direction and the
 axis origin in the normalised frame; NaN axes of ``Fixed`` / ``None`` edges become zeros with
 a mask.
+
+Length: over 500 lines, about 40 % of them docstrings: one topic, the tensors the motion GNN
+sees: the normalised frame, the node and edge features, their yaw augmentation and the batch
+share one frame and one tensor layout, which must change together.
 """
 
 from __future__ import annotations

@@ -43,6 +43,11 @@ OBB, mesh units); cylindrical joints rotate without limit (``rotation_limit=None
 Link ids: the root link is ``0`` (joint ``free``, parent ``-1``, name ``"base"``); moving and
 static links follow, numbered in the pre-order of their representative node. A link's
 ``parts`` are the PartNet node ids of the maximal nodes all of whose leaves belong to it.
+
+Length: over 500 lines, about 30 % of them docstrings: the numbered rules above are one
+algorithm over shared state (references, motion groups, the owner of every leaf) in
+:func:`build_mobility_tree`, and the prediction types it reads and returns are its contract;
+splitting it would put one rule set in two files.
 """
 
 from __future__ import annotations

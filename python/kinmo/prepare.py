@@ -43,6 +43,11 @@ escapes); an ``out`` that is a file is a :class:`~kinmo.errors.KinmoDataError`.
 
 Default cache folder (:func:`default_cache_dir`): ``./cache/<name of the dataset folder>``
 relative to the current directory.
+
+Length: over 500 lines, about 35 % of them docstrings: one topic, the ``kinmo prepare`` stage
+(its options, manifest rows, the build of one shape with its resume check, the manifest check
+later stages call, and the run); what it shares with the other per-shape stages is
+:mod:`kinmo.stages`.
 """
 
 from __future__ import annotations

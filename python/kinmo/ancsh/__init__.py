@@ -5,8 +5,9 @@ Modules:
 
 - :mod:`kinmo.ancsh.structure`: a category's kinematic structure (parts, parents, joint
   types), the canonical part order of an object and the most common structure of a category;
-- :mod:`kinmo.ancsh.dataset`: a category's objects mapped onto that structure, training
-  samples (NPCS, NAOCS, joint targets) from rendered scans, and the point-sampling dataset;
+- :mod:`kinmo.ancsh.objects`: a category's objects mapped onto that structure;
+- :mod:`kinmo.ancsh.dataset`: training samples (NPCS, NAOCS, joint targets) from rendered
+  scans, and the point-sampling dataset;
 - :mod:`kinmo.ancsh.targets`: per-point joint targets (association, heatmap, unit vectors);
 - :mod:`kinmo.ancsh.pointnet2`: a pure-PyTorch PointNet++ backbone;
 - :mod:`kinmo.ancsh.model`: the ANCSH heads and loss;

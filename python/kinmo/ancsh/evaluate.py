@@ -94,7 +94,7 @@ def find_runs(paths: Sequence[str | Path], category: str | None = None) -> list[
     """
     import json
 
-    from kinmo.ancsh.dataset import category_key
+    from kinmo.ancsh.objects import category_key
 
     found: list[tuple[int, str, Path]] = []
     seen: set[Path] = set()
@@ -227,7 +227,7 @@ def evaluate_category(
     """
     import json
 
-    from kinmo.ancsh.dataset import category_key
+    from kinmo.ancsh.objects import category_key
     from kinmo.ancsh.structure import structure_slug
     from kinmo.ancsh.inference import load_run
     from kinmo.io import write_json, write_text
@@ -375,7 +375,7 @@ def _evaluate_structure(
     KinmoError
         A test object a run trained on.
     """
-    from kinmo.ancsh.dataset import scan_category
+    from kinmo.ancsh.objects import scan_category
     from kinmo.ancsh.inference import predict_scans, quiet_estimate
     from kinmo.ancsh.scans import render_objects
     from kinmo.train.loop import torch_threads
@@ -408,7 +408,7 @@ def _evaluate_structure(
                                    scans_dir / "test", frames, rcfg, progress)
     sym: dict[str, list[np.ndarray | None]] = {}
     if symmetric:
-        from kinmo.ancsh.dataset import object_parts_of
+        from kinmo.ancsh.objects import object_parts_of
         from kinmo.ancsh.symmetry import part_symmetry_axes
 
         for i in test_ids:

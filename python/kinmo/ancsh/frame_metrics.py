@@ -70,7 +70,7 @@ def frame_truth(frame: Mapping[str, Any], parts: ObjectParts) -> FrameTruth:
     ----------
     frame : mapping
     parts : ObjectParts
-        The object's mapping onto ANCSH parts (:func:`kinmo.ancsh.dataset.object_parts_of`).
+        The object's mapping onto ANCSH parts (:func:`kinmo.ancsh.objects.object_parts_of`).
 
     Returns
     -------

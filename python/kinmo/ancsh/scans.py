@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from kinmo.ancsh.config import ANCSHConfig
-from kinmo.ancsh.dataset import category_key
+from kinmo.ancsh.objects import category_key
 from kinmo.errors import KinmoDataError
 
 __all__ = ["all_categories", "category_folders", "render_objects"]

@@ -97,7 +97,7 @@ def part_symmetry_axes(shape: Any, parts: ObjectParts, n_points: int = 3000, see
     Parameters
     ----------
     shape : kinmo.data.model.Shape
-        The object (:func:`kinmo.ancsh.dataset.object_parts_of`).
+        The object (:func:`kinmo.ancsh.objects.object_parts_of`).
     parts : ObjectParts
     n_points : int
         Surface points per sample (two samples per part).

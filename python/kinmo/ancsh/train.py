@@ -4,7 +4,7 @@ Liu et al. CVPR 2023, Sec. 3.4 and 4.3 (Table 2). :func:`train_ancsh` runs one o
 settings of :data:`kinmo.ancsh.config.SETTINGS` for a category:
 
 1. the category's PartNet-Mobility objects under ``data`` are mapped onto the category's
-   kinematic structure (:func:`kinmo.ancsh.dataset.scan_category`); objects with another
+   kinematic structure (:func:`kinmo.ancsh.objects.scan_category`); objects with another
    structure are left out (listed in ``data.json``);
 2. the train/test split is read (``split``, e.g. the motion GNN run's ``split.json``) or made
    over every object under ``data`` with :func:`kinmo.train.split.make_split` (the GNN's

@@ -16,7 +16,12 @@ Modules (one topic each):
 - :mod:`kinmo.refine.motions`: network inputs, candidate motions and their amounts.
 - :mod:`kinmo.refine.scoring`: feasibility / direction / position scores and selection.
 - :mod:`kinmo.refine.train`: positive / negative motions from part-graph caches, training.
-- :mod:`kinmo.refine.refine`: refine the GNN's predictions of one shape.
+- :mod:`kinmo.refine.config`: the options of the refinement.
+- :mod:`kinmo.refine.edge`: refine one edge (the paper's scoring or the learned selector).
+- :mod:`kinmo.refine.refine`: refine the GNN's predictions of one shape (input contract, dispatch).
+- :mod:`kinmo.refine.features`: names and groups of the learned selector's features.
+- :mod:`kinmo.refine.selector`: the learned selector's candidates, GNN priors and features.
+- :mod:`kinmo.refine.ranker`: the learned selector's calibrated listwise ranker.
 
 Submodules are imported on demand (torch is heavy).
 """

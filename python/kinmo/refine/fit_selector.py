@@ -13,7 +13,7 @@ out of its own features. The ranker is fit on those groups; its
 calibration (Platt scaling of the winner's probability) is fit on ranker predictions that are
 themselves out-of-fold over the same folds. The test split is never touched.
 
-Outputs (``OUT/``): ``ranker.json`` (:meth:`~kinmo.refine.selector.Ranker.save`),
+Outputs (``OUT/``): ``ranker.json`` (:meth:`~kinmo.refine.ranker.Ranker.save`),
 ``folds/<f>/`` (the fold GNN runs, reused when present: an interrupted fit resumes), and
 ``oof_groups.npz`` (the features, labels and edge metadata, for analysis).
 """
@@ -27,15 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from kinmo.data.graph import PartGraph
+from kinmo.refine.features import FEATURE_GROUPS, FEATURES
+from kinmo.refine.ranker import Ranker, calibrate, fit_ranker
 from kinmo.refine.selector import (
-    FEATURE_GROUPS,
-    FEATURES,
-    Ranker,
-    calibrate,
     candidate_features,
     candidate_labels,
     edge_candidates,
-    fit_ranker,
     shape_meshes,
 )
 from kinmo.refine.semantic_prior import SemanticPrior

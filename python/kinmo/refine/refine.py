@@ -27,6 +27,12 @@ or mapping with the same fields): per sibling edge, type probabilities over
 :data:`~kinmo.data.model.FINE_TYPES` (10) or :data:`~kinmo.data.model.COARSE_TYPES` (5), a unit
 axis direction and an axis point, **in the mesh frame** of the graph.
 
+This module holds the input contract and the dispatch over a shape's edges
+(:func:`refine_predictions`, :func:`refine_shape_prediction`); the refinement of one edge
+(:func:`refine_edge`, :func:`select_edge`, :class:`EdgeRefinement`) is in
+:mod:`kinmo.refine.edge` and the options (:class:`RefineConfig`) in :mod:`kinmo.refine.config`,
+both re-exported here.
+
 Frames and units: mesh frame (y-up), mesh units.
 """
 
@@ -34,33 +40,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES
-from kinmo.refine.candidates import (
-    Candidates,
-    candidate_axes,
-    canonical_direction,
-    frame_box,
-    merge_candidates,
-)
-from kinmo.refine.motions import (
-    MotionAmounts,
-    candidate_motions,
-    network_inputs,
-    pair_cloud,
-    shape_context,
-)
-from kinmo.refine.scoring import (
-    CandidateScores,
-    ScoringConfig,
-    line_feasibility,
-    score_candidates,
-)
+from kinmo.refine.config import RefineConfig
+from kinmo.refine.edge import EdgeRefinement, refine_edge, select_edge
 
 __all__ = [
     "EdgePredictions",
@@ -73,95 +60,6 @@ __all__ = [
     "refine_shape_prediction",
     "select_edge",
 ]
-
-
-class RefineConfig(BaseModel):
-    """Options of the refinement.
-
-    Attributes
-    ----------
-    scoring : ScoringConfig
-        Weights (paper: 0.5 / 0.3 / 0.2) or ``feasibility_only``.
-    angles_deg : tuple of float
-        Rotation angles of the candidate motions (degrees).
-    translation_fraction : float
-        Translation of the candidate motions, fraction of the part's OBB extent.
-    interaction_radius : float
-        Interaction-region radius, fraction of the moving part's OBB diagonal.
-    n_points : int or None
-        Network input points (default: the network's ``n_points``).
-    seed : int
-        Point subsampling seed (results are reproducible).
-    chunk : int
-        Moved clouds per network call.
-    min_agreement : float or None
-        kinmo extension (None: off, the paper's behaviour): when the chosen candidate's
-        direction agreement ``|cos|`` with the GNN's axis is below this value, the refinement
-        abstains and keeps the GNN's axis (kind ``"gnn"``; the confidence stays the
-        candidate's low score). A wrong orientation in the predicted type (a door predicted
-        ``P_H`` whose regressed axis is vertical) then costs the GNN's error, not 90°.
-    snap_angle_deg : float or None
-        kinmo extension (None: off, the paper's behaviour): only candidates whose line is
-        within this angle (degrees) of the GNN's axis direction compete, so the refinement
-        fixes the axis position and the sign of motion but keeps the GNN's orientation. When
-        no candidate is that close the refinement abstains (kind ``"gnn"``, the GNN's axis,
-        confidence NaN, which no pseudo-label threshold accepts).
-    keep_gnn : bool
-        kinmo extension (False: off, the paper's behaviour): the GNN's own axis line joins the
-        candidates (kind ``"gnn"``), judged by the network like the others; its agreement
-        terms are 1 by construction, so a geometric candidate replaces it only when it scores
-        better overall.
-    box_frames : tuple of {"moving", "reference", "shape"}
-        Boxes whose edges, centre lines and axes give the candidates. ``("moving",)`` (the
-        paper): the moving part's OBB. kinmo extension: ``"reference"`` adds the moving part's
-        bounding box in its reference part's OBB axes, ``"shape"`` its box in the shape frame
-        (:func:`kinmo.refine.candidates.frame_box`), so a part whose own OBB is tilted from
-        its hinge (an opened laptop lid, a faucet handle) still gets the hinge as a candidate;
-        lines within ``merge_angle_deg`` and ``merge_distance`` (fraction of the moving OBB's
-        diagonal) of an earlier box's line are merged into it.
-    merge_angle_deg, merge_distance : float
-        Tolerances of that merge.
-    selector : {"paper", "ranker"}
-        ``"paper"``: the weighted score of :mod:`kinmo.refine.scoring` over the candidates of
-        the predicted type (the options above apply). ``"ranker"`` (kinmo extension,
-        :mod:`kinmo.refine.selector`): candidates of every orientation in all three box
-        frames plus the GNN's line, scored by the learned ranker at ``ranker`` from soft GNN
-        priors and geometric terms; the confidence is the ranker's calibrated probability
-        that the selected line is right. ``scoring``, ``snap_angle_deg``, ``keep_gnn``,
-        ``box_frames`` and ``min_agreement`` do not apply to it.
-    ranker : str or None
-        Path of the ranker file (``ranker.json``, :func:`kinmo.refine.selector.load_ranker`);
-        required by ``selector="ranker"``.
-    """
-
-    model_config = ConfigDict(extra="forbid")
-
-    scoring: ScoringConfig = Field(default_factory=ScoringConfig)
-    angles_deg: tuple[float, ...] = (60.0,)
-    translation_fraction: float = Field(0.5, gt=0)
-    interaction_radius: float = Field(0.1, gt=0)
-    n_points: int | None = Field(None, ge=2)
-    seed: int = 0
-    chunk: int = Field(16, ge=1)
-    min_agreement: float | None = Field(None, ge=0, le=1)
-    snap_angle_deg: float | None = Field(None, gt=0, le=90)
-    keep_gnn: bool = False
-    box_frames: tuple[Literal["moving", "reference", "shape"], ...] = Field(("moving",), min_length=1)
-    merge_angle_deg: float = Field(2.0, ge=0, le=90)
-    merge_distance: float = Field(0.02, ge=0)
-    selector: Literal["paper", "ranker"] = "paper"
-    ranker: str | None = None
-
-    @model_validator(mode="after")
-    def _ranker_path(self) -> RefineConfig:
-        if self.selector == "ranker" and not self.ranker:
-            raise ValueError("refine: selector 'ranker' needs a ranker file (ranker=...)")
-        return self
-
-    @property
-    def amounts(self) -> MotionAmounts:
-        """The candidate motion amounts."""
-        return MotionAmounts(tuple(self.angles_deg), self.translation_fraction)
 
 
 @dataclass
@@ -266,227 +164,6 @@ def as_edge_predictions(obj: Any, graph: PartGraph | None = None) -> EdgePredict
         t = np.asarray(values["type_prob"]).shape[-1]
         values["type_names"] = FINE_TYPES if t == len(FINE_TYPES) else COARSE_TYPES
     return EdgePredictions(**values)
-
-
-@dataclass(frozen=True)
-class EdgeRefinement:
-    """The refinement of one moving edge.
-
-    Attributes
-    ----------
-    candidates : Candidates
-    scores : CandidateScores
-    origin : (3,) float64
-        Point of the chosen line nearest to the moving part's OBB centre.
-    direction : (3,) float64
-        Unit direction of the chosen line, signed by the feasible direction of motion.
-    abstained : bool
-        The best candidate disagreed with the GNN's direction
-        (:attr:`RefineConfig.min_agreement`): ``origin`` and ``direction`` are the GNN's.
-    """
-
-    candidates: Candidates
-    scores: CandidateScores
-    origin: np.ndarray
-    direction: np.ndarray
-    abstained: bool = False
-    calibrated: float | None = None
-
-    @property
-    def confidence(self) -> float:
-        """Score of the chosen candidate (NaN without candidates).
-
-        With the learned selector (:attr:`RefineConfig.selector` ``"ranker"``), the
-        calibrated probability that the chosen line is right (``calibrated``).
-
-        When the GNN's own line won (:attr:`RefineConfig.keep_gnn`), the best score of the
-        geometric candidates instead: the line's agreement with itself is 1 by construction
-        and says nothing, so the confidence keeps the paper's meaning (a feasible geometric
-        axis agrees with the GNN) and keeping the GNN's axis never changes which joints pass
-        a pseudo-label threshold.
-        """
-        if self.calibrated is not None:
-            return float(self.calibrated)
-        b = self.scores.best
-        if b < 0 or self.candidates.kinds[b] != "gnn":
-            return self.scores.confidence
-        geo = [k for k, kind in enumerate(self.candidates.kinds) if kind != "gnn"]
-        return float(np.max(self.scores.total[geo])) if geo else float("nan")
-
-    @property
-    def kind(self) -> str:
-        """Kind of the chosen candidate (``"edge"``, ``"center"``, ``"interaction"``,
-        ``"axis"``), ``"gnn"`` when the refinement abstained or the GNN's own line won
-        (:attr:`RefineConfig.keep_gnn`)."""
-        return "gnn" if self.abstained else self.candidates.kinds[self.scores.best]
-
-
-def refine_edge(
-    graph: PartGraph,
-    moving: int,
-    reference: int,
-    motion_type: str,
-    gnn_direction: np.ndarray,
-    gnn_origin: np.ndarray,
-    axis_model,
-    config: RefineConfig | None = None,
-    rng: np.random.Generator | int | None = None,
-) -> EdgeRefinement:
-    """Refine the axis of one edge ``(moving, reference)``.
-
-    Parameters
-    ----------
-    graph : PartGraph
-    moving, reference : int
-        Node indices.
-    motion_type : str
-        Predicted fine or coarse type with an axis.
-    gnn_direction, gnn_origin : (3,) float
-        The GNN's axis (mesh frame).
-    axis_model : AxisSelectionNet
-    config : RefineConfig, optional
-    rng : numpy Generator or int, optional
-        Point subsampling (default: ``config.seed``).
-
-    Returns
-    -------
-    EdgeRefinement
-    """
-    cfg = config or RefineConfig()
-    rng = np.random.default_rng(cfg.seed if rng is None else rng)
-    obb = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
-    diag = max(2.0 * float(np.linalg.norm(graph.obb_half_extents[moving])), 1e-12)
-    cands = None
-    for frame in dict.fromkeys(cfg.box_frames):  # in order, once each
-        if frame == "moving":
-            box = obb
-        else:
-            axes = graph.obb_axes[reference] if frame == "reference" else np.eye(3)
-            box = frame_box(graph.points[moving], axes)
-        c = candidate_axes(box, motion_type, graph.points[moving], graph.points[reference],
-                           interaction_radius=cfg.interaction_radius)
-        cands = c if cands is None else merge_candidates(
-            cands, c, angle_deg=cfg.merge_angle_deg, distance=cfg.merge_distance * diag)
-    assert cands is not None  # box_frames has at least one frame (RefineConfig)
-    g = np.asarray(gnn_direction, dtype=np.float64)
-    g = g / np.linalg.norm(g)
-    if cfg.snap_angle_deg is not None:
-        close = np.abs(cands.directions @ g) >= np.cos(np.radians(cfg.snap_angle_deg)) - 1e-12
-        cands = cands.subset(close)
-    if cfg.keep_gnn:
-        cands = Candidates(np.vstack([cands.origins, np.asarray(gnn_origin, float)[None]]),
-                           np.vstack([cands.directions, canonical_direction(g)[None]]),
-                           (*cands.kinds, "gnn"), cands.motion_type)
-    if len(cands) == 0:  # snap_angle_deg left nothing: keep the GNN's axis, no confidence
-        z = np.zeros(0)
-        empty = CandidateScores(z, z, z, z, np.zeros(0, dtype=np.int64), -1)
-        return EdgeRefinement(cands, empty, np.asarray(gnn_origin, dtype=np.float64).copy(), g,
-                              abstained=True)
-    feas, sign = _network_feasibility(graph, moving, reference, cands, axis_model, cfg, rng)
-    scores = score_candidates(cands.origins, cands.directions, feas, gnn_direction, gnn_origin,
-                              diag, cands.motion != "P", cfg.scoring, sign)
-    b = scores.best
-    if cfg.min_agreement is not None and scores.direction[b] < cfg.min_agreement:
-        return EdgeRefinement(cands, scores, np.asarray(gnn_origin, dtype=np.float64).copy(),
-                              g, abstained=True)
-    return EdgeRefinement(cands, scores, *_chosen_line(graph, moving, cands, b, scores.sign[b]))
-
-
-def _chosen_line(graph: PartGraph, moving: int, cands: Candidates, b: int, sign: int
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Origin (nearest the moving OBB's centre) and signed direction of candidate ``b``."""
-    d = cands.directions[b] * sign
-    c = graph.obb_center[moving]
-    return cands.origins[b] + float(np.dot(c - cands.origins[b], d)) * d, d
-
-
-def _network_feasibility(graph: PartGraph, moving: int, reference: int, cands: Candidates,
-                         axis_model, cfg: RefineConfig, rng: np.random.Generator
-                         ) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-network feasibility ``(C,)`` and better sign ``(C,)`` of each candidate line."""
-    import torch
-
-    obb = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
-    mot = candidate_motions(cands, obb, cfg.amounts)
-    n = cfg.n_points or axis_model.config.n_points
-    frac = axis_model.config.context_fraction
-    ctx = shape_context(graph.points[0], graph.points[moving]) if frac > 0 else None
-    pair = pair_cloud(graph.points[moving], graph.points[reference], n, rng, ctx, frac,
-                      axis_model.config.crop)
-    rest, moved = network_inputs(pair, mot.origins, mot.directions, mot.angles, mot.translations)
-    device = next(axis_model.parameters()).device
-    s = axis_model.feasibility(torch.from_numpy(rest).to(device),
-                               torch.from_numpy(moved).to(device), chunk=cfg.chunk).cpu().numpy()
-    return line_feasibility(s, mot.line, mot.sign, len(cands))
-
-
-def select_edge(
-    graph: PartGraph,
-    edge: int,
-    motion_type: str,
-    gnn_direction: np.ndarray,
-    gnn_origin: np.ndarray,
-    priors,
-    ranker,
-    axis_model=None,
-    config: RefineConfig | None = None,
-    rng: np.random.Generator | int | None = None,
-    meshes=None,
-) -> EdgeRefinement:
-    """Refine one edge with the learned selector (:mod:`kinmo.refine.selector`).
-
-    Parameters
-    ----------
-    graph : PartGraph
-    edge : int
-        Row of ``graph.sibling_edges``.
-    motion_type : str
-        Predicted type (its coarse motion decides the candidates).
-    gnn_direction, gnn_origin : (3,) float
-        The GNN's axis (mesh frame).
-    priors : kinmo.refine.selector.GNNPriors
-    ranker : kinmo.refine.selector.Ranker
-    axis_model : AxisSelectionNet, optional
-        Queried only when the ranker uses the ``feasibility`` feature.
-    config : RefineConfig, optional
-    rng : numpy Generator or int, optional
-    meshes : kinmo.refine.selector.ShapeMeshes, optional
-        The shape's leaf meshes (swept-collision terms); see
-        :func:`kinmo.refine.selector.shape_meshes`.
-
-    Returns
-    -------
-    EdgeRefinement
-        ``scores.total`` holds the ranker's probabilities, ``scores.direction`` the ``|cos|``
-        with the GNN's axis, ``scores.position`` the position prior, ``calibrated`` the
-        confidence; the direction's sign is the one the collision proxy (or the network)
-        finds freer.
-    """
-    from kinmo.refine.selector import FEATURE_GROUPS, FEATURES, candidate_features, edge_candidates
-
-    cfg = config or RefineConfig()
-    rng = np.random.default_rng(cfg.seed if rng is None else rng)
-    i, j = (int(x) for x in graph.sibling_edges[edge])
-    cands, frames = edge_candidates(graph, i, j, motion_type, gnn_direction, gnn_origin,
-                                    interaction_radius=cfg.interaction_radius,
-                                    merge_angle_deg=cfg.merge_angle_deg,
-                                    merge_distance=cfg.merge_distance)
-    feas = None
-    net_sign = None
-    if "feasibility" in ranker.features and axis_model is not None:
-        feas, net_sign = _network_feasibility(graph, i, j, cands, axis_model, cfg, rng)
-    proxy = net_sign is not None or any(f in ranker.features for f in FEATURE_GROUPS["collision"])
-    x, sign = candidate_features(graph, i, j, edge, cands, frames, priors, gnn_direction,
-                                 gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic,
-                                 proxy=proxy)
-    p = ranker.probabilities(x)
-    b = int(np.argmax(p))
-    sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
-                                                sign, net_sign)
-    scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
-                             x[:, FEATURES.index("pos_prior")], p, np.asarray(sg, np.int64), b)
-    o, d = _chosen_line(graph, i, cands, b, int(sg[b]))
-    return EdgeRefinement(cands, scores, o, d, calibrated=ranker.confidence(float(p[b])))
 
 
 @dataclass
@@ -614,7 +291,8 @@ def refine_predictions(
     details: dict[int, EdgeRefinement] = {}
     ranker = None
     if cfg.selector == "ranker":
-        from kinmo.refine.selector import GNNPriors, load_ranker
+        from kinmo.refine.ranker import load_ranker
+        from kinmo.refine.selector import GNNPriors
 
         ranker = load_ranker(str(cfg.ranker))
         if priors is None:

@@ -1,7 +1,8 @@
 """Run reports (``kinmo report RUN``): one HTML page and one Markdown file per run.
 
 :func:`write_report` finds the artefacts of a run folder (:mod:`kinmo.report.collect`),
-composes the report (:mod:`kinmo.report.build`: paper Table 1 and Table 2 next to the
+composes the report (:mod:`kinmo.report.build`, its Table 1/2 sections in
+:mod:`kinmo.report.paper_tables`: paper Table 1 and Table 2 next to the
 paper's means, bar charts per category, training curves, pseudo-label summary, predictions,
 gallery of renders) and writes, into ``RUN/report`` by default:
 

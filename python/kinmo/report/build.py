@@ -15,28 +15,25 @@ Sections, always present (a section whose artefacts are missing says so):
 8. **Gallery**: the PNGs of the run (the Table 1 renders: moving parts coloured, predicted
    axes solid, true axes dashed).
 
-The overview also lists the time of every pipeline stage (``pipeline_result.json``).
+The overview also lists the time of every pipeline stage (``pipeline_result.json``). The
+Table 1 and Table 2 sections are composed in :mod:`kinmo.report.paper_tables`, the shared
+formatting in :mod:`kinmo.report.blocks`.
 """
 
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable
 from datetime import datetime, timezone
-from pathlib import Path
 
 import kinmo.report.charts as charts
+from kinmo.report.blocks import chart_block, file_slug, fmt_value
 from kinmo.report.collect import (
     PAPER_TABLE1,
     PAPER_TABLE2,
     Curves,
     RunArtefacts,
     SynthExtra,
-    Table1,
-    Table2,
-    paper_setting,
-    png_size,
     to_float,
 )
 from kinmo.report.document import (
@@ -50,6 +47,7 @@ from kinmo.report.document import (
     Table,
     Text,
 )
+from kinmo.report.paper_tables import t2_fmt, t2_label, table1_blocks, table2_blocks
 
 __all__ = ["build_document", "fmt_value"]
 
@@ -64,257 +62,6 @@ HINTS: dict[str, tuple[str, str]] = {
     "predictions": ("predictions (predictions.csv)", "kinmo predict"),
     "gallery": ("shape renders (PNG)", "kinmo eval pre-segmented --render"),
 }
-_EDGE_PANELS = (("angle_edge", "angle"), ("dist_edge", "distance"))
-
-
-def fmt_value(column: str, v: float) -> str:
-    """Format a metric for a table: angles and rotations 2 decimals, distances, accuracies
-    and other scores 3, counts as integers, NaN as an en dash."""
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "–"
-    c = column.lower()
-    if re.search(r"(^|_)(n|count|shapes|joints|frames|epoch)s?($|_)", c) and float(v).is_integer():
-        return str(int(v))
-    if any(w in c for w in ("angle", "rot", "deg")):
-        return f"{v:.2f}"
-    if any(w in c for w in ("dist", "trans", "acc", "recall", "precision", "iou", "loss",
-                            "coverage", "chance")):
-        return f"{v:.3f}"
-    return f"{v:.3f}" if v == 0 or 1e-3 <= abs(v) < 1e4 else f"{v:.4g}"
-
-
-def _slug(text: str) -> str:
-    s = re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower()
-    return s or "run"
-
-
-def _figure(name: str, png: bytes, alt: str, caption: str = "") -> Figure:
-    w, h = png_size(png) or (0, 0)
-    return Figure(name, png, alt, caption, w, h)
-
-
-def _delta(value: float, ref: float | None, decimals: int = 2) -> tuple[str, str | None]:
-    """``value - ref`` formatted, and its mark (lower is better)."""
-    if ref is None or math.isnan(value):
-        return "–", None
-    d = value - ref
-    return f"{d:+.{decimals}f}", ("better" if d <= 0 else "worse")
-
-
-def _safe_chart(make: Callable[[], bytes], name: str, alt: str, caption: str,
-                blocks: list[Block]) -> None:
-    try:
-        png = make()
-    except Exception as e:  # noqa: BLE001 - a chart must never sink the report
-        blocks.append(Note(f"chart {name} could not be drawn: {type(e).__name__}: {e}", "problem"))
-        return
-    blocks.append(_figure(name, png, alt, caption))
-
-
-# --- Table 1 ------------------------------------------------------------------------------
-
-
-def _table1_paper(t: Table1) -> Table:
-    cols = ["model", "angle err edges (deg)", "paper angle (deg)", "Δ angle",
-            "dist edges (/diag)", "paper distance", "Δ distance",
-            "angle err joints (deg)", "line dist joints (/diag)"]
-    rows: list[list[str]] = []
-    marks: dict[tuple[int, int], str] = {}
-    for m in [*t.models, *[p for p in PAPER_TABLE1 if p not in t.models]]:
-        ref = PAPER_TABLE1.get(m, {})
-        if m not in t.models:
-            rows.append([f"{m} (not in this run)", "–", f"{ref['angle']:.2f}", "–", "–",
-                         f"{ref['distance']:.3f}", "–", "–", "–"])
-            continue
-        a, d = t.value(m, "mean", "angle_edge"), t.value(m, "mean", "dist_edge")
-        da, ma = _delta(a, ref.get("angle"))
-        dd, md = _delta(d, ref.get("distance"), 3)
-        i = len(rows)
-        if ma:
-            marks[(i, 3)] = ma
-        if md:
-            marks[(i, 6)] = md
-        rows.append([m, fmt_value("angle", a),
-                     f"{ref['angle']:.2f}" if "angle" in ref else "–", da,
-                     fmt_value("dist", d),
-                     f"{ref['distance']:.3f}" if "distance" in ref else "–", dd,
-                     fmt_value("angle", t.value(m, "mean", "angle_joint")),
-                     fmt_value("dist", t.value(m, "mean", "dist_joint"))])
-    return Table(cols, rows, marks=marks, caption=(
-        "Means over categories next to the paper's Table 1 (Liu et al. 2023). Δ = this run − "
-        "paper (green: lower error). kinmo's distances are divided by the shape's bounding-box "
-        "diagonal; the paper's are in PartNet-Mobility mesh units (shapes roughly unit-sized)."))
-
-
-def _table1_model(t: Table1, model: str) -> Table:
-    cols = ["category", "shapes", "joints", *[h for _, h, _ in t.metrics]]
-    rows, bold = [], set()
-    for c in [*t.categories, "mean"]:
-        r = t.row(model, c)
-        if r is None:
-            continue
-        if c == "mean":
-            bold.add(len(rows))
-        rows.append([c, fmt_value("n_shapes", to_float(r.get("n_shapes"))),
-                     fmt_value("n_joints", to_float(r.get("n_joints"))),
-                     *[fmt_value(k, to_float(r.get(k))) for k, _, _ in t.metrics]])
-    higher = ", ".join(h for _, h, hi in t.metrics if hi)
-    return Table(cols, rows, bold_rows=bold,
-                 caption=f"{model}: higher is better for {higher}; lower for the errors.")
-
-
-def _table1_blocks(t: Table1) -> list[Block]:
-    n = t.value(t.models[0], "mean", "n_shapes") if t.models else math.nan
-    blocks: list[Block] = [
-        Heading(f"{t.rel}"),
-        Text(f"Models {', '.join(t.models)} on {len(t.categories)} categories"
-             + (f", {fmt_value('n_shapes', n)} test shapes" if not math.isnan(n) else "")
-             + f" (file `{t.rel}`)."),
-        _table1_paper(t),
-    ]
-    keys = {k for k, _, _ in t.metrics}
-    groups = [*t.categories, "mean"]
-    err_panels = []
-    for key, header, _ in t.metrics:
-        if key.startswith(("angle", "dist")):
-            ref_key = dict(_EDGE_PANELS).get(key)
-            ref = ({m: PAPER_TABLE1[m][ref_key] for m in PAPER_TABLE1 if ref_key in PAPER_TABLE1[m]}
-                   if ref_key else {})
-            err_panels.append(charts.BarPanel(
-                header, groups, {m: [t.value(m, c, key) for c in groups] for m in t.models}, ref))
-    slug = _slug(t.rel)
-    if err_panels:
-        _safe_chart(lambda: charts.bar_chart(err_panels,
-                                             "Axis errors per category (lower is better)"),
-                    f"table1_{slug}_errors.png", f"Table 1 axis errors per category ({t.rel})",
-                    "Axis errors per category and model; hatched: the paper's means "
-                    "(edge-level protocol).", blocks)
-    acc_panels = [charts.BarPanel(h, groups, {m: [t.value(m, c, k) for c in groups]
-                                              for m in t.models})
-                  for k, h, hi in t.metrics if hi and k in keys]
-    if acc_panels:
-        _safe_chart(lambda: charts.bar_chart(acc_panels, "Type accuracy and mobile-part "
-                                             "detection (higher is better)", ncols=3),
-                    f"table1_{slug}_accuracy.png",
-                    f"Table 1 type accuracy and detection per category ({t.rel})",
-                    "Motion-type accuracy and mobile-part precision/recall per category.", blocks)
-    for m in t.models:
-        blocks.append(Heading(m, 4))
-        blocks.append(_table1_model(t, m))
-    return blocks
-
-
-# --- Table 2 ------------------------------------------------------------------------------
-
-
-#: Headers of kinmo's Table 2 metrics (:mod:`kinmo.ancsh.evaluate`), by column name without
-#: its ``_mean`` suffix.
-T2_LABELS: dict[str, str] = {
-    "rotation_deg": "rotation err (deg)", "translation": "translation err", "iou": "3D IoU",
-    "state": "joint state err", "angle_deg": "axis angle err (deg)",
-    "distance": "axis distance",
-}
-
-
-def _t2_label(col: str) -> str:
-    base = col[:-5] if col.endswith("_mean") else col
-    return T2_LABELS.get(base, base)
-
-
-def _t2_fmt(col: str, v: float) -> str:
-    c = col.lower()
-    if not math.isnan(v) and ("trans" in c or "dist" in c):
-        return f"{v:.4f}"
-    return fmt_value(col, v)
-
-
-def _table2_paper(t: Table2) -> Table:
-    cols = ["setting", "categories", _t2_label(t.rotation_column), "paper rotation (deg)",
-            "Δ rotation", _t2_label(t.angle_column), "paper angle (deg)", "Δ angle"]
-    rows: list[list[str]] = []
-    marks: dict[tuple[int, int], str] = {}
-    mapped = {s: paper_setting(s) for s in t.settings}
-    for s in t.settings:
-        ref = PAPER_TABLE2.get(mapped[s] or "", {})
-        r, a = t.value(s, "mean", t.rotation_column), t.value(s, "mean", t.angle_column)
-        dr, mr = _delta(r, ref.get("rotation"))
-        da, ma = _delta(a, ref.get("angle"))
-        i = len(rows)
-        if mr:
-            marks[(i, 4)] = mr
-        if ma:
-            marks[(i, 7)] = ma
-        label = s if not mapped[s] or mapped[s] == s else f"{s} ({mapped[s]})"
-        rows.append([label, str(t.n_categories(s)), fmt_value("rot", r),
-                     f"{ref['rotation']:.2f}" if ref else "–", dr, fmt_value("angle", a),
-                     f"{ref['angle']:.2f}" if ref else "–", da])
-    for p, ref in PAPER_TABLE2.items():
-        if p not in mapped.values():
-            rows.append([f"{p} (not in this run)", "0", "–", f"{ref['rotation']:.2f}", "–", "–",
-                         f"{ref['angle']:.2f}", "–"])
-    return Table(cols, rows, marks=marks, caption=(
-        "Means over the evaluated categories next to the paper's Table 2 (Liu et al. 2023, "
-        "ANCSH on partial scans trained supervised / semi-supervised / semi-weakly "
-        "supervised). Δ = this run − paper (green: lower error). The paper's means cover its "
-        "own categories."))
-
-
-def _table2_categories(t: Table2) -> Table:
-    cols = ["category", "setting", "frames", *[_t2_label(c) for c in t.metric_columns]]
-    rows, bold = [], set()
-    for c in t.categories:
-        for s in t.settings:
-            e = t.entry(s, c)
-            if e is not None:
-                rows.append([c, s, fmt_value("frames", e["frames"]),
-                             *[_t2_fmt(m, e.get(m, math.nan)) for m in t.metric_columns]])
-    for s in t.settings:
-        bold.add(len(rows))
-        rows.append(["mean", s, "–", *[_t2_fmt(m, t.value(s, "mean", m))
-                                      for m in t.metric_columns]])
-    return Table(cols, rows, align="ll" + "r" * (len(cols) - 2), bold_rows=bold, caption=(
-        "Means over the test scans of each category (over parts for part metrics, over joints "
-        "for joint metrics); mean rows average the categories. Translation and axis distance "
-        "in mesh units."))
-
-
-def _table2_blocks(t: Table2) -> list[Block]:
-    blocks: list[Block] = [
-        Text(f"Settings {', '.join(t.settings)} on {len(t.categories)} "
-             f"categor{'y' if len(t.categories) == 1 else 'ies'} "
-             f"({', '.join(t.categories)}), from "
-             + ", ".join(f"`{f.rel}`" for f in t.files) + "."),
-        _table2_paper(t),
-    ]
-    groups = [*t.categories, "mean"]
-    panels = []
-    for col in t.metric_columns[:6]:
-        ref_key = ("rotation" if col == t.rotation_column else
-                   "angle" if col == t.angle_column else None)
-        ref: dict[str, float] = {}
-        if ref_key:
-            mapped = {s: paper_setting(s) for s in t.settings}
-            for s, p in mapped.items():
-                if p:
-                    ref[s] = PAPER_TABLE2[p][ref_key]
-            for p, vals in PAPER_TABLE2.items():
-                if p not in mapped.values():
-                    ref[p] = vals[ref_key]
-        panels.append(charts.BarPanel(_t2_label(col), groups,
-                                      {s: [t.value(s, c, col) for c in groups]
-                                       for s in t.settings}, ref))
-    if panels:
-        _safe_chart(lambda: charts.bar_chart(panels, "Partial-scan metrics per category",
-                                             ncols=3 if len(panels) > 4 else 2),
-                    "table2.png", "Table 2 metrics per category and setting",
-                    "Per category and setting; hatched: the paper's means.", blocks)
-    blocks.append(_table2_categories(t))
-    details = [f.path.parent / "table2.md" for f in t.files]
-    found = [f"`{Path(f.rel).parent.as_posix()}/table2.md`" for f, d in zip(t.files, details)
-             if d.is_file()]
-    if found:
-        blocks.append(Note("Per-part and per-joint errors: " + ", ".join(found) + ".", "info"))
-    return blocks
 
 
 # --- Training -----------------------------------------------------------------------------
@@ -346,8 +93,8 @@ def _training_blocks(curves: list[Curves]) -> list[Block]:
             blocks.append(Note(f"{c.rel}: no loss, score or error column to plot.", "problem"))
             continue
         desc = c.describe()
-        _safe_chart(lambda c=c: charts.curves_chart(c.epochs, c.series, c.rel, c.stages),
-                    f"curves_{_slug(c.rel)}.png", f"Training curves of {c.rel}",
+        chart_block(lambda c=c: charts.curves_chart(c.epochs, c.series, c.rel, c.stages),
+                    f"curves_{file_slug(c.rel)}.png", f"Training curves of {c.rel}",
                     f"Training curves of `{c.rel}`" + (f" ({desc})" if desc else "")
                     + "; dashed: test/validation.", blocks)
     return blocks
@@ -374,12 +121,12 @@ def _pseudo_blocks(art: RunArtefacts) -> list[Block]:
                             caption="Shapes per category by pseudo-labelling status."))
         cats = [r for r in p.rows if r.get("category") != "all"]
         if cats:
-            _safe_chart(lambda p=p, cats=cats: charts.stacked_chart(
+            chart_block(lambda p=p, cats=cats: charts.stacked_chart(
                             [r["category"] for r in cats],
                             {s: [to_float(r.get(s)) if not math.isnan(to_float(r.get(s))) else 0.0
                                  for r in cats] for s in p.statuses},
                             "Pseudo-labelling outcome per category"),
-                        f"pseudo_{_slug(p.rel)}.png", f"Pseudo-label statuses ({p.rel})",
+                        f"pseudo_{file_slug(p.rel)}.png", f"Pseudo-label statuses ({p.rel})",
                         "Shapes kept as pseudo-labels and rejected, per category.", blocks)
     return blocks
 
@@ -420,7 +167,7 @@ def _gallery_blocks(art: RunArtefacts) -> list[Block]:
         except OSError as e:
             blocks.append(Note(f"{im.rel}: cannot read: {e}", "problem"))
             continue
-        name = "gallery/" + _slug(im.rel.rsplit(".", 1)[0]) + ".png"
+        name = "gallery/" + file_slug(im.rel.rsplit(".", 1)[0]) + ".png"
         groups.setdefault(im.group, []).append(
             Figure(name, png, f"{im.label} ({im.group})", im.label, im.width, im.height))
     for g, figs in groups.items():
@@ -553,8 +300,8 @@ def _synth_extra_blocks(art: RunArtefacts, v: SynthExtra) -> list[Block]:
                                               "with generated": [vt.value(m, "mean", k) for m in models]})
                   for k, h, _ in bt.metrics if k in ("angle_edge", "dist_edge", "edge_acc", "recall")]
         if panels:
-            _safe_chart(lambda panels=panels: charts.bar_chart(panels, "Without vs with generated shapes"),
-                        f"synth_extra_{_slug(bt.rel)}.png", "Table 1 without vs with generated shapes",
+            chart_block(lambda panels=panels: charts.bar_chart(panels, "Without vs with generated shapes"),
+                        f"synth_extra_{file_slug(bt.rel)}.png", "Table 1 without vs with generated shapes",
                         "Table 1 means on the real test objects, without and with the generated shapes.",
                         blocks)
     # Table 2
@@ -564,9 +311,9 @@ def _synth_extra_blocks(art: RunArtefacts, v: SynthExtra) -> list[Block]:
         for s in [x for x in bt2.settings if x in vt2.settings]:
             for col in [c for c in bt2.metric_columns if c in vt2.metric_columns]:
                 higher = "iou" in col.lower()
-                _compare_rows(rows, marks, s, _t2_label(col), bt2.value(s, "mean", col),
+                _compare_rows(rows, marks, s, t2_label(col), bt2.value(s, "mean", col),
                               vt2.value(s, "mean", col), higher,
-                              lambda label, x, col=col: _t2_fmt(col, x), tally)
+                              lambda label, x, col=col: t2_fmt(col, x), tally)
         blocks.append(Heading("Table 2", 4))
         blocks.append(Text(_verdict(tally, "Table 2")))
         blocks.append(Table(["setting", "metric", "without", "with generated", "Δ"], rows, align="llrrr",
@@ -603,7 +350,7 @@ def build_document(art: RunArtefacts, title: str | None = None) -> Document:
     if not art.table1:
         t1.append(_missing("table1"))
     for t in art.table1:
-        t1 += _table1_blocks(t)
+        t1 += table1_blocks(t)
     sections.append(Section("table1", "Table 1: pre-segmented shapes", t1))
     t2: list[Block] = [Text(
         "ANCSH on partial scans (paper Table 2): part rotation error and joint axis angle error "
@@ -613,7 +360,7 @@ def build_document(art: RunArtefacts, title: str | None = None) -> Document:
     if art.table2 is None:
         t2.append(_missing("table2"))
     else:
-        t2 += _table2_blocks(art.table2)
+        t2 += table2_blocks(art.table2)
     sections.append(Section("table2", "Table 2: partial scans", t2))
     gen: list[Block] = []
     for v in art.synth_extra:

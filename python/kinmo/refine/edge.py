@@ -1,0 +1,271 @@
+"""Refine one moving edge: the paper's candidate scoring or the learned selector.
+
+Liu et al. 2023, Sec. 3.3, for one sibling edge ``(moving, reference)`` the GNN predicts
+moving:
+
+- :func:`refine_edge` (the paper, ``selector="paper"``): the candidate lines of the
+  predicted type (:func:`kinmo.refine.candidates.candidate_axes`, in the boxes of
+  :attr:`~kinmo.refine.config.RefineConfig.box_frames`), each judged by the axis-selection
+  network on the part moved about / along it (:func:`kinmo.refine.motions.candidate_motions`,
+  :class:`~kinmo.refine.axis_net.AxisSelectionNet`) and scored ``0.5 feasibility +
+  0.3 direction + 0.2 position`` (:func:`kinmo.refine.scoring.score_candidates`);
+- :func:`select_edge` (kinmo extension, ``selector="ranker"``): candidates of every
+  orientation ranked by the learned selector (:mod:`kinmo.refine.selector`,
+  :mod:`kinmo.refine.ranker`).
+
+Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
+the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
+feasible direction, and its confidence.
+
+Frames and units: mesh frame (y-up), mesh units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinmo.data.graph import PartGraph
+from kinmo.refine.candidates import (
+    Candidates,
+    candidate_axes,
+    canonical_direction,
+    frame_box,
+    merge_candidates,
+)
+from kinmo.refine.config import RefineConfig
+from kinmo.refine.features import FEATURE_GROUPS, FEATURES
+from kinmo.refine.motions import (
+    candidate_motions,
+    network_inputs,
+    pair_cloud,
+    shape_context,
+)
+from kinmo.refine.scoring import (
+    CandidateScores,
+    line_feasibility,
+    score_candidates,
+)
+from kinmo.refine.selector import candidate_features, edge_candidates
+
+__all__ = ["EdgeRefinement", "refine_edge", "select_edge"]
+
+
+@dataclass(frozen=True)
+class EdgeRefinement:
+    """The refinement of one moving edge.
+
+    Attributes
+    ----------
+    candidates : Candidates
+    scores : CandidateScores
+    origin : (3,) float64
+        Point of the chosen line nearest to the moving part's OBB centre.
+    direction : (3,) float64
+        Unit direction of the chosen line, signed by the feasible direction of motion.
+    abstained : bool
+        The best candidate disagreed with the GNN's direction
+        (:attr:`RefineConfig.min_agreement`): ``origin`` and ``direction`` are the GNN's.
+    """
+
+    candidates: Candidates
+    scores: CandidateScores
+    origin: np.ndarray
+    direction: np.ndarray
+    abstained: bool = False
+    calibrated: float | None = None
+
+    @property
+    def confidence(self) -> float:
+        """Score of the chosen candidate (NaN without candidates).
+
+        With the learned selector (:attr:`RefineConfig.selector` ``"ranker"``), the
+        calibrated probability that the chosen line is right (``calibrated``).
+
+        When the GNN's own line won (:attr:`RefineConfig.keep_gnn`), the best score of the
+        geometric candidates instead: the line's agreement with itself is 1 by construction
+        and says nothing, so the confidence keeps the paper's meaning (a feasible geometric
+        axis agrees with the GNN) and keeping the GNN's axis never changes which joints pass
+        a pseudo-label threshold.
+        """
+        if self.calibrated is not None:
+            return float(self.calibrated)
+        b = self.scores.best
+        if b < 0 or self.candidates.kinds[b] != "gnn":
+            return self.scores.confidence
+        geo = [k for k, kind in enumerate(self.candidates.kinds) if kind != "gnn"]
+        return float(np.max(self.scores.total[geo])) if geo else float("nan")
+
+    @property
+    def kind(self) -> str:
+        """Kind of the chosen candidate (``"edge"``, ``"center"``, ``"interaction"``,
+        ``"axis"``), ``"gnn"`` when the refinement abstained or the GNN's own line won
+        (:attr:`RefineConfig.keep_gnn`)."""
+        return "gnn" if self.abstained else self.candidates.kinds[self.scores.best]
+
+
+def refine_edge(
+    graph: PartGraph,
+    moving: int,
+    reference: int,
+    motion_type: str,
+    gnn_direction: np.ndarray,
+    gnn_origin: np.ndarray,
+    axis_model,
+    config: RefineConfig | None = None,
+    rng: np.random.Generator | int | None = None,
+) -> EdgeRefinement:
+    """Refine the axis of one edge ``(moving, reference)``.
+
+    Parameters
+    ----------
+    graph : PartGraph
+    moving, reference : int
+        Node indices.
+    motion_type : str
+        Predicted fine or coarse type with an axis.
+    gnn_direction, gnn_origin : (3,) float
+        The GNN's axis (mesh frame).
+    axis_model : AxisSelectionNet
+    config : RefineConfig, optional
+    rng : numpy Generator or int, optional
+        Point subsampling (default: ``config.seed``).
+
+    Returns
+    -------
+    EdgeRefinement
+    """
+    cfg = config or RefineConfig()
+    rng = np.random.default_rng(cfg.seed if rng is None else rng)
+    obb = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
+    diag = max(2.0 * float(np.linalg.norm(graph.obb_half_extents[moving])), 1e-12)
+    cands = None
+    for frame in dict.fromkeys(cfg.box_frames):  # in order, once each
+        if frame == "moving":
+            box = obb
+        else:
+            axes = graph.obb_axes[reference] if frame == "reference" else np.eye(3)
+            box = frame_box(graph.points[moving], axes)
+        c = candidate_axes(box, motion_type, graph.points[moving], graph.points[reference],
+                           interaction_radius=cfg.interaction_radius)
+        cands = c if cands is None else merge_candidates(
+            cands, c, angle_deg=cfg.merge_angle_deg, distance=cfg.merge_distance * diag)
+    assert cands is not None  # box_frames has at least one frame (RefineConfig)
+    g = np.asarray(gnn_direction, dtype=np.float64)
+    g = g / np.linalg.norm(g)
+    if cfg.snap_angle_deg is not None:
+        close = np.abs(cands.directions @ g) >= np.cos(np.radians(cfg.snap_angle_deg)) - 1e-12
+        cands = cands.subset(close)
+    if cfg.keep_gnn:
+        cands = Candidates(np.vstack([cands.origins, np.asarray(gnn_origin, float)[None]]),
+                           np.vstack([cands.directions, canonical_direction(g)[None]]),
+                           (*cands.kinds, "gnn"), cands.motion_type)
+    if len(cands) == 0:  # snap_angle_deg left nothing: keep the GNN's axis, no confidence
+        z = np.zeros(0)
+        empty = CandidateScores(z, z, z, z, np.zeros(0, dtype=np.int64), -1)
+        return EdgeRefinement(cands, empty, np.asarray(gnn_origin, dtype=np.float64).copy(), g,
+                              abstained=True)
+    feas, sign = _network_feasibility(graph, moving, reference, cands, axis_model, cfg, rng)
+    scores = score_candidates(cands.origins, cands.directions, feas, gnn_direction, gnn_origin,
+                              diag, cands.motion != "P", cfg.scoring, sign)
+    b = scores.best
+    if cfg.min_agreement is not None and scores.direction[b] < cfg.min_agreement:
+        return EdgeRefinement(cands, scores, np.asarray(gnn_origin, dtype=np.float64).copy(),
+                              g, abstained=True)
+    return EdgeRefinement(cands, scores, *_chosen_line(graph, moving, cands, b, scores.sign[b]))
+
+
+def _chosen_line(graph: PartGraph, moving: int, cands: Candidates, b: int, sign: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Origin (nearest the moving OBB's centre) and signed direction of candidate ``b``."""
+    d = cands.directions[b] * sign
+    c = graph.obb_center[moving]
+    return cands.origins[b] + float(np.dot(c - cands.origins[b], d)) * d, d
+
+
+def _network_feasibility(graph: PartGraph, moving: int, reference: int, cands: Candidates,
+                         axis_model, cfg: RefineConfig, rng: np.random.Generator
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-network feasibility ``(C,)`` and better sign ``(C,)`` of each candidate line."""
+    import torch
+
+    obb = (graph.obb_center[moving], graph.obb_axes[moving], graph.obb_half_extents[moving])
+    mot = candidate_motions(cands, obb, cfg.amounts)
+    n = cfg.n_points or axis_model.config.n_points
+    frac = axis_model.config.context_fraction
+    ctx = shape_context(graph.points[0], graph.points[moving]) if frac > 0 else None
+    pair = pair_cloud(graph.points[moving], graph.points[reference], n, rng, ctx, frac,
+                      axis_model.config.crop)
+    rest, moved = network_inputs(pair, mot.origins, mot.directions, mot.angles, mot.translations)
+    device = next(axis_model.parameters()).device
+    s = axis_model.feasibility(torch.from_numpy(rest).to(device),
+                               torch.from_numpy(moved).to(device), chunk=cfg.chunk).cpu().numpy()
+    return line_feasibility(s, mot.line, mot.sign, len(cands))
+
+
+def select_edge(
+    graph: PartGraph,
+    edge: int,
+    motion_type: str,
+    gnn_direction: np.ndarray,
+    gnn_origin: np.ndarray,
+    priors,
+    ranker,
+    axis_model=None,
+    config: RefineConfig | None = None,
+    rng: np.random.Generator | int | None = None,
+    meshes=None,
+) -> EdgeRefinement:
+    """Refine one edge with the learned selector (:mod:`kinmo.refine.selector`).
+
+    Parameters
+    ----------
+    graph : PartGraph
+    edge : int
+        Row of ``graph.sibling_edges``.
+    motion_type : str
+        Predicted type (its coarse motion decides the candidates).
+    gnn_direction, gnn_origin : (3,) float
+        The GNN's axis (mesh frame).
+    priors : kinmo.refine.selector.GNNPriors
+    ranker : kinmo.refine.ranker.Ranker
+    axis_model : AxisSelectionNet, optional
+        Queried only when the ranker uses the ``feasibility`` feature.
+    config : RefineConfig, optional
+    rng : numpy Generator or int, optional
+    meshes : kinmo.refine.selector.ShapeMeshes, optional
+        The shape's leaf meshes (swept-collision terms); see
+        :func:`kinmo.refine.selector.shape_meshes`.
+
+    Returns
+    -------
+    EdgeRefinement
+        ``scores.total`` holds the ranker's probabilities, ``scores.direction`` the ``|cos|``
+        with the GNN's axis, ``scores.position`` the position prior, ``calibrated`` the
+        confidence; the direction's sign is the one the collision proxy (or the network)
+        finds freer.
+    """
+    cfg = config or RefineConfig()
+    rng = np.random.default_rng(cfg.seed if rng is None else rng)
+    i, j = (int(x) for x in graph.sibling_edges[edge])
+    cands, frames = edge_candidates(graph, i, j, motion_type, gnn_direction, gnn_origin,
+                                    interaction_radius=cfg.interaction_radius,
+                                    merge_angle_deg=cfg.merge_angle_deg,
+                                    merge_distance=cfg.merge_distance)
+    feas = None
+    net_sign = None
+    if "feasibility" in ranker.features and axis_model is not None:
+        feas, net_sign = _network_feasibility(graph, i, j, cands, axis_model, cfg, rng)
+    proxy = net_sign is not None or any(f in ranker.features for f in FEATURE_GROUPS["collision"])
+    x, sign = candidate_features(graph, i, j, edge, cands, frames, priors, gnn_direction,
+                                 gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic,
+                                 proxy=proxy)
+    p = ranker.probabilities(x)
+    b = int(np.argmax(p))
+    sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
+                                                sign, net_sign)
+    scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
+                             x[:, FEATURES.index("pos_prior")], p, np.asarray(sg, np.int64), b)
+    o, d = _chosen_line(graph, i, cands, b, int(sg[b]))
+    return EdgeRefinement(cands, scores, o, d, calibrated=ranker.confidence(float(p[b])))

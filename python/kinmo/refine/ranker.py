@@ -1,0 +1,217 @@
+"""The learned selector's ranker: a linear listwise score over candidate features, calibrated.
+
+kinmo extension of the refinement of Liu et al. 2023, Sec. 3.3 (step 4 of
+:mod:`kinmo.refine.selector`): a linear score ``w . x`` over the standardised features of
+:func:`kinmo.refine.selector.candidate_features`, turned into a softmax over the candidates of
+one edge (listwise), fit on out-of-fold GNN predictions of training objects
+(:func:`fit_ranker`), and a Platt calibration of the winner's probability
+(:meth:`Ranker.confidence`, :func:`calibrate`): ``P(selected line within 5° and 0.05 of the
+shape's diagonal of the truth)``, the meaning of the pseudo-label threshold. The ranker file
+(``ranker.json``) also stores the semantic prior (:mod:`kinmo.refine.semantic_prior`).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from kinmo.refine.features import FEATURE_INDEX, FEATURES
+from kinmo.refine.semantic_prior import SemanticPrior
+
+__all__ = ["Ranker", "calibrate", "fit_ranker", "load_ranker"]
+
+
+@dataclass
+class Ranker:
+    """Linear listwise ranker of candidate lines with a Platt-calibrated confidence.
+
+    ``p = softmax_c(w . (x_c - mean) / std)`` over the candidates of one edge; the selected
+    line is the arg-max; its confidence is ``sigmoid(a * logit(p_max) + b)``.
+
+    Attributes
+    ----------
+    features : tuple of str
+        Names of the used features (a subset of :data:`FEATURES`, in that order).
+    weights, mean, std : (F,) float64
+    platt : (float, float)
+        ``(a, b)``; ``(1, 0)`` leaves ``p_max`` unchanged.
+    meta : dict
+        How it was fit (data, folds, seed, validation numbers).
+    semantic : SemanticPrior or None
+        The training objects' direction prior behind the ``sem_prior`` features (stored in
+        the same file).
+    """
+
+    features: tuple[str, ...]
+    weights: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    platt: tuple[float, float] = (1.0, 0.0)
+    meta: dict = field(default_factory=dict)
+    semantic: SemanticPrior | None = None
+
+    def _x(self, x: np.ndarray) -> np.ndarray:
+        idx = [FEATURE_INDEX[n] for n in self.features]
+        return (np.asarray(x, dtype=np.float64)[:, idx] - self.mean) / self.std
+
+    def probabilities(self, x: np.ndarray) -> np.ndarray:
+        """``(C,)`` softmax over the candidates of one edge (features ``(C, len(FEATURES))``)."""
+        s = self._x(x) @ self.weights
+        s = s - s.max()
+        e = np.exp(s)
+        return e / e.sum()
+
+    def confidence(self, p_max: float) -> float:
+        """Calibrated probability that the selected line is right (Platt scaling)."""
+        p = min(max(float(p_max), 1e-6), 1 - 1e-6)
+        a, b = self.platt
+        return float(1.0 / (1.0 + np.exp(-(a * np.log(p / (1 - p)) + b))))
+
+    def to_json(self) -> dict:
+        """JSON-ready dict (:func:`load_ranker` reads it back)."""
+        out = {"features": list(self.features), "weights": self.weights.tolist(),
+               "mean": self.mean.tolist(), "std": self.std.tolist(),
+               "platt": list(self.platt), "meta": self.meta}
+        if self.semantic is not None:
+            out["semantic_prior"] = self.semantic.to_json()
+        return out
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``path`` (JSON, atomic)."""
+        from kinmo.io import write_json
+
+        write_json(Path(path), self.to_json())
+        return Path(path)
+
+
+def load_ranker(path: str | Path) -> Ranker:
+    """Read a ranker written by :meth:`Ranker.save`.
+
+    Raises
+    ------
+    KinmoDataError
+        Unreadable file, unknown feature names or inconsistent lengths.
+    """
+    return _load_ranker_cached(str(Path(path).resolve()))
+
+
+@lru_cache(maxsize=8)
+def _load_ranker_cached(path: str) -> Ranker:
+    from kinmo.errors import KinmoDataError
+
+    try:
+        d = json.loads(Path(path).read_text())
+        feats = tuple(d["features"])
+        w, m, s = (np.asarray(d[k], dtype=np.float64) for k in ("weights", "mean", "std"))
+        platt = (float(d["platt"][0]), float(d["platt"][1]))
+        sem = SemanticPrior.from_json(d["semantic_prior"]) if "semantic_prior" in d else None
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
+        raise KinmoDataError(path, f"not a ranker file ({type(e).__name__}: {e})") from None
+    unknown = [f for f in feats if f not in FEATURE_INDEX]
+    if unknown or not (len(feats) == w.size == m.size == s.size):
+        raise KinmoDataError(path, f"ranker: unknown features {unknown} or inconsistent lengths")
+    return Ranker(feats, w, m, s, platt, d.get("meta", {}), sem)
+
+
+def fit_ranker(
+    groups: list[tuple[np.ndarray, np.ndarray]],
+    *,
+    features: tuple[str, ...] = FEATURES,
+    l2: float = 1e-2,
+    seed: int = 0,
+    iters: int = 300,
+) -> Ranker:
+    """Fit a :class:`Ranker` by the listwise softmax loss on labelled candidate groups.
+
+    Parameters
+    ----------
+    groups : list of (x (C, len(FEATURES)) float64, y (C,) bool)
+        One group per moving edge; groups without a positive candidate are skipped
+        (they carry no ranking information).
+    features : tuple of str
+        The features used (ablations drop some).
+    l2 : float
+        Weight decay on the standardised weights.
+    seed : int
+        Torch seed (the fit is deterministic for a seed: full-batch L-BFGS from zeros).
+    iters : int
+        L-BFGS iterations.
+
+    Returns
+    -------
+    Ranker
+        ``platt`` is ``(1, 0)``; calibrate with :func:`calibrate`.
+
+    Raises
+    ------
+    ValueError
+        No group with a positive candidate.
+    """
+    import torch
+
+    idx = [FEATURE_INDEX[n] for n in features]
+    use = [(x[:, idx], y) for x, y in groups if len(y) and np.any(y)]
+    if not use:
+        raise ValueError("fit_ranker: no group with a positive candidate")
+    allx = np.vstack([x for x, _ in use])
+    mean = allx.mean(axis=0)
+    std = allx.std(axis=0)
+    std = np.where(std > 1e-9, std, 1.0)
+    torch.manual_seed(seed)
+    xs = torch.from_numpy((allx - mean) / std)
+    ys = torch.from_numpy(np.concatenate([y for _, y in use]).astype(bool))
+    sizes = [len(y) for _, y in use]
+    gid = torch.repeat_interleave(torch.arange(len(sizes)), torch.tensor(sizes))
+    w = torch.zeros(len(idx), dtype=torch.float64, requires_grad=True)
+    opt = torch.optim.LBFGS([w], lr=1.0, max_iter=iters, line_search_fn="strong_wolfe")
+    n_g = len(sizes)
+
+    def loss_fn() -> torch.Tensor:
+        opt.zero_grad()
+        s = xs @ w
+        mx = torch.zeros(n_g, dtype=s.dtype).scatter_reduce(0, gid, s, "amax", include_self=False)
+        e = torch.exp(s - mx[gid])
+        tot = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e)
+        pos = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e * ys)
+        loss = -(torch.log(pos.clamp_min(1e-300)) - torch.log(tot)).mean() + l2 * (w * w).sum()
+        loss.backward()
+        return loss
+
+    opt.step(loss_fn)
+    return Ranker(tuple(features), w.detach().numpy().copy(), mean, std)
+
+
+def calibrate(p_max: np.ndarray, correct: np.ndarray) -> tuple[float, float]:
+    """Platt scaling ``(a, b)``: ``P(correct) = sigmoid(a logit(p_max) + b)``.
+
+    Parameters
+    ----------
+    p_max : (N,) float
+        The ranker's winning probability on held-out edges.
+    correct : (N,) bool
+        Whether the winner was right.
+
+    Returns
+    -------
+    (float, float)
+        ``(1, 0)`` when the data cannot be fit (fewer than 2 edges or one class only).
+    """
+    from scipy.optimize import minimize
+
+    p = np.clip(np.asarray(p_max, dtype=np.float64), 1e-6, 1 - 1e-6)
+    y = np.asarray(correct, dtype=np.float64)
+    if p.size < 2 or y.min() == y.max():
+        return 1.0, 0.0
+    z = np.log(p / (1 - p))
+
+    def nll(ab: np.ndarray) -> float:
+        t = ab[0] * z + ab[1]
+        return float(np.sum(np.logaddexp(0, t) - y * t) + 1e-3 * (ab @ ab))
+
+    res = minimize(nll, np.array([1.0, 0.0]), method="Nelder-Mead",
+                   options={"xatol": 1e-6, "fatol": 1e-9, "maxiter": 2000})
+    return float(res.x[0]), float(res.x[1])
