@@ -50,7 +50,7 @@ def ancsh_plan(labeled: Path, split_file: Path | None = None, categories: list[s
     KinmoError
         A named category has no object under ``labeled``.
     """
-    from kinmo.ancsh.dataset import category_key
+    from kinmo.ancsh.objects import category_key
     from kinmo.ancsh.structure import structure_groups
     from kinmo.errors import KinmoError
 
@@ -200,7 +200,7 @@ def category_runs(category: str, cwd: Path | None = None) -> CategoryRuns:
     -------
     CategoryRuns
     """
-    from kinmo.ancsh.dataset import category_key
+    from kinmo.ancsh.objects import category_key
 
     cwd = Path.cwd() if cwd is None else cwd
     key = category_key(category)
