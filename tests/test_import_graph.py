@@ -112,3 +112,9 @@ def test_the_graph_sees_function_local_imports():
 
 def test_no_import_cycle_in_kinmo():
     assert strongly_connected(import_graph()) == []
+
+
+def test_the_module_map_lists_every_module():
+    page = (ROOT.parents[1] / "docs" / "modules.md").read_text(encoding="utf-8")
+    missing = [m for m in _modules() if f"`{m}`" not in page]
+    assert missing == [], f"docs/modules.md lacks {missing}"

@@ -54,7 +54,7 @@ import numpy as np
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.labels import VERTICAL_COS, pivot_is_central
-from kinmo.data.model import COARSE_TYPES, FINE_TYPES
+from kinmo.data.model import FINE_TYPES
 from kinmo.refine.candidates import (
     Candidates,
     candidate_axes,
