@@ -91,3 +91,15 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert "train gnn (fine) ->" not in res2.output
     timings2 = json.loads((run / "pipeline_result.json").read_text())["timings"]
     assert {k for k, t in timings2.items() if t["ran"]} == {"report"}
+
+
+def test_demo_passes_the_selector_to_the_pipeline(tmp_path, monkeypatch):
+    import kinmo.pipeline.demo as demo
+
+    seen = {}
+    monkeypatch.setattr(demo, "run_pipeline", lambda cfg, **kw: seen.setdefault("cfg", cfg))
+    demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False, selector="paper")
+    assert seen["cfg"].selector == "paper"
+    seen.clear()
+    demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False)
+    assert seen["cfg"].selector == "learned"

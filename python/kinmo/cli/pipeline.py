@@ -80,6 +80,7 @@ def demo(
     n: int = typer.Option(24, "--n", help="Generated labelled objects."),
     seed: int = typer.Option(0),
     tiny: bool = typer.Option(False, help="A minimal configuration (seconds per stage), for tests."),
+    selector: str = typer.Option("learned", "--selector", help="learned (the default ranker) or paper (0.5/0.3/0.2 with the axis network): the axis selector of Table 1's OBB rows and the pseudo-labels."),
 ) -> None:
     """The whole pipeline on objects kinmo generates itself: synth, prepare, train all (quick),
     pseudo-label, eval, report."""
@@ -91,5 +92,5 @@ def demo(
     console = Console(stderr=True)
     with cli_errors(1, also=(ValueError,)):
         res = run_demo(out, n_labeled=n, n_unlabeled=max(n // 2, 2), seed=seed, data=data, unlabeled=unlabeled,
-                       tiny=tiny, console=console)
+                       tiny=tiny, console=console, selector=selector)
     console.print(f"[green]done[/]: open {res.report}")
