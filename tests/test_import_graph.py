@@ -31,7 +31,8 @@ def _targets(node: ast.Import | ast.ImportFrom, module: str, is_package: bool, m
             pkg = ".".join(base + ([node.module] if node.module else []))
         else:
             pkg = node.module or ""
-        names = [f"{pkg}.{a.name}" if f"{pkg}.{a.name}" in mods else pkg for a in node.names]
+        # ``from pkg import sub`` runs ``pkg/__init__.py`` first: an edge to the package too
+        names = [pkg] + [f"{pkg}.{a.name}" for a in node.names]
     out = set()
     for t in names:
         while t not in mods and "." in t:
@@ -42,7 +43,8 @@ def _targets(node: ast.Import | ast.ImportFrom, module: str, is_package: bool, m
 
 
 def import_graph() -> dict[str, set[str]]:
-    """``module -> modules of kinmo it imports`` (any depth of the syntax tree)."""
+    """``module -> modules of kinmo it imports`` (any depth of the syntax tree; ``from
+    kinmo.a import b`` imports the package ``kinmo.a`` as well as ``kinmo.a.b``)."""
     mods = _modules()
     graph: dict[str, set[str]] = {m: set() for m in mods}
     for m, p in mods.items():

@@ -31,7 +31,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from kinmo.errors import KinmoDataError
-from kinmo.report import artefacts as _artefacts
+import kinmo.report.artefacts as _artefacts
 from kinmo.report.artefacts import *  # noqa: F403 (the artefact types, re-exported)
 from kinmo.report.artefacts import CsvTable, RunArtefacts, SynthExtra, combine_table2, read_csv
 from kinmo.report.recognise import ARTEFACTS, CONVERTERS, SKIP_DIRS, SKIP_IMAGE_DIRS, _rel, gallery, png_size

@@ -43,7 +43,7 @@ from kinmo.features import GraphTensors, SemanticVocab, collate, graph_tensors, 
 from kinmo.io import write_json, write_text
 from kinmo.models.losses import MotionLoss, class_weights
 from kinmo.models.motion_gnn import ModelConfig, MotionGNN
-from kinmo.train import distributed
+import kinmo.train.distributed as distributed
 from kinmo.train.config import TrainConfig
 from kinmo.train.loop import (
     build_or_refuse,

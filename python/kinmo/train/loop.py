@@ -44,7 +44,7 @@ import torch
 from kinmo.errors import KinmoDataError
 from kinmo.io import atomic_path, read_checkpoint
 from kinmo.progress import TrainingBar
-from kinmo.train import distributed
+import kinmo.train.distributed as distributed
 
 __all__ = [
     "build_or_refuse",
