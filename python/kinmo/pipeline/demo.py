@@ -43,7 +43,8 @@ def run_demo(
     With the learned selector (the default) no generated shape reaches the 0.6 calibrated
     confidence (its fold GNNs train 25 epochs on 24 objects; out-of-fold top-1 about 0.5), so
     no pseudo-label is kept and the semi-weakly setting trains on the labelled objects only;
-    ``selector="paper"`` keeps 7 of the 12 (uncalibrated scores).
+    the paper's selector (``selector="paper"``) keeps 7 of the 12 on the same models
+    (uncalibrated scores).
 
     Parameters
     ----------
