@@ -65,7 +65,7 @@ from kinmo.refine.candidates import (
 from kinmo.refine.features import FEATURE_GROUPS, FEATURES
 from kinmo.refine.features import FEATURE_INDEX as _F
 from kinmo.refine.ranker import Ranker, calibrate, fit_ranker, load_ranker
-from kinmo.refine.semantic_prior import SemanticPrior
+from kinmo.refine.semantic_prior import SemanticPrior, motion_of
 
 __all__ = [
     "FEATURES",
@@ -507,8 +507,8 @@ def candidate_features(
     x[:, _F["shape_aligned"]] = np.abs(d).max(axis=1) >= _PARALLEL_COS
     ra = np.asarray(graph.obb_axes[reference], dtype=np.float64)
     x[:, _F["ref_aligned"]] = np.abs(d @ ra.T).max(axis=1) >= _PARALLEL_COS
-    sp = (np.full(c, 1.0 / 3.0) if semantic is None or len(semantic) == 0 else
-          semantic.probability("P" if cands.motion == "P" else "R", graph.category,
+    sp = (np.full(c, 1.0 / 3.0) if semantic is None else
+          semantic.probability(motion_of(cands.motion), graph.category,
                                graph.node_names[moving], graph.node_names[reference], d, exclude))
     x[:, _F["sem_prior"]] = sp
     x[:, _F["log_sem_prior"]] = np.log(sp + 0.01)
