@@ -14,9 +14,9 @@ cargo fmt --all -- --check
 echo "== cargo clippy"
 cargo clippy --workspace --all-targets --release -q -- -D warnings
 echo "== cargo test"
-# Property tests draw from a fixed seed so a run is reproducible (set PROPTEST_RNG_SEED to
-# explore others): a random seed found a case where the sweep's mirror symmetry fails by one
-# point of 54 (an open issue, noted on issue 11), which must not make CI pass or fail by chance.
+# Property tests draw from a fixed seed so that a run is reproducible (set PROPTEST_RNG_SEED
+# to explore others; cases that once failed are replayed first from
+# rust/kinmo-geometry/proptest-regressions/ and tests/*.proptest-regressions).
 export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261122}"
 cargo test -p kinmo-geometry --release -q 2>&1 | grep -v "^$"
 # the report tests open the HTML in a headless Chromium: install it on a fresh machine

@@ -135,6 +135,7 @@ def sweep_collisions(
     n_steps: int = 16,
     skin: float = 0.005,
     hit_tolerance: float = 0.02,
+    skip_inside: bool = True,
 ) -> tuple[F64, F64]:
     """``(free_fraction (C, 2), colliding_fraction (C, 2))`` float64, column 0 the positive
     sign: swept-collision feasibility of C candidate motions (``kinds (C,)``: 0 revolute, 1

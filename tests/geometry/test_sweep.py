@@ -77,6 +77,23 @@ def test_drawer_slides_out_and_collides_inwards(grow):
     assert coll[0, 1] > 0.1
 
 
+def test_door_sunk_into_the_body_opens_freely_only_with_skip_inside():
+    # A door whose frame is modelled 0.03 into the body (interpenetrating, as many PartNet
+    # doors are): its sunk points start inside the body; counting their exits would block
+    # every motion at once.
+    door = _points(_box([0.1, 0.1, -0.03], [0.9, 0.9, 0.02]))
+    v, f = _concat(_box([0, 0, -0.5], [1, 1, 0]))
+    inside = (door[:, 2] < -0.005) & (np.abs(door[:, :2] - 0.5).max(axis=1) < 0.4 - 0.005)
+    assert inside.mean() > 0.05
+    # Pulling the door straight out (+z) is free of the body; pushing it in is not.
+    args = (door, v, f, [[0, 0, 0]], [[0, 0, 1]], [PRISMATIC], [0.2])
+    free, coll = sweep_collisions(*args)
+    assert free[0, 0] == 1.0 and coll[0, 0] == 0.0
+    assert free[0, 1] < 0.2 and coll[0, 1] > 0.1
+    free_all, coll_all = sweep_collisions(*args, skip_inside=False)
+    assert free_all[0, 0] < 0.2 and coll_all[0, 0] >= inside.mean() - 0.02
+
+
 def test_rotation_about_a_centre_axis_collides_with_the_body():
     # A door on the body's front, turned about its vertical centre line: whichever the
     # sign, one half swings into the body at once.

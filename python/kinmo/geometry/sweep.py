@@ -18,13 +18,21 @@ crossing (step ``k``, distance ``t`` along a segment of length ``len``).
 
 **Contact at rest.** A point within ``skin`` of the obstacle at rest (parts in contact: a
 drawer side on its rail, a door on the body at its hinge) does not count a crossing (1) on
-the first step closer than ``skin`` to its rest position, (2) through a triangle that lies
-within ``skin`` of its rest position (a surface it touches: leaving, grazing, sliding), or
+the first step closer than ``skin`` to its rest position, (2) through a triangle whose plane
+passes within ``skin`` of its rest position (a surface it touches: leaving, grazing,
+sliding; the plane, so that the rule does not depend on the triangulation), or
 (3) within ``skin`` of the tangent plane of its rest contact (closest point, closest
 triangle's normal): a point sliding along the surface it touches may cross a rim or a
 coplanar neighbour there. The cast then continues past the crossing. Points farther than
 ``skin`` count every crossing, so a motion *into* a touching part is still detected by the
 rest of the moving part.
+
+**Inside at rest.** A point farther than ``skin`` from the obstacle that lies *inside* it at
+rest (interpenetrating parts, common in PartNet meshes: a door frame modelled into the body's
+rim) never counts: its crossings say nothing about the candidate motion, and a few percent of
+such points would make every motion look blocked at once. Inside = most of five fixed generic
+rays from the point cross the obstacle surface an odd number of times (parity, no consistent
+orientation needed). ``skip_inside=False`` counts them like any other point.
 
 **Outputs per candidate and sign.** ``free_fraction``: the motion parameter at which more
 than ``hit_tolerance * P`` points have hit (the ``floor(tol P) + 1``-th smallest first hit),
@@ -91,6 +99,7 @@ def sweep_collisions(
     n_steps: int = 16,
     skin: float | None = None,
     hit_tolerance: float = 0.02,
+    skip_inside: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Swept-collision feasibility of C candidate motions of one moving part, both signs.
 
@@ -122,6 +131,9 @@ def sweep_collisions(
     hit_tolerance : float
         Fraction of points in ``[0, 1)`` that may hit before a motion counts as blocked
         (default 0.02).
+    skip_inside : bool
+        Points inside the obstacle at rest (interpenetrating parts; majority parity of five
+        rays) never count (default True; see the module docstring).
 
     Returns
     -------
@@ -156,6 +168,7 @@ def sweep_collisions(
         n_steps=int(n_steps),
         skin=float(skin),
         hit_tolerance=float(hit_tolerance),
+        skip_inside=bool(skip_inside),
     )
 
 

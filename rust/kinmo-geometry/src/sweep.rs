@@ -24,10 +24,13 @@
 //! `d_i <= skin` is *in contact at rest*. For such a point, a crossing is **not** counted
 //! when
 //! 1. it lies on the first step at distance `t < skin` from the rest position, or
-//! 2. the crossed triangle lies within `skin` of the rest position (a triangle the point
-//!    touches at rest: it is leaving, grazing or sliding along that surface), or
+//! 2. the crossed triangle's plane passes within `skin` of the rest position (a surface the
+//!    point touches at rest: it is leaving, grazing or sliding along it; the plane, not the
+//!    triangle, so that the rule does not depend on how a flat face is triangulated, which
+//!    the mirror-symmetry property test found), or
 //! 3. the crossing point lies within `skin` of the tangent plane at the rest contact (the
-//!    plane through the closest obstacle point with the closest triangle's normal): a point
+//!    plane through the closest obstacle point, normal to the direction from it to the
+//!    point; the closest triangle's normal for a point on the surface): a point
 //!    sliding along the surface it touches (a drawer side along the frame) may cross the
 //!    frame's rim or a coplanar neighbour triangle there.
 //!
@@ -36,6 +39,14 @@
 //! crossing (rule 1 cannot apply to them: they cannot reach the surface within `skin`).
 //! Contact points thus never flag their own contact, while the rest of the part (which
 //! does not touch the obstacle) still detects a motion into it.
+//! 4. **Inside at rest.** A point farther than `skin` from the obstacle surface that lies
+//!    *inside* the obstacle at rest (interpenetrating parts: a door frame modelled into the
+//!    body's rim, common in PartNet meshes) never counts: whichever way it moves it leaves
+//!    or stays in the solid, so its crossings say nothing about the candidate motion, while
+//!    with a few percent of such points every motion would look blocked at once. Inside
+//!    means: most of five fixed generic rays from the point cross the obstacle surface an
+//!    odd number of times (parity; needs no consistent triangle orientation). Switched by
+//!    [`SweepParams::skip_inside`].
 //!
 //! ## Outputs, per candidate and sign
 //! - `free_fraction`: the motion parameter at which the number of points that have hit
@@ -129,15 +140,18 @@ pub struct SweepParams {
     pub skin: f64,
     /// Fraction of points, in `[0, 1)`, that may hit before a motion counts as blocked.
     pub hit_tolerance: f64,
+    /// Points inside the obstacle at rest never count (see the module's rule 4).
+    pub skip_inside: bool,
 }
 
 impl Default for SweepParams {
-    /// 16 steps, skin `0.005`, hit tolerance `0.02`.
+    /// 16 steps, skin `0.005`, hit tolerance `0.02`, points inside at rest skipped.
     fn default() -> Self {
         Self {
             n_steps: 16,
             skin: 0.005,
             hit_tolerance: 0.02,
+            skip_inside: true,
         }
     }
 }
@@ -159,6 +173,8 @@ struct Rest {
     clearance: f64,
     /// The contact, when `clearance <= skin`.
     contact: Option<Contact>,
+    /// Inside the obstacle at rest (rule 4): the point never counts.
+    inside: bool,
 }
 
 /// Rest state of a point in contact with the obstacle.
@@ -259,7 +275,13 @@ impl SweepObstacle {
         // Rest clearances and contacts, once per call, shared by every candidate.
         let rests: Vec<Rest> = points
             .par_iter()
-            .map(|p| rest_state(mesh, p, skin))
+            .map(|p| {
+                let mut rest = rest_state(mesh, p, skin);
+                rest.inside = params.skip_inside
+                    && rest.clearance > skin
+                    && inside_by_parity(mesh, p, self.diagonal);
+                rest
+            })
             .collect();
         let eps = 1e-9 * self.diagonal.max(1e-12);
         let tasks: Vec<(usize, usize)> = (0..candidates.len())
@@ -516,6 +538,9 @@ impl Path {
         skin: f64,
         eps: f64,
     ) -> f64 {
+        if rest.inside {
+            return f64::INFINITY;
+        }
         let n = self.n_steps as f64;
         let contact = rest.contact.as_ref();
         match self.kind {
@@ -590,9 +615,15 @@ fn cast_segment(
             _ => u32::MAX,
         };
         let point = a + dir * t;
-        // Rule 2: a triangle touched at rest.
-        let touched =
-            tri < n_tris && mesh.triangle(tri).distance_to_local_point(rest, true) <= skin;
+        // Rule 2: a surface touched at rest (the triangle's plane, so that the rule does
+        // not depend on how a flat face is triangulated).
+        let touched = tri < n_tris && {
+            let t = mesh.triangle(tri);
+            match t.normal() {
+                Some(nrm) => (rest - t.a).dot(&nrm).abs() <= skin,
+                None => t.distance_to_local_point(rest, true) <= skin,
+            }
+        };
         // Rule 3: the tangent slab of the rest contact.
         let in_slab = match c.normal {
             Some(nrm) => (point - c.closest).dot(&nrm).abs() <= skin,
@@ -614,20 +645,85 @@ fn rest_state(mesh: &ParryMesh, p: &Point3<f64>, skin: f64) -> Rest {
         return Rest {
             clearance,
             contact: None,
+            inside: false,
         };
     }
-    let normal = match feature {
+    // The direction from the closest point to the point is the tangent plane's normal
+    // wherever the point is off the surface: on a face it is the face normal, at an edge or
+    // a vertex it is the one normal that does not depend on which adjacent triangle parry
+    // reports (which the mirror-symmetry property test found). A point on the surface
+    // takes the reported triangle's normal.
+    let face_normal = || match feature {
         FeatureId::Face(id) if (id as usize) < mesh.indices().len() => mesh.triangle(id).normal(),
         _ => None,
-    }
-    .or_else(|| Unit::try_new(p - proj.point, 1e-12));
+    };
+    let normal = if clearance > 1e-9 * skin.max(f64::MIN_POSITIVE) {
+        Unit::try_new(p - proj.point, 0.0).or_else(face_normal)
+    } else {
+        face_normal().or_else(|| Unit::try_new(p - proj.point, 1e-12))
+    };
     Rest {
         clearance,
         contact: Some(Contact {
             closest: proj.point,
             normal,
         }),
+        inside: false,
     }
+}
+
+/// Fixed, generic directions of the parity rays of rule 4 (normalised where used; none
+/// parallel to a coordinate plane, so rays do not run along the faces of axis-aligned parts).
+const PARITY_DIRECTIONS: [[f64; 3]; 5] = [
+    [0.57, 0.58, 0.59],
+    [-0.31, 0.93, 0.32],
+    [0.72, -0.21, -0.67],
+    [0.11, -0.42, 0.9],
+    [-0.88, -0.36, 0.33],
+];
+
+/// Most crossings counted along one parity ray (a ray grazing a finely tessellated surface
+/// can meet many triangles; beyond this the ray abstains).
+const MAX_PARITY_CROSSINGS: usize = 256;
+
+/// Rule 4: `p` lies inside the obstacle when most of the [`PARITY_DIRECTIONS`] rays from it
+/// cross the obstacle's surface an odd number of times.
+///
+/// The test needs no consistent triangle orientation and tolerates small holes (a ray
+/// through a hole miscounts; the majority of five outvotes it); for an open surface (a
+/// single panel) the rays disagree and the majority decides.
+fn inside_by_parity(mesh: &ParryMesh, p: &Point3<f64>, diagonal: f64) -> bool {
+    let aabb = mesh.local_aabb();
+    // Every ray leaves the obstacle's box within this length.
+    let reach = (p - aabb.center()).norm() + diagonal + 1.0;
+    let eps = 1e-9 * diagonal.max(1e-12);
+    let mut odd = 0;
+    let mut votes = 0;
+    for d in PARITY_DIRECTIONS {
+        let dir = Vector3::from(d).normalize();
+        let mut t0 = 0.0;
+        let mut n = 0usize;
+        let mut done = true;
+        loop {
+            let ray = Ray::new(p + dir * t0, dir);
+            match mesh.cast_local_ray(&ray, reach - t0, false) {
+                Some(t) => {
+                    n += 1;
+                    t0 += t + eps;
+                    if n >= MAX_PARITY_CROSSINGS {
+                        done = false;
+                        break;
+                    }
+                }
+                None => break,
+            }
+        }
+        if done {
+            votes += 1;
+            odd += n % 2;
+        }
+    }
+    votes > 0 && 2 * odd > votes
 }
 
 /// Validate the points, candidates and parameters of a sweep.
@@ -874,6 +970,49 @@ mod tests {
         assert!(r[1].free_fraction[0] < 0.1, "{:?}", r[1]);
         assert_eq!(r[1].free_fraction[1], 1.0);
         assert_eq!(r[1].colliding_fraction[1], 0.0);
+    }
+
+    #[test]
+    fn points_inside_the_obstacle_at_rest_do_not_block_the_motion() {
+        // A plate sunk 0.05 into a wall (deeper than the skin): its back and the sunk part
+        // of its sides are inside the wall at rest; pulling it out, their crossings are
+        // exits, not collisions.
+        let plate = box_points([0.0, 0.0, -0.05], [1.0, 1.0, 0.02], 8);
+        let wall = mesh_of(&[([-1.0, -1.0, -0.5], [2.0, 2.0, 0.0])]);
+        let pull = [prismatic([0.0, 0.0, 1.0], 0.5)];
+        let on = SweepParams::default();
+        let r = sweep_collisions(&plate, &wall, &pull, &on).unwrap();
+        assert_eq!(r[0].free_fraction[0], 1.0, "{:?}", r[0]);
+        assert_eq!(r[0].colliding_fraction[0], 0.0, "{:?}", r[0]);
+        // Pushed in, the front (outside at rest) meets the wall after 0.02 of 0.5.
+        assert!(r[0].free_fraction[1] <= 0.02 / 0.5 + 1e-9, "{:?}", r[0]);
+        let off = SweepParams {
+            skip_inside: false,
+            ..on
+        };
+        let r = sweep_collisions(&plate, &wall, &pull, &off).unwrap();
+        assert!(r[0].free_fraction[0] < 0.2, "{:?}", r[0]);
+        assert!(r[0].colliding_fraction[0] > 0.2, "{:?}", r[0]);
+    }
+
+    #[test]
+    fn parity_tells_inside_from_outside_of_a_closed_mesh() {
+        let (v, f) = boxed([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]);
+        let mesh = ParryMesh::new(v, f).unwrap();
+        let diag = 3f64.sqrt();
+        assert!(inside_by_parity(&mesh, &Point3::new(0.5, 0.5, 0.5), diag));
+        assert!(inside_by_parity(&mesh, &Point3::new(0.9, 0.1, 0.2), diag));
+        assert!(!inside_by_parity(&mesh, &Point3::new(1.5, 0.5, 0.5), diag));
+        assert!(!inside_by_parity(
+            &mesh,
+            &Point3::new(-0.2, -0.3, 2.0),
+            diag
+        ));
+        // Two nested boxes: inside the inner box means crossing both walls (even).
+        let nested = mesh_of(&[([0.0; 3], [1.0; 3]), ([0.25; 3], [0.75; 3])]);
+        let parry = ParryMesh::new(nested.vertices().to_vec(), nested.faces().to_vec()).unwrap();
+        assert!(!inside_by_parity(&parry, &Point3::new(0.5, 0.5, 0.5), diag));
+        assert!(inside_by_parity(&parry, &Point3::new(0.1, 0.5, 0.5), diag));
     }
 
     /// An open carcass (bottom, top, sides, back) around `[0, 1] x [0, 1] x [-0.45, 0]` and a
@@ -1128,7 +1267,7 @@ mod tests {
                 kind,
                 range,
             };
-            let params = SweepParams { n_steps, skin, hit_tolerance: 0.02 };
+            let params = SweepParams { n_steps, skin, hit_tolerance: 0.02, skip_inside: true };
             let r = sweep_collisions(&points, &obstacle, &[cand], &params).unwrap();
             for s in 0..2 {
                 prop_assert!((0.0..=1.0).contains(&r[0].free_fraction[s]));

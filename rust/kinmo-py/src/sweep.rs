@@ -20,7 +20,7 @@ type Fractions<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 #[pyfunction]
 #[pyo3(signature = (
     moving_points, obstacle_vertices, obstacle_faces, origins, directions, kinds, ranges,
-    n_steps=16, skin=0.005, hit_tolerance=0.02
+    n_steps=16, skin=0.005, hit_tolerance=0.02, skip_inside=true
 ))]
 #[allow(clippy::too_many_arguments)]
 fn sweep_collisions<'py>(
@@ -35,6 +35,7 @@ fn sweep_collisions<'py>(
     n_steps: i64,
     skin: f64,
     hit_tolerance: f64,
+    skip_inside: bool,
 ) -> PyResult<Fractions<'py>> {
     let points = points_from_array(&moving_points, "moving_points")?;
     let obstacle = mesh_from_arrays(&obstacle_vertices, &obstacle_faces, "obstacle")?;
@@ -77,6 +78,7 @@ fn sweep_collisions<'py>(
         n_steps,
         skin,
         hit_tolerance,
+        skip_inside,
     };
     let results = detach(py, "sweep_collisions", || {
         sweep::sweep_collisions(&points, &obstacle, &candidates, &params)
