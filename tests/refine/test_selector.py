@@ -114,6 +114,31 @@ def test_ranker_fit_is_deterministic_and_learns_a_rule():
     assert np.mean(hits) > 0.9
 
 
+def test_ranker_weights_count_groups_and_are_checked():
+    rng = np.random.default_rng(2)
+
+    def group(col):
+        x = rng.normal(size=(5, len(FEATURES)))
+        y = np.zeros(5, bool)
+        y[int(np.argmax(x[:, F[col]]))] = True
+        return x, y
+
+    # 40 groups ruled by attach_ref, 10 by attach_any
+    groups = [group("attach_ref") for _ in range(40)] + [group("attach_any") for _ in range(10)]
+    uniform = fit_ranker(groups)
+    np.testing.assert_allclose(fit_ranker(groups, weights=np.ones(50)).weights, uniform.weights)
+    # weight 0 is the same as leaving the group out
+    w = np.r_[np.ones(40), np.zeros(10)]
+    np.testing.assert_allclose(fit_ranker(groups, weights=w).weights,
+                               fit_ranker(groups[:40]).weights, rtol=1e-6, atol=1e-9)
+    # weighting the minority up turns the fit towards its rule
+    up = fit_ranker(groups, weights=np.r_[np.ones(40) / 40, np.ones(10) / 2])
+    assert up.weights[F["attach_any"]] > uniform.weights[F["attach_any"]]
+    for bad in (np.ones(3), -np.ones(50), np.full(50, np.nan), np.zeros(50)):
+        with pytest.raises(ValueError):
+            fit_ranker(groups, weights=bad)
+
+
 def test_calibration_matches_frequencies_and_roundtrip(tmp_path):
     rng = np.random.default_rng(1)
     p = rng.uniform(0.2, 0.99, size=4000)
@@ -207,6 +232,29 @@ def test_collect_groups_and_fit_selector_on_oracle_predictions():
     ranker, st = fit_selector(groups, k=2)
     assert st["recall"] == 1.0 and 0.0 <= st["oof_top1"] <= 1.0
     assert ranker.meta["cv"]["groups"] == 12
+    assert len(set(groups.joint)) == 12 and st["joints"] == 12.0
+    assert st["oof_joint_angle"] >= 0.0 and st["gnn_joint_angle"] >= 0.0
+
+
+def test_per_joint_statistics_weigh_each_moving_part_once():
+    from kinmo.refine.fit_selector import EdgeGroups, _joint_stats
+
+    # part A has three sibling edges (all chose a 90-degree line), part B one (0 degrees):
+    # per edge the mean is 67.5, per joint 45.
+    n = 4
+    g = EdgeGroups(
+        x=[np.zeros((2, 1))] * n, y=[np.array([True, False])] * n,
+        angle=[np.array([90.0, 0.0])] * 3 + [np.array([0.0, 90.0])],
+        dist=[np.array([0.2, 0.0])] * 3 + [np.array([0.0, 0.2])],
+        shape_id=["s"] * n, category=["c"] * n, edge=[0, 1, 2, 3],
+        gnn_angle=[0.0, 0.0, 0.0, 90.0], gnn_dist=[0.0] * n, revolute=[True] * n,
+        joint=["s/1/fine"] * 3 + ["s/2/fine"])
+    st = _joint_stats(g, np.zeros(n, np.int64))
+    assert st["joints"] == 2.0
+    assert st["oof_joint_angle"] == 45.0 and st["gnn_joint_angle"] == 45.0
+    assert abs(st["oof_joint_dist"] - 0.1) < 1e-12
+    g.joint = []  # groups without parts: no per-joint statistics
+    assert _joint_stats(g, np.zeros(n, np.int64)) == {}
 
 
 def test_sweep_terms_on_a_real_door_prefer_the_true_hinge(mobility_root):

@@ -13,6 +13,7 @@ shape's diagonal of the truth)``, the meaning of the pseudo-label threshold. The
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -124,6 +125,7 @@ def fit_ranker(
     l2: float = 1e-2,
     seed: int = 0,
     iters: int = 300,
+    weights: Sequence[float] | None = None,
 ) -> Ranker:
     """Fit a :class:`Ranker` by the listwise softmax loss on labelled candidate groups.
 
@@ -140,6 +142,10 @@ def fit_ranker(
         Torch seed (the fit is deterministic for a seed: full-batch L-BFGS from zeros).
     iters : int
         L-BFGS iterations.
+    weights : sequence of float, optional
+        One non-negative weight per group (the loss is the weighted mean over groups; a
+        group of weight 0 is left out, also of the standardisation); uniform without. :func:`~kinmo.refine.fit_selector.fit_selector` gives each moving
+        part weight one, shared by its sibling edges.
 
     Returns
     -------
@@ -149,14 +155,25 @@ def fit_ranker(
     Raises
     ------
     ValueError
-        No group with a positive candidate.
+        No group with a positive candidate, or ``weights`` of another length than
+        ``groups``, negative, non-finite or all zero on the used groups.
     """
     import torch
 
     idx = [FEATURE_INDEX[n] for n in features]
-    use = [(x[:, idx], y) for x, y in groups if len(y) and np.any(y)]
-    if not use:
+    if weights is None:
+        weights = np.ones(len(groups))
+    wg = np.asarray(weights, dtype=np.float64).reshape(-1)
+    if wg.size != len(groups) or not np.all(np.isfinite(wg)) or np.any(wg < 0):
+        raise ValueError(f"fit_ranker: weights must be {len(groups)} finite values >= 0")
+    keep = [n for n, (_, y) in enumerate(groups) if len(y) and np.any(y)]
+    if not keep:
         raise ValueError("fit_ranker: no group with a positive candidate")
+    keep = [n for n in keep if wg[n] > 0]  # weight 0: left out (standardisation too)
+    if not keep:
+        raise ValueError("fit_ranker: every group with a positive candidate has weight 0")
+    use = [(groups[n][0][:, idx], groups[n][1]) for n in keep]
+    wg = wg[keep]
     allx = np.vstack([x for x, _ in use])
     mean = allx.mean(axis=0)
     std = allx.std(axis=0)
@@ -169,6 +186,7 @@ def fit_ranker(
     w = torch.zeros(len(idx), dtype=torch.float64, requires_grad=True)
     opt = torch.optim.LBFGS([w], lr=1.0, max_iter=iters, line_search_fn="strong_wolfe")
     n_g = len(sizes)
+    gw = torch.from_numpy(wg / wg.sum())
 
     def loss_fn() -> torch.Tensor:
         opt.zero_grad()
@@ -177,7 +195,7 @@ def fit_ranker(
         e = torch.exp(s - mx[gid])
         tot = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e)
         pos = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e * ys)
-        loss = -(torch.log(pos.clamp_min(1e-300)) - torch.log(tot)).mean() + l2 * (w * w).sum()
+        loss = -((torch.log(pos.clamp_min(1e-300)) - torch.log(tot)) * gw).sum() + l2 * (w * w).sum()
         loss.backward()
         return loss
 
