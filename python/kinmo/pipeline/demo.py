@@ -36,15 +36,15 @@ def run_demo(
     (:func:`kinmo.synth.generate_dataset`, different seeds, :data:`DEMO_CATEGORIES`), then
     :func:`run_pipeline` with the ``quick`` preset shortened for 2 CPU cores: motion GNNs 25
     epochs, axis network 8, ANCSH 16 epochs of 15 steps (+4 semi-supervised) on 3 scans per
-    object, Table 1 renders for the gallery, and the report. With the defaults: 175
-    CPU-seconds, 2 min 43 s wall on 2 idle cores, 1.42 GB peak memory (ranker stage and the
+    object, Table 1 renders for the gallery, and the report. With the defaults: 184
+    CPU-seconds, 2 min 46 s wall on 2 idle cores, 1.43 GB peak memory (ranker stage and the
     paper selector's Table 1 included).
 
-    With the learned selector (the default) no generated shape reaches the 0.6 calibrated
-    confidence (its fold GNNs train 25 epochs on 24 objects; out-of-fold top-1 about 0.5), so
-    no pseudo-label is kept and the semi-weakly setting trains on the labelled objects only;
-    the paper's selector (``selector="paper"``) keeps 7 of the 12 on the same models
-    (uncalibrated scores).
+    With the learned selector (the default) 3 of the 12 generated shapes (Laptops) reach the
+    0.6 calibrated confidence (its fold GNNs train 25 epochs on 24 objects; out-of-fold top-1
+    about 0.56), so the semi-weakly setting adds pseudo-labelled scans for Laptop only; the
+    paper's selector (``selector="paper"``) kept 7 of the 12 on the same models (uncalibrated
+    scores).
 
     Parameters
     ----------
