@@ -21,9 +21,10 @@ drawer side on its rail, a door on the body at its hinge) does not count a cross
 the first step closer than ``skin`` to its rest position, (2) through a triangle whose plane
 passes within ``skin`` of its rest position (a surface it touches: leaving, grazing,
 sliding; the plane, so that the rule does not depend on the triangulation), or
-(3) within ``skin`` of the tangent plane of its rest contact (closest point, closest
-triangle's normal): a point sliding along the surface it touches may cross a rim or a
-coplanar neighbour there. The cast then continues past the crossing. Points farther than
+(3) within ``skin`` of the tangent plane of its rest contact (through the closest point,
+normal to the direction from it to the point; the closest triangle's normal for a point on
+the surface): a point sliding along the surface it touches may cross a rim or a coplanar
+neighbour there. The cast then continues past the crossing. Points farther than
 ``skin`` count every crossing, so a motion *into* a touching part is still detected by the
 rest of the moving part.
 

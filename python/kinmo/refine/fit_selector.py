@@ -260,8 +260,8 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
         (``groups.joint``; uniform when the groups have no parts), so that every joint
         counts once, as in the per-joint evaluation of Table 1, and a drawer touching 20
         panels does not count 20 times. On the OOF groups of the 132 training objects, over
-        five fold seeds: per-joint angle 8.73 ± 0.74° → 8.48 ± 0.11°, per-joint line
-        distance 0.046 → 0.039 (docs/results/table1_four_settings.md, fourth round).
+        five fold seeds: per-joint angle 8.71 ± 0.48° → 8.67 ± 0.22°, per-joint line
+        distance 0.047 → 0.039 (docs/results/table1_four_settings.md, fourth round).
 
     Returns
     -------

@@ -144,8 +144,9 @@ def fit_ranker(
         L-BFGS iterations.
     weights : sequence of float, optional
         One non-negative weight per group (the loss is the weighted mean over groups; a
-        group of weight 0 is left out, also of the standardisation); uniform without. :func:`~kinmo.refine.fit_selector.fit_selector` gives each moving
-        part weight one, shared by its sibling edges.
+        group of weight 0 is left out, also of the standardisation); uniform without.
+        :func:`~kinmo.refine.fit_selector.fit_selector` gives each moving part weight one,
+        shared by its sibling edges.
 
     Returns
     -------
@@ -195,7 +196,8 @@ def fit_ranker(
         e = torch.exp(s - mx[gid])
         tot = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e)
         pos = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e * ys)
-        loss = -((torch.log(pos.clamp_min(1e-300)) - torch.log(tot)) * gw).sum() + l2 * (w * w).sum()
+        logp = torch.log(pos.clamp_min(1e-300)) - torch.log(tot)
+        loss = -(logp * gw).sum() + l2 * (w * w).sum()
         loss.backward()
         return loss
 
