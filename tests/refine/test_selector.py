@@ -237,7 +237,7 @@ def test_collect_groups_and_fit_selector_on_oracle_predictions():
 
 
 def test_per_joint_statistics_weigh_each_moving_part_once():
-    from kinmo.refine.fit_selector import EdgeGroups, _joint_stats
+    from kinmo.refine.fit_selector import EdgeGroups, _joint_stats, joint_weights
 
     # part A has three sibling edges (all chose a 90-degree line), part B one (0 degrees):
     # per edge the mean is 67.5, per joint 45.
@@ -249,12 +249,13 @@ def test_per_joint_statistics_weigh_each_moving_part_once():
         shape_id=["s"] * n, category=["c"] * n, edge=[0, 1, 2, 3],
         gnn_angle=[0.0, 0.0, 0.0, 90.0], gnn_dist=[0.0] * n, revolute=[True] * n,
         joint=["s/1/fine"] * 3 + ["s/2/fine"])
-    st = _joint_stats(g, np.zeros(n, np.int64))
+    st = _joint_stats(g, np.zeros(n, np.int64), joint_weights(g))
     assert st["joints"] == 2.0
     assert st["oof_joint_angle"] == 45.0 and st["gnn_joint_angle"] == 45.0
     assert abs(st["oof_joint_dist"] - 0.1) < 1e-12
     g.joint = []  # groups without parts: no per-joint statistics
-    assert _joint_stats(g, np.zeros(n, np.int64)) == {}
+    np.testing.assert_array_equal(joint_weights(g), np.ones(n))
+    assert _joint_stats(g, np.zeros(n, np.int64), joint_weights(g)) == {}
 
 
 def test_sweep_terms_on_a_real_door_prefer_the_true_hinge(mobility_root):

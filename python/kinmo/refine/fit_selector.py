@@ -278,7 +278,8 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
     f_of = dict(zip(shapes, fold_ids(shapes, [cat_of[s] for s in shapes], k, seed)))
     gf = np.array([f_of[s] for s in groups.shape_id])
     pairs = list(zip(groups.x, groups.y))
-    wj = joint_weights(groups) if per_joint else np.ones(len(pairs))
+    per_part = joint_weights(groups)
+    wj = per_part if per_joint else np.ones(len(pairs))
     chosen = np.zeros(len(pairs), np.int64)
     pmax = np.zeros(len(pairs))
     for f in range(k):
@@ -301,7 +302,7 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
                                    if r])),
         "gnn_angle": float(np.mean(groups.gnn_angle)),
         "gnn_dist": float(np.mean([d for d, r in zip(groups.gnn_dist, groups.revolute) if r])),
-        **_joint_stats(groups, chosen),
+        **_joint_stats(groups, chosen, per_part),
         "calibrated_kept_0.6": float(np.mean(conf >= 0.6)),
         "calibrated_kept_0.6_correct": float(correct[conf >= 0.6].mean()) if (conf >= 0.6).any()
         else float("nan"),
@@ -324,11 +325,13 @@ def joint_weights(groups: EdgeGroups) -> np.ndarray:
     return np.array([1.0 / n_of[k] for k in groups.joint], dtype=np.float64)
 
 
-def _joint_stats(groups: EdgeGroups, chosen: np.ndarray) -> dict[str, float]:
-    """Per-joint means of the chosen and the GNN's angle and distance (see :func:`fit_selector`)."""
+def _joint_stats(groups: EdgeGroups, chosen: np.ndarray, w: np.ndarray) -> dict[str, float]:
+    """Per-joint means of the chosen and the GNN's angle and distance (see :func:`fit_selector`).
+
+    ``w`` is :func:`joint_weights` of ``groups``.
+    """
     if not groups.y or len(groups.joint) != len(groups.y):
         return {}
-    w = joint_weights(groups)
     rv = np.asarray(groups.revolute, bool)
     a = np.array([x[c] for x, c in zip(groups.angle, chosen)])
     d = np.array([x[c] for x, c in zip(groups.dist, chosen)])
