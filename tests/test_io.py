@@ -53,3 +53,43 @@ def test_folder_lock_excludes_a_second_process_and_is_released(tmp_path):
     with folder_lock(tmp_path, "kinmo test"):
         ran.append(2)
     assert ran == [1, 2]
+
+
+# ------------------------------------------------------------------- outputs never overwrite inputs
+
+
+def test_outputs_apart_from_inputs(tmp_path):
+    from kinmo.errors import KinmoUsageError
+    from kinmo.io import check_outputs_apart
+
+    data = tmp_path / "data"
+    (data / "obj1").mkdir(parents=True)
+    asset = tmp_path / "assets" / "chair.glb"
+    asset.parent.mkdir()
+    asset.write_bytes(b"glb")
+    for out, inputs, written in [
+        (data, [data], None),                          # OUT is the input
+        (data / "obj1", [data], None),                 # OUT inside the input
+        (data / "obj1" / "x", [data / "obj1"], None),
+        (tmp_path, [data], None),                      # holds it, writes unknown
+        (tmp_path, [data], ["data"]),                  # holds it where it writes
+        (data, [data / "obj1"], ["obj1"]),             # OUT/<id> is the input shape
+        (asset, [asset], None),                        # OUT is the input file
+        (tmp_path / "assets", [asset], ["chair.glb"]),
+    ]:
+        with pytest.raises(KinmoUsageError, match="outputs never overwrite inputs"):
+            check_outputs_apart(out, inputs, written)
+    # apart, or beside without touching
+    check_outputs_apart(tmp_path / "out", [data, asset])
+    check_outputs_apart(tmp_path, [data], written=["obj1", "predictions.csv"])
+    check_outputs_apart(tmp_path / "assets", [asset], written=["chair", ".staging"])
+
+
+def test_outputs_apart_resolves_links(tmp_path):
+    from kinmo.errors import KinmoUsageError
+    from kinmo.io import check_outputs_apart
+
+    (tmp_path / "data").mkdir()
+    (tmp_path / "alias").symlink_to(tmp_path / "data", target_is_directory=True)
+    with pytest.raises(KinmoUsageError):
+        check_outputs_apart(tmp_path / "alias" / "out", [tmp_path / "data"])

@@ -206,3 +206,30 @@ def test_evaluation_and_cli(real):
     r = runner.invoke(app, ["train", "gnn", "--data", str(real["root"] / "missing"), "--out",
                             str(real["root"] / "x"), "--quiet"])
     assert r.exit_code == 1 and "does not" in r.output and "kinmo prepare" in r.output
+
+
+def test_outputs_never_overwrite_the_inputs(real, tmp_path):
+    """Finding 2 of the hostile-input issue: `kinmo predict DIR -o DIR` replaced the ground
+    truth (mobility_v2.json, semantics.txt) of labelled objects. Every form of it is refused
+    with one line and exit code 2, and nothing is written."""
+    import shutil
+
+    data = tmp_path / "data"
+    shutil.copytree(real["data"] / "100028", data / "100028")  # a copy: the shared data is never at risk
+    before = {p: p.read_bytes() for p in data.rglob("*") if p.is_file()}
+    runner = CliRunner()
+    for out in (data, data / "100028", data / "100028" / "textured_objs"):
+        r = runner.invoke(app, ["predict", str(data), "--model", str(real["run"]), "--out", str(out),
+                                "--quiet", "--device", "cpu"])
+        assert r.exit_code == 2, (out, r.output)
+        assert "outputs never overwrite inputs" in r.output and len(r.output.strip().splitlines()) <= 2
+    r = runner.invoke(app, ["predict", str(data / "100028"), "--model", str(real["run"]), "--out",
+                            str(data), "--quiet", "--device", "cpu"])  # OUT/<id> is the input
+    assert r.exit_code == 2 and "would overwrite" in r.output, r.output
+    assert {p: p.read_bytes() for p in data.rglob("*") if p.is_file()} == before
+    assert not (data / "predictions.csv").exists() and not (tmp_path / "predictions.csv").exists()
+    # an output folder beside the input is fine
+    r = runner.invoke(app, ["predict", str(data), "--model", str(real["run"]), "--out",
+                            str(tmp_path / "pred"), "--quiet", "--device", "cpu"])
+    assert r.exit_code == 0, r.output
+    assert {p: p.read_bytes() for p in data.rglob("*") if p.is_file()} == before

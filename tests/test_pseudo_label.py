@@ -92,8 +92,8 @@ def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path,
         assert abs(moving[0].joint.direction[1]) > 0.7  # a vertical hinge, as predicted
         assert moving[0].joint.limit == (0.0, 90.0)
         for name in src.hierarchy.mesh_names(src.hierarchy.root):
-            p = folder / "textured_objs" / f"{name}.obj"
-            assert p.is_symlink() and p.resolve() == src.mesh_path(name).resolve()
+            p = folder / "textured_objs" / f"{name}.obj"  # self-contained: a hard link or a copy
+            assert not p.is_symlink() and p.read_bytes() == src.mesh_path(name).read_bytes()
         assert (folder / "result.json").read_bytes() == (data / rec.id / "result.json").read_bytes()
         assert (folder / "semantics.txt").read_text().count("link_") == len(shape.links)
         urdf = (folder / "mobility.urdf").read_text()
@@ -248,3 +248,56 @@ def test_ray_executor_gives_the_same_records(data, runs, tmp_path):
     key = [(r.id, r.status, r.n_moving, r.reason) for r in a.records]
     assert [(r.id, r.status, r.n_moving, r.reason) for r in b.records] == key
     assert sorted(p.name for p in (tmp_path / "b").iterdir()) == sorted(p.name for p in (tmp_path / "a").iterdir())
+
+
+def test_symlink_mode_links_to_the_source(data, runs, tmp_path, monkeypatch):
+    _hinge_on_largest_leaf(monkeypatch)
+    out = tmp_path / "out"
+    res = pseudo_label_dataset(data / SHAPES[0], *runs, out,
+                               PseudoLabelConfig(threshold=0.0, link="symlink"), progress=False)
+    assert [r.status for r in res.records] == ["kept"]
+    src = read_shape(data / SHAPES[0])
+    for name in src.hierarchy.mesh_names(src.hierarchy.root):
+        p = out / SHAPES[0] / "textured_objs" / f"{name}.obj"
+        assert p.is_symlink() and p.resolve() == src.mesh_path(name).resolve()
+    # kinmo's readers refuse meshes that leave the object folder unless told the links are its own
+    from kinmo.errors import KinmoDataError
+
+    with pytest.raises(KinmoDataError, match="symbolic link that leaves the shape folder"):
+        read_shape(out / SHAPES[0])
+    assert read_shape(out / SHAPES[0], external_links=True).links
+
+
+def test_hostile_mesh_name_writes_nothing_outside_out(data, runs, tmp_path, monkeypatch):
+    """Finding 1 of the hostile-input issue: a mesh name in result.json was used as a path,
+    and pseudo-label overwrote (or created a link at) a file outside its output folder."""
+    _hinge_on_largest_leaf(monkeypatch)
+    victim_dir = tmp_path / "probe"
+    victim_dir.mkdir()
+    victim = victim_dir / "victim.obj"
+    victim.write_text("precious\n")
+    ds = tmp_path / "data"
+    shape = ds / "evil"
+    shutil.copytree(data / SHAPES[0], shape, symlinks=False)
+    doc = json.loads((shape / "result.json").read_text())
+    leaf = doc[0]
+    while leaf.get("children"):
+        leaf = leaf["children"][0]
+    depth = len((shape / "objs").resolve().relative_to(tmp_path).parts)
+    hostile = "/".join([".."] * depth) + "/probe/victim"
+    assert (shape / "objs" / f"{hostile}.obj").resolve() == victim.resolve()
+    leaf["objs"] = [hostile]
+    (shape / "result.json").write_text(json.dumps(doc))
+    (ds / "absent").mkdir()  # a second hostile shape: the target does not exist yet
+    shutil.copytree(shape, ds / "absent", dirs_exist_ok=True)
+    leaf["objs"] = [hostile.replace("victim", "created")]
+    (ds / "absent" / "result.json").write_text(json.dumps(doc))
+    out = tmp_path / "out"
+    res = pseudo_label_dataset(ds, *runs, out, PseudoLabelConfig(threshold=0.0), progress=False)
+    by_id = {r.id: r for r in res.records}
+    for sid in ("evil", "absent"):
+        assert by_id[sid].status == "failed"
+        assert "result.json" in by_id[sid].reason and "not a path" in by_id[sid].reason
+        assert not (out / sid).exists()
+    assert victim.read_text() == "precious\n"
+    assert sorted(p.name for p in victim_dir.iterdir()) == ["victim.obj"]

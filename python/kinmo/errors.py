@@ -28,3 +28,21 @@ class KinmoDataError(KinmoError, ValueError):
         self.path = str(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
+
+
+class KinmoUsageError(KinmoError):
+    """A command was asked to do something it refuses before any work (the command line
+    exits with code 2): an output that would overwrite an input, an option out of range.
+
+    Parameters
+    ----------
+    path : str or Path
+        The offending argument (an ``--out`` folder, a file).
+    problem : str
+        One line saying what is wrong and what to do instead.
+    """
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")

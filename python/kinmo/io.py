@@ -1,12 +1,13 @@
-"""Atomic file writes (an interrupted run never leaves a half-written file) and the lock that
-keeps two runs from writing one output folder."""
+"""Atomic file writes (an interrupted run never leaves a half-written file), the lock that
+keeps two runs from writing one output folder, and the check that outputs never overwrite
+inputs."""
 
 from __future__ import annotations
 
 import json
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
@@ -188,3 +189,50 @@ def folder_lock(folder: str | Path, command: str) -> Iterator[None]:
         yield
     finally:
         fh.close()
+
+
+def check_outputs_apart(out: str | Path, inputs: Iterable[str | Path],
+                        written: Iterable[str] | None = None, option: str = "--out") -> None:
+    """Refuse an output folder whose writes could replace an input file.
+
+    Outputs never overwrite inputs: a command checks this before any work. Paths are compared
+    with every symbolic link resolved. The output folder ``out`` conflicts with an input when
+
+    - ``out`` is the input, or lies inside an input folder (``kinmo predict DIR -o DIR``,
+      ``-o DIR/<object>``), or
+    - an input is, or lies inside, one of the entries the command writes directly in ``out``
+      (``written``: object folders ``<id>``, summary files); when ``written`` is ``None``
+      any input inside ``out`` conflicts.
+
+    Parameters
+    ----------
+    out : str or Path
+        The output folder (need not exist).
+    inputs : iterable of str or Path
+        The command's input files and folders (dataset roots, shape folders, asset files).
+    written : iterable of str, optional
+        Names of the entries written directly in ``out``.
+    option : str
+        The option that named ``out``, for the message.
+
+    Raises
+    ------
+    KinmoUsageError
+        One line naming ``out``, the input and what to do; the command line exits with code 2.
+    """
+    from kinmo.errors import KinmoUsageError
+
+    o = Path(os.path.realpath(out))
+    names = None if written is None else set(written)
+    for inp in inputs:
+        i = Path(os.path.realpath(inp))
+        if o == i or i in o.parents:
+            where = "is" if o == i else "lies inside"
+            raise KinmoUsageError(out, f"{option} {where} the input {inp}: outputs never "
+                                  f"overwrite inputs; choose an {option} folder outside it")
+        if o in i.parents:
+            top = i.relative_to(o).parts[0]
+            if names is None or top in names:
+                raise KinmoUsageError(out, f"{option} holds the input {inp}, which this command "
+                                      f"would overwrite ({o.name}/{top}); outputs never "
+                                      f"overwrite inputs: choose another {option} folder")

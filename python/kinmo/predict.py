@@ -304,14 +304,20 @@ def predict_dataset(
     ------
     KinmoDataError
         ``data`` holds no shape folder, ``out`` is a file, or the run cannot be loaded.
+    KinmoUsageError
+        ``out`` is, or lies inside, ``data`` or ``cache``, or holds them where it would write
+        (:func:`kinmo.io.check_outputs_apart`): outputs never overwrite inputs.
     """
     from rich.progress import Progress
 
     from kinmo.data.readers import find_shapes, read_shape
 
-    from kinmo.io import output_dir
+    from kinmo.io import check_outputs_apart, output_dir
 
     data = Path(data)
+    folders = find_shapes(data)
+    check_outputs_apart(out, [data, *([cache] if cache is not None else [])],
+                        written=[*(f.name for f in folders), "predictions.csv"])
     out = output_dir(out)
     r = run if isinstance(run, Run) else load_run(run, device)
     axis_net = None
@@ -321,7 +327,6 @@ def predict_dataset(
         if not (Path(axis_model).is_dir() and not (Path(axis_model) / "model.pt").is_file()
                 and getattr(refine_config, "selector", "paper") == "ranker"):
             axis_net = load_axis_model(axis_model, "cpu" if r.device.type == "cpu" else str(r.device))
-    folders = find_shapes(data)
     if not folders:
         raise KinmoDataError(data, "no shape folder found")
     rows: list[PredictRow] = []

@@ -64,7 +64,7 @@ from typing import Any, ClassVar
 
 from kinmo import stages
 from kinmo.errors import KinmoDataError
-from kinmo.io import output_dir
+from kinmo.io import check_outputs_apart, output_dir
 from kinmo.parallel import available_cpus, resolve_workers
 from kinmo.stages import (
     MANIFEST_INTERVAL_S,
@@ -473,12 +473,16 @@ def prepare_dataset(
         ``root`` is not a folder or holds no shape folder.
     KinmoError
         Another run holds the cache folder's lock.
+    KinmoUsageError
+        The cache folder is, lies inside or holds ``root`` (outputs never overwrite inputs).
     """
     t0 = time.perf_counter()
     config = config or PrepareConfig()
     root = Path(root)
     jobs = stages.shape_jobs(root)
-    out = output_dir(out if out is not None else default_cache_dir(root))
+    out = out if out is not None else default_cache_dir(root)
+    check_outputs_apart(out, [root])
+    out = output_dir(out)
 
     def save(rows: list[ManifestRow], complete: bool) -> None:
         from kinmo.data.graph import CACHE_VERSION

@@ -27,8 +27,10 @@ PartNet-Mobility tools) exactly like a real object:
 - ``result.json`` (the hierarchy file used, copied byte for byte; ``result_after_merging.json``
   too when present), ``meta.json`` (copied; written with ``model_cat`` and ``anno_id`` when the
   source has none);
-- ``textured_objs/<name>.obj``: the shape's meshes, symbolic links to the source files (copies
-  where links cannot be made, or with ``link="copy"``);
+- ``textured_objs/<name>.obj``: the shape's meshes, hard links to the source files (copies
+  where the file system cannot link, or with ``link="copy"``; symbolic links with
+  ``link="symlink"``, for a source dataset that stays in place): the folder is
+  self-contained;
 - ``mobility_v2.json``, ``semantics.txt`` (:mod:`kinmo.data.writers`), ``mobility.urdf``
   (meshes relative to it, convex collision pieces in ``collision/``) and any other format of
   :mod:`kinmo.export` chosen with ``formats`` (through :func:`kinmo.export.export`);
@@ -72,7 +74,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo import stages
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.io import write_json, write_text
+from kinmo.io import check_outputs_apart, write_json, write_text
 from kinmo.executor import parse_executor
 from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
@@ -124,8 +126,13 @@ class PseudoLabelConfig(BaseModel):
         heads is what makes the threshold useful: on the 36 labelled test objects of
         ``docs/results/pseudo_labels.md`` the raw types keep 25 shapes whose joints err by
         8.9° on average and reject 11 at 27.3°, while consistent types keep 35 of 36 (11.9°).
-    link : {"symlink", "copy"}
-        How meshes get into ``textured_objs/``.
+    link : {"hardlink", "copy", "symlink"}
+        How meshes get into ``textured_objs/``: ``hardlink`` (default; a copy where the file
+        system cannot link, e.g. across devices) and ``copy`` make a self-contained folder
+        that can be moved or sent; ``symlink`` links to the source files by absolute path, for
+        datasets that stay in place (moving or deleting the source breaks the folder, and
+        kinmo's own readers refuse meshes that resolve outside an object folder, so such a
+        folder serves other tools, not ``kinmo prepare``/``render``).
     device : str
         Torch device of both networks.
     formats : tuple of str
@@ -141,7 +148,7 @@ class PseudoLabelConfig(BaseModel):
     slider_fraction: float = Field(0.3, gt=0)
     sign: Literal["tree", "feasibility"] = "tree"
     consistent: bool = False
-    link: Literal["symlink", "copy"] = "symlink"
+    link: Literal["hardlink", "copy", "symlink"] = "hardlink"
     device: str = "cpu"
     formats: tuple[str, ...] = ("mobility_v2", "semantics", "urdf")
 
@@ -252,12 +259,17 @@ def _load_models(gnn_run: Path, axis_run: Path, device: str) -> _Models:
 
 
 def _link_or_copy(src: Path, dst: Path, mode: str) -> None:
-    if mode == "symlink":
-        try:
+    """Put ``src`` at ``dst`` (a new path in a fresh staging folder) by ``mode``
+    (:class:`PseudoLabelConfig`); a link that cannot be made becomes a copy."""
+    try:
+        if mode == "symlink":
             os.symlink(src.resolve(), dst)
             return
-        except OSError as e:
-            logger.debug("cannot link %s (%s): copying it", src, e.strerror or e)
+        if mode == "hardlink":
+            os.link(src.resolve(), dst)
+            return
+    except OSError as e:
+        logger.debug("cannot link %s (%s): copying it", src, e.strerror or e)
     shutil.copyfile(src, dst)
 
 
@@ -284,7 +296,8 @@ def _write_folder(
     for name in sorted(names):
         _link_or_copy(shape.mesh_path(name), tex / f"{name}.obj", config.link)
     export(shape, stage, ["mobility_v2"], links=links, name=shape.id)
-    out_shape = read_shape(stage)  # the folder as kinmo reads it (validates the round trip)
+    # the folder as kinmo reads it (validates the round trip)
+    out_shape = read_shape(stage, external_links=config.link == "symlink")
     export(out_shape, stage, [f for f in config.formats if f != "mobility_v2"], name=shape.id)
     write_json(stage / "scores.json", {
         "shape_id": shape.id,
@@ -589,11 +602,15 @@ def pseudo_label_dataset(
         ``data`` holds no shape folder, or a checkpoint is missing or unreadable.
     KinmoError
         Another ``kinmo pseudo-label`` is writing ``out``.
+    KinmoUsageError
+        ``out`` is, lies inside or holds an input (``data``, the model folders, ``cache``):
+        outputs never overwrite inputs (:func:`kinmo.io.check_outputs_apart`).
     """
     config = config or PseudoLabelConfig()
     t0 = time.perf_counter()
     data, out, gnn_run, axis_run = Path(data), Path(out), Path(gnn_run), Path(axis_run)
     folders = [f for f, _ in stages.shape_jobs(data)]
+    check_outputs_apart(out, [data, gnn_run, axis_run, *([cache] if cache is not None else [])])
     models_fp = _models_fingerprint(gnn_run, axis_run)  # raises for a missing checkpoint
     out.mkdir(parents=True, exist_ok=True)
     stage: ShapeStage[ShapeRecord] = ShapeStage(

@@ -287,13 +287,18 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
     ------
     KinmoDataError
         As :func:`read_parts`, or the run cannot be loaded.
+    KinmoUsageError
+        ``out`` would overwrite ``path`` (:func:`kinmo.io.check_outputs_apart`).
     """
     from kinmo.data.readers import read_shape
     from kinmo.export import DEFAULT_FORMATS, export
     from kinmo.predict import predict_dataset
 
+    from kinmo.io import check_outputs_apart
+
     path, out = Path(path), Path(out)
     stem = _clean(path.stem, 0)
+    check_outputs_apart(out, [path], written=[stem, ".staging", "predictions.csv"])
     staging = out / ".staging"
     shape_dir = stage_partnet(path, staging / stem, category)
     fmts = list(dict.fromkeys(["mobility_v2", *(DEFAULT_FORMATS if formats is None else formats)]))

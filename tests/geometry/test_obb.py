@@ -126,20 +126,24 @@ def test_part_unions_are_contained_and_at_least_as_tight_as_trimesh(part_unions)
 def test_up_alignment_is_preferred_on_real_parts(leaf_meshes):
     """Where the axis-aligned box is within 0.9% of the smallest box found, the chosen box
     has an axis exactly along +y (the up rule), and it is never more than 1% larger."""
-    checked = 0
+    checked = considered = 0
     for name, v in leaf_meshes[::3]:
         if len(v) < 4:
             continue
         tight = fit_obb(v, volume_tolerance=0.0, up=None, symmetry=False)
         if tight.half_extents[2] < FLAT * tight.half_extents[0]:
             continue
+        considered += 1
         aabb = float(np.prod(v.max(0) - v.min(0)))
         b = fit_obb(v)
         assert b.volume <= 1.01 * tight.volume * (1 + 1e-12), name
         if aabb <= 1.009 * tight.volume:
             checked += 1
             assert np.abs(b.axes[:, 1]).max() >= 1 - 1e-12, (name, b.axes)
-    assert checked >= 100
+    # Not vacuous, whichever objects the shared data holds: real PartNet-Mobility parts are
+    # mostly modelled axis-aligned in the y-up frame, so a good share of the parts sampled
+    # (about 30 % on the 235 objects of 2026-11) reach the rule.
+    assert considered >= 100 and checked >= considered // 5, (checked, considered)
 
 
 def test_result_is_independent_of_point_order_and_duplicates(leaf_meshes):

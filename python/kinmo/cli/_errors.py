@@ -76,16 +76,21 @@ def cli_errors(code: int = 1, also: tuple[type[Exception], ...] = ()) -> Iterato
     also : tuple of exception types
         Further types to report the same way (e.g. ``(ValueError,)`` around option checks).
 
+    A :class:`~kinmo.errors.KinmoUsageError` (a refused request, such as an output that
+    would overwrite an input) always exits with code 2.
+
     Raises
     ------
     typer.Exit
         For :class:`~kinmo.errors.KinmoError`, an :class:`OSError` naming a file, or one of
         ``also``; other exceptions propagate unchanged.
     """
-    from kinmo.errors import KinmoError
+    from kinmo.errors import KinmoError, KinmoUsageError
 
     try:
         yield
+    except KinmoUsageError as e:
+        fail(e, 2)
     except KinmoError as e:
         fail(e, code)
     except OSError as e:

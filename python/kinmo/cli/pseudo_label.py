@@ -26,7 +26,8 @@ def pseudo_label_cmd(
     refine: RefineOptions = REFINE,
     consistent: bool = typer.Option(False, "--consistent/--raw-types", help="Make the fine types agree with the GNN's axes before refining (as `kinmo eval` does; the threshold then rejects far fewer, and fewer wrong, shapes). Default: the paper's arg-max types."),
     sign: str = typer.Option("tree", "--sign", help="Direction of motion: tree (away from the reference part) or feasibility (the network's)."),
-    copy: bool = typer.Option(False, "--copy", help="Copy meshes instead of linking them."),
+    link: str = typer.Option("hardlink", "--link", help="How meshes get into OUT/<id>/textured_objs/: hardlink (default; a copy across file systems) or copy make self-contained folders; symlink links to the source dataset by absolute path, for a dataset that stays in place (kinmo's own readers refuse such links)."),
+    copy: bool = typer.Option(False, "--copy", help="Same as --link copy."),
     device: str = typer.Option("cpu", "--device", help="Torch device of both networks."),
     force: bool = typer.Option(False, "--force", help="Redo shapes already processed with the same inputs."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
@@ -59,7 +60,7 @@ def pseudo_label_cmd(
         config = PseudoLabelConfig(
             threshold=threshold,
             refine=rc,
-            sign=sign, consistent=consistent, link="copy" if copy else "symlink", device=device,
+            sign=sign, consistent=consistent, link="copy" if copy else link, device=device,
             **({"formats": tuple(fmt)} if fmt else {}),
         )
     with cli_errors(2):

@@ -36,6 +36,12 @@ ids, a leaf without meshes, a missing ``.obj`` (its path), an unknown joint type
 zero-length or non-finite axis of a hinge/slider, link ``parts`` naming unknown nodes, a leaf
 claimed by two links, unknown or cyclic parent links.
 
+Untrusted names (:mod:`kinmo.data.names`): a mesh name is a file name, never a path (``..``,
+separators, absolute paths, NUL and control characters are refused with the file and the
+name), and a mesh file that resolves outside the shape folder (a symbolic link leaving it) is
+refused, so that no reader or writer downstream is led outside an object folder. The shape
+folder itself may be a symbolic link (kinmo's pipeline links dataset folders).
+
 Frames: mesh frame of the OBJ files, y-up.
 
 Length: over 500 lines, about 35 % of them docstrings: one topic, reading and validating the
@@ -63,6 +69,7 @@ from kinmo.data.model import (
     Shape,
     ShapeFormat,
 )
+from kinmo.data.names import check_mesh_name, inside
 from kinmo.errors import KinmoDataError
 
 __all__ = [
@@ -270,7 +277,9 @@ def read_hierarchy(path: str | Path) -> PartHierarchy:
     ------
     KinmoDataError
         Malformed JSON, no root / several roots, a node that is not an object, a missing or
-        non-integer ``id``, a duplicate id, a leaf without ``objs``, a non-string mesh name.
+        non-integer ``id``, a duplicate id, a leaf without ``objs``, a mesh name that is not
+        a plain file name (:func:`kinmo.data.names.check_mesh_name`: ``..``, a separator, a
+        control character ...).
     """
     path = Path(path)
     doc = read_json(path)
@@ -306,8 +315,10 @@ def read_hierarchy(path: str | Path) -> PartHierarchy:
             objs_raw = raw.get("objs")
             if not objs_raw:
                 raise KinmoDataError(path, f"leaf node {nid} ({name!r}) has no meshes ('objs')")
-            if not isinstance(objs_raw, list) or not all(isinstance(o, str) and o for o in objs_raw):
+            if not isinstance(objs_raw, list):
                 raise KinmoDataError(path, f"'objs' of node {nid} must be a list of mesh names")
+            for o in objs_raw:
+                check_mesh_name(o, path, f"leaf node {nid}")
             objs = tuple(dict.fromkeys(objs_raw))  # keep order, drop repeats
         child_ids: list[int] = []
         for k, c in enumerate(children_raw):
@@ -500,7 +511,8 @@ def read_meta(folder: str | Path) -> tuple[str, dict]:
 _read_meta = read_meta  # former private name, used by other modules
 
 
-def read_shape(path: str | Path, hierarchy: HierarchyChoice = "result") -> Shape:
+def read_shape(path: str | Path, hierarchy: HierarchyChoice = "result", *,
+               external_links: bool = False) -> Shape:
     """Read and validate one shape folder (either format), without loading meshes.
 
     Parameters
@@ -511,6 +523,10 @@ def read_shape(path: str | Path, hierarchy: HierarchyChoice = "result") -> Shape
         Which hierarchy file to prefer (see the module docstring): ``"result"`` (default)
         reads ``result.json``, ``"merged"`` reads ``result_after_merging.json`` for PartNet
         shapes that have it. Either falls back to the other file when absent.
+    external_links : bool
+        Accept meshes that resolve outside the shape folder (symbolic links leaving it).
+        Default False: refused (module docstring). Only for folders kinmo wrote itself
+        with links to a source dataset (``kinmo pseudo-label --link symlink``).
 
     Returns
     -------
@@ -538,6 +554,11 @@ def read_shape(path: str | Path, hierarchy: HierarchyChoice = "result") -> Shape
             if not obj.is_file():
                 raise KinmoDataError(
                     obj, f"mesh file is missing (named by leaf node {nid} of {hfile.name})"
+                )
+            if not external_links and not inside(obj, folder):
+                raise KinmoDataError(
+                    obj, "is a symbolic link that leaves the shape folder (named by leaf node "
+                    f"{nid} of {hfile.name}); kinmo reads only meshes inside the folder"
                 )
     category, meta = read_meta(folder)
     links = read_links(folder / MOBILITY_FILE, tree) if fmt is ShapeFormat.PARTNET_MOBILITY else None

@@ -198,12 +198,17 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
     KinmoDataError
         ``src`` is not a readable PartNet-Mobility folder (no ``mobility_v2.json``), or
         without meshes and no ``source``, or as :func:`export`.
+    KinmoUsageError
+        ``out`` is, lies inside or holds ``src`` or ``source`` (outputs never overwrite
+        inputs).
     """
     from kinmo.data.readers import read_links, read_shape
+    from kinmo.io import check_outputs_apart
 
     src = Path(src)
     if source is None and (src / "source.txt").is_file():
         source = (src / "source.txt").read_text(encoding="utf-8").strip()
+    check_outputs_apart(out, [src, *([source] if source is not None else [])])
     if source is not None:
         shape = read_shape(source)
         if not (src / "mobility_v2.json").is_file():

@@ -61,6 +61,7 @@ import numpy as np
 
 from kinmo import stages
 from kinmo.errors import KinmoDataError
+from kinmo.io import check_outputs_apart
 from kinmo.render.frames import (
     FRAME_VERSION,
     frame_images,
@@ -482,6 +483,8 @@ def render_dataset(
         ``root`` is not a folder.
     KinmoError
         Another run holds the output folder's lock.
+    KinmoUsageError
+        ``out`` is, lies inside or holds ``root`` (outputs never overwrite inputs).
     ValueError
         ``frames_per_object < 1``.
     """
@@ -491,6 +494,7 @@ def render_dataset(
     config = config or RenderConfig()
     root, out = Path(root), Path(out)
     jobs = stages.shape_jobs(root, required=False)
+    check_outputs_apart(out, [root])
     out.mkdir(parents=True, exist_ok=True)
 
     def save(results: list[list[FrameRow]], complete: bool) -> None:
