@@ -30,6 +30,8 @@ pose (a degenerate pose, e.g. a tiny scale, sends them far outside); the ``pseud
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -51,12 +53,32 @@ CUBE_MARGIN = 0.05
 MIN_IN_CUBE = 0.95
 
 
+def _hard_link(src: Path, dst: Path) -> None:
+    """``dst`` the same file as ``src``: a hard link, or an atomic copy across file systems;
+    left alone when already up to date."""
+    if not src.is_file():
+        return  # read_shape names the missing mesh
+    if dst.is_file() and not dst.is_symlink():
+        a, b = src.stat(), dst.stat()
+        if (a.st_ino, a.st_dev) == (b.st_ino, b.st_dev) or (a.st_size == b.st_size
+                                                           and b.st_mtime_ns >= a.st_mtime_ns):
+            return
+    tmp = dst.with_name(f".{dst.name}.tmp")
+    tmp.unlink(missing_ok=True)
+    try:
+        os.link(src, tmp)
+    except OSError:
+        shutil.copy2(src, tmp)
+    os.replace(tmp, dst)
+
+
 def unlabeled_object(source: str | Path, dest: str | Path) -> Path:
     """Wrap a PartNet shape as a motionless PartNet-Mobility-format object.
 
-    ``dest`` gets symbolic links to the source's ``result.json`` and ``meta.json`` and its
-    ``objs/`` folder as ``textured_objs/``, and a ``mobility_v2.json`` with one root link
-    holding the whole hierarchy (joint ``free``: no degree of freedom is rendered). Files
+    ``dest`` gets symbolic links to the source's ``result.json`` and ``meta.json``, its meshes
+    hard-linked (copied across file systems) into ``textured_objs/`` (kinmo's readers refuse
+    meshes that resolve outside an object folder), and a ``mobility_v2.json`` with one root
+    link holding the whole hierarchy (joint ``free``: no degree of freedom is rendered). Files
     already up to date are left untouched (so renders of it stay cached).
 
     Parameters
@@ -81,10 +103,9 @@ def unlabeled_object(source: str | Path, dest: str | Path) -> Path:
     src, dst = Path(source).resolve(), Path(dest)
     if not (src / "objs").is_dir():
         raise KinmoDataError(src / "objs", "folder is missing (not a PartNet shape)")
-    hier = read_hierarchy(src / "result.json")
+    hier = read_hierarchy(src / "result.json")  # validates the mesh names
     dst.mkdir(parents=True, exist_ok=True)
-    for name, target in (("result.json", src / "result.json"), ("meta.json", src / "meta.json"),
-                         ("textured_objs", src / "objs")):
+    for name, target in (("result.json", src / "result.json"), ("meta.json", src / "meta.json")):
         link = dst / name
         if not target.exists():
             continue
@@ -92,7 +113,14 @@ def unlabeled_object(source: str | Path, dest: str | Path) -> Path:
             continue
         if link.is_symlink() or link.exists():
             link.unlink()
-        link.symlink_to(target, target_is_directory=target.is_dir())
+        link.symlink_to(target)
+    tex = dst / "textured_objs"
+    if tex.is_symlink():  # written by an earlier kinmo as a link to objs/
+        tex.unlink()
+    tex.mkdir(exist_ok=True)
+    for nid in hier.order:
+        for mesh in hier.nodes[nid].objs:
+            _hard_link(src / "objs" / f"{mesh}.obj", tex / f"{mesh}.obj")
     text = json.dumps([{"id": 0, "parent": -1, "joint": "free", "name": "base",
                         "parts": [{"id": hier.root}], "jointData": {}}])
     mob = dst / "mobility_v2.json"
