@@ -20,8 +20,9 @@ from kinmo.cli import app
 from kinmo.cli._errors import cli_errors
 from kinmo.data.graph import PartGraph
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.prepare import PrepareConfig, check_manifest, prepare_dataset, read_manifest
-from kinmo.train.gnn import load_cache
+from kinmo.data.cache import check_manifest
+from kinmo.prepare import PrepareConfig, prepare_dataset, read_manifest
+from kinmo.data.cache import load_cache
 
 CFG = PrepareConfig(n_points=32)
 

@@ -100,7 +100,7 @@ def test_map_unordered_workers_end_with_their_parent(tmp_path: Path, sig: int) -
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
 def test_prepare_killed_leaves_no_process_and_an_incomplete_manifest(tmp_path: Path, sig: int) -> None:
     from kinmo.errors import KinmoDataError
-    from kinmo.train.gnn import load_cache
+    from kinmo.data.cache import load_cache
 
     root = tmp_path / "data"
     for i in range(60):

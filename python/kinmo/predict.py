@@ -329,6 +329,10 @@ def predict_dataset(
             axis_net = load_axis_model(axis_model, "cpu" if r.device.type == "cpu" else str(r.device))
     if not folders:
         raise KinmoDataError(data, "no shape folder found")
+    if cache is not None:
+        from kinmo.data.cache import manifest_rows
+
+        cache_rows = manifest_rows(cache) if Path(cache).is_dir() else None
     rows: list[PredictRow] = []
     with Progress(disable=not progress) as bar:
         task = bar.add_task("predict", total=len(folders))
@@ -337,7 +341,7 @@ def predict_dataset(
             try:
                 shape = read_shape(folder)
                 sid = shape.id
-                graph = _graph_for(folder, data, shape, cache)
+                graph = _graph_for(folder, data, shape, cache, cache_rows if cache is not None else None)
                 pred = predict_graphs(r, [graph], options)[0]
                 if axis_model is not None:
                     from kinmo.refine.refine import refine_shape_prediction
@@ -357,13 +361,17 @@ def predict_dataset(
     return rows
 
 
-def _graph_for(folder: Path, root: Path, shape: Shape, cache: str | Path | None) -> PartGraph:
+def _graph_for(folder: Path, root: Path, shape: Shape, cache: str | Path | None,
+               rows=None) -> PartGraph:
+    """The shape's graph: from ``cache`` when its entry is current
+    (:func:`kinmo.data.cache.cached_graph`: a stale or mismatched entry is rebuilt), else built."""
     if cache is not None:
-        from kinmo.prepare import cache_key
+        from kinmo.data.cache import cached_graph
+        from kinmo.stages import cache_key
 
-        p = Path(cache) / f"{cache_key(folder, root)}.npz"
-        if p.is_file():
-            return PartGraph.load(p)
+        graph = cached_graph(cache, cache_key(folder, root), folder, rows)
+        if graph is not None:
+            return graph
     from kinmo.data.build import build_graph
 
     return build_graph(shape)

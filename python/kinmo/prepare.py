@@ -15,8 +15,8 @@ processes, and writes:
   complete (at most every :data:`MANIFEST_INTERVAL_S` seconds, and at the end).
   ``manifest.json`` says whether the run finished (``complete``): a run writes
   ``complete: false`` before its first shape, so a run killed at any point leaves an
-  incomplete manifest, and readers (:func:`check_manifest`, used by
-  :func:`kinmo.train.gnn.load_cache`) refuse it, saying how many shapes are missing and how
+  incomplete manifest, and readers (:func:`kinmo.data.cache.check_manifest`, used by
+  :func:`kinmo.data.cache.load_cache`) refuse it, saying how many shapes are missing and how
   to resume.
 
 Resume: a shape is skipped when its ``.npz`` exists and records the same cache version
@@ -85,7 +85,6 @@ __all__ = [
     "PrepareConfig",
     "PrepareResult",
     "cache_key",
-    "check_manifest",
     "default_cache_dir",
     "prepare_dataset",
     "prepare_one",
@@ -351,54 +350,6 @@ def read_manifest(path: str | Path) -> list[ManifestRow]:
         Missing or malformed manifest.
     """
     return stages.read_manifest(path, ManifestRow)
-
-
-def check_manifest(cache: str | Path) -> list[ManifestRow]:
-    """The rows of a cache folder's manifest, after checking that it accounts for the run.
-
-    ``manifest.json`` records whether the run that wrote it finished (``complete``; a run
-    writes ``complete: false`` before its first shape). A run killed or stopped early
-    (``--strict``) leaves it false, maybe with graphs on disk that no row lists; reading
-    such a cache would silently use part of the data, so it is refused, saying how many
-    shapes are missing and how to resume.
-
-    Parameters
-    ----------
-    cache : str or Path
-        A cache folder written by :func:`prepare_dataset` (holding ``manifest.csv``).
-
-    Returns
-    -------
-    list of ManifestRow
-
-    Raises
-    ------
-    KinmoDataError
-        The manifest is missing or malformed, or incomplete: ``"<cache>: incomplete cache:
-        the manifest accounts for K of N shapes (M graphs on disk not in it); ... resume it
-        with `kinmo prepare <root> --out <cache>`"``.
-    """
-    cache = Path(cache)
-    rows = read_manifest(cache)
-    info_path = cache / "manifest.json"
-    if not info_path.is_file():  # a manifest.csv alone (hand-made or older): trust it
-        return rows
-    try:
-        info = json.loads(info_path.read_text(encoding="utf-8"))
-        complete, n_shapes = bool(info["complete"]), int(info["n_shapes"])
-        root = str(info.get("root", "DIR"))
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise KinmoDataError(info_path, f"malformed manifest: {e}") from None
-    if complete:
-        return rows
-    listed = {r.id for r in rows}
-    extra = sum(p.stem not in listed for p in cache.glob("*.npz"))
-    raise KinmoDataError(
-        cache,
-        f"incomplete cache: the manifest accounts for {len(rows)} of {n_shapes} shapes "
-        f"({n_shapes - len(rows)} missing, {extra} graphs on disk not in it): `kinmo prepare` "
-        f"was interrupted or stopped early; resume it with `kinmo prepare {root} --out {cache}`",
-    )
 
 
 # ------------------------------------------------------------------------------- the run

@@ -62,7 +62,7 @@ def _model_names(runs: Sequence) -> list[str]:
 
 
 def _load_graphs(data: Path, progress: bool) -> list[PartGraph]:
-    from kinmo.train.gnn import load_cache
+    from kinmo.data.cache import load_cache
 
     if (data / "manifest.csv").is_file() or any(data.glob("*.npz")):
         return load_cache(data)

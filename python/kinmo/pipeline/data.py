@@ -121,7 +121,7 @@ def _synth_categories(cache: Path) -> list[str]:
     """
     from kinmo.errors import KinmoError
     from kinmo.synth import CATEGORIES
-    from kinmo.train.gnn import load_cache
+    from kinmo.data.cache import load_cache
 
     real = sorted({g.category for g in load_cache(cache)})
     cats = [c for c in real if c in CATEGORIES]
@@ -135,7 +135,7 @@ def _graphs(source: Any) -> Any:
     """A cache folder as is, or the graphs of several caches concatenated."""
     if isinstance(source, (str, Path)):
         return source
-    from kinmo.train.gnn import load_cache
+    from kinmo.data.cache import load_cache
 
     return [g for c in source for g in load_cache(c)]
 

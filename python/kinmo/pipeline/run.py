@@ -369,7 +369,7 @@ class _Context:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
         ``out/synth-extra-<labeled|unlabeled>-<N>/`` (:data:`SYNTH_EXTRA_FILE` says how)."""
         from kinmo.synth import SYNTH_VERSION, generate_dataset
-        from kinmo.train.gnn import load_cache
+        from kinmo.data.cache import load_cache
         from kinmo.train.split import Split
 
         cfg, res = self.cfg, self.res

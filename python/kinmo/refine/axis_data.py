@@ -361,7 +361,7 @@ def build_triples(
 def load_graphs(data: str | Path) -> list[PartGraph]:
     """Read the labelled part graphs of a cache folder written by ``kinmo prepare``.
 
-    Uses :func:`kinmo.train.gnn.load_cache` (the manifest's ``ok`` / ``skipped`` rows, or
+    Uses :func:`kinmo.data.cache.load_cache` (the manifest's ``ok`` / ``skipped`` rows, or
     every ``*.npz``) and keeps, like the motion GNN's training, the graphs with ground-truth
     labels and at least one sibling edge, so that both networks split the same id set.
 
@@ -380,7 +380,8 @@ def load_graphs(data: str | Path) -> list[PartGraph]:
     KinmoDataError
         The folder does not exist or holds no labelled graph (message names it).
     """
-    from kinmo.train.gnn import labelled_graphs, load_cache
+    from kinmo.data.cache import load_cache
+    from kinmo.train.gnn import labelled_graphs
 
     graphs = labelled_graphs(load_cache(data))
     if not graphs:

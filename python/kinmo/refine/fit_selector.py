@@ -390,7 +390,7 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     """
     from kinmo.errors import KinmoDataError
     from kinmo.io import write_json
-    from kinmo.train.gnn import load_cache
+    from kinmo.data.cache import load_cache
     from kinmo.train.split import Split
 
     out = Path(out)

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TO_COARSE
 from kinmo.errors import KinmoDataError
@@ -85,53 +86,6 @@ METRIC_COLUMNS: tuple[str, ...] = (
 CHECKPOINT_FORMAT = "kinmo-motion-gnn"
 
 _COARSE_LUT = torch.tensor(FINE_TO_COARSE, dtype=torch.int64)
-
-
-def load_cache(cache: str | Path, ids: Sequence[str] | None = None) -> list[PartGraph]:
-    """Read the part graphs of a cache folder written by ``kinmo prepare``.
-
-    Parameters
-    ----------
-    cache : str or Path
-        Folder with ``<id>.npz`` files and (normally) ``manifest.csv``. With a manifest only
-        its ``ok``/``skipped`` rows are read, and an incomplete manifest (an interrupted
-        ``kinmo prepare``) is refused (:func:`kinmo.prepare.check_manifest`); without one
-        every ``*.npz``. Every graph is checked (:meth:`PartGraph.load`).
-    ids : sequence of str, optional
-        Read only these ids (in this order).
-
-    Returns
-    -------
-    list of PartGraph
-        Sorted by id unless ``ids`` is given.
-
-    Raises
-    ------
-    KinmoDataError
-        The folder does not exist, holds no graphs, its manifest is incomplete, a requested
-        id is missing, or a graph is corrupt (naming the file).
-    """
-    cache = Path(cache)
-    if not cache.is_dir():
-        raise KinmoDataError(cache, "cache folder does not exist (run `kinmo prepare`)")
-    if ids is None:
-        if (cache / "manifest.csv").is_file():
-            from kinmo.prepare import check_manifest
-
-            keys = sorted(r.id for r in check_manifest(cache) if r.status in ("ok", "skipped"))
-        else:
-            keys = sorted(p.stem for p in cache.glob("*.npz"))
-        if not keys:
-            raise KinmoDataError(cache, "no part graphs in the cache (run `kinmo prepare`)")
-    else:
-        keys = [str(i) for i in ids]
-    out = []
-    for k in keys:
-        p = cache / f"{k}.npz"
-        if not p.is_file():
-            raise KinmoDataError(p, "part graph is missing from the cache")
-        out.append(PartGraph.load(p))
-    return out
 
 
 @dataclass
