@@ -52,8 +52,9 @@ def data(partnet_root: Path, tmp_path_factory) -> Path:
 
 def _hinge_on_largest_leaf(monkeypatch):
     """Make the GNN predict: the first sibling edge of the deepest-first order is a hinge."""
-    import kinmo.predict
+    import kinmo.inference.gnn
     from kinmo.mobility_tree import EdgePrediction
+    from kinmo.refine.selector import GNNPriors
 
     def fake(run, graphs, batch_size=8):
         out = []
@@ -71,7 +72,12 @@ def _hinge_on_largest_leaf(monkeypatch):
             out.append(EdgePrediction(p, d, o))
         return out
 
-    monkeypatch.setattr(kinmo.predict, "infer_edges", fake)
+    def fake_with_priors(run, graphs, batch_size=8):
+        out = fake(run, graphs, batch_size)
+        names = tuple(run.config.model.type_names)
+        return out, [GNNPriors(e.probs.copy(), names) for e in out]
+
+    monkeypatch.setattr(kinmo.inference.gnn, "infer_edges_with_priors", fake_with_priors)
 
 
 def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path, monkeypatch):

@@ -32,20 +32,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import PartHierarchy, PartNode, Shape
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.features import collate, graph_tensors
 from kinmo.io import write_json, write_text
-from kinmo.mobility_tree import (
-    EdgePrediction,
-    ShapePrediction,
-    TreeOptions,
-    build_mobility_tree,
-    consistent_fine,
-)
+from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
+from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
+from kinmo.inference.predictor import Predictor
 from kinmo.train.gnn import Run, load_run
 
 __all__ = [
@@ -60,88 +54,6 @@ __all__ = [
     "predict_graphs",
     "write_prediction",
 ]
-
-
-@torch.no_grad()
-def infer_edges(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8) -> list[EdgePrediction]:
-    """Run the motion GNN on part graphs: the edge predictions of
-    :func:`infer_edges_with_priors` (same parameters), without the priors.
-
-    Returns
-    -------
-    list of EdgePrediction
-        One per graph (mesh frame).
-    """
-    return infer_edges_with_priors(run, graphs, batch_size)[0]
-
-
-@torch.no_grad()
-def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8
-                            ) -> tuple[list[EdgePrediction], list]:
-    """Run the motion GNN on part graphs; also return its raw outputs as refinement priors.
-
-    Parameters
-    ----------
-    run : Run
-        A loaded model (:func:`kinmo.train.gnn.load_run`).
-    graphs : sequence of PartGraph
-        Labels, if present, are ignored.
-    batch_size : int
-        Graphs per forward pass.
-
-    Returns
-    -------
-    (list of EdgePrediction, list of kinmo.refine.selector.GNNPriors)
-        One per graph, rows in ``graph.sibling_edges`` order; probabilities over the run's
-        type set; axes mapped back to each graph's mesh frame. The priors hold the type
-        probabilities as predicted (before :func:`consistent_fine`) and the softmax of the
-        axis-candidate logits with the 10 candidate directions (``None`` for a model without
-        them).
-    """
-    from kinmo.refine.selector import GNNPriors
-
-    run.model.eval()
-    out: list[EdgePrediction] = []
-    priors: list[GNNPriors] = []
-    names = tuple(run.config.model.type_names)
-    tensors = [graph_tensors(g, run.vocab) for g in graphs]
-    for t in tensors:  # labels are not needed at inference
-        t.edge_fine = t.axis_origin = t.axis_direction = t.has_axis = None
-    for start in range(0, len(tensors), max(1, batch_size)):
-        chunk = tensors[start:start + batch_size]
-        batch = collate(chunk, n_points=run.config.n_points).to(run.device)
-        res = run.model(batch)
-        probs = torch.softmax(res.logits, dim=1).double().cpu().numpy()
-        d = res.direction.double().cpu().numpy()
-        o = res.origin.double().cpu().numpy()
-        eo = batch.edge_offsets.tolist()
-        for b, t in enumerate(chunk):
-            s = slice(eo[b], eo[b + 1])
-            dd = d[s]
-            n = np.linalg.norm(dd, axis=1, keepdims=True)
-            dd = np.where(n > 0, dd / np.where(n > 0, n, 1.0), np.array([0.0, 1.0, 0.0]))
-            out.append(EdgePrediction(probs[s], dd, t.to_mesh(o[s])))
-            ap = ad = None
-            if getattr(res, "axis_logits", None) is not None:
-                ap = torch.softmax(res.axis_logits[s].double(), dim=1).cpu().numpy()
-                ad = res.axis_candidates[s].double().cpu().numpy()
-            priors.append(GNNPriors(probs[s].copy(), names, ap, ad))
-    return out, priors
-
-
-def predict_graphs(run: Run, graphs: Sequence[PartGraph], options: TreeOptions = TreeOptions(),
-                   batch_size: int = 8, consistent: bool = True) -> list[ShapePrediction]:
-    """Edge predictions and mobility trees of part graphs (see :func:`infer_edges`).
-
-    With ``consistent`` (default) fine types are made to agree with the predicted axes
-    (:func:`consistent_fine`).
-    """
-    preds, priors = infer_edges_with_priors(run, graphs, batch_size)
-    if consistent:
-        preds = [consistent_fine(g, p) for g, p in zip(graphs, preds)]
-    names = run.config.model.type_names
-    return [ShapePrediction(g, p, build_mobility_tree(g, p, options), names, pr)
-            for g, p, pr in zip(graphs, preds, priors)]
 
 
 def hierarchy_from_graph(graph: PartGraph) -> PartHierarchy:
@@ -257,7 +169,7 @@ def _summary_csv(rows: list[PredictRow]) -> str:
 
 def predict_dataset(
     data: str | Path,
-    run: str | Path | Run,
+    run: str | Path | Run | Predictor,
     out: str | Path,
     cache: str | Path | None = None,
     device: str = "auto",
@@ -274,8 +186,10 @@ def predict_dataset(
     ----------
     data : str or Path
         A dataset root (or one shape folder), PartNet or PartNet-Mobility format.
-    run : str, Path or Run
-        Run folder of ``kinmo train gnn`` (or a loaded run).
+    run : str, Path, Run or Predictor
+        Run folder of ``kinmo train gnn`` (or a loaded run), refined as ``axis_model`` and
+        ``refine_config`` say (:meth:`kinmo.inference.predictor.Predictor.from_parts`); or a
+        :class:`~kinmo.inference.predictor.Predictor` (then those are ignored).
     out : str or Path
         Output folder.
     cache : str or Path, optional
@@ -319,14 +233,8 @@ def predict_dataset(
     check_outputs_apart(out, [data, *([cache] if cache is not None else [])],
                         written=[*(f.name for f in folders), "predictions.csv"])
     out = output_dir(out)
-    r = run if isinstance(run, Run) else load_run(run, device)
-    axis_net = None
-    if axis_model is not None:
-        from kinmo.refine.train import load_axis_model
-
-        if not (Path(axis_model).is_dir() and not (Path(axis_model) / "model.pt").is_file()
-                and getattr(refine_config, "selector", "paper") == "ranker"):
-            axis_net = load_axis_model(axis_model, "cpu" if r.device.type == "cpu" else str(r.device))
+    predictor = run if isinstance(run, Predictor) else Predictor.from_parts(
+        run, axis_model, refine_config, options, device)
     if not folders:
         raise KinmoDataError(data, "no shape folder found")
     if cache is not None:
@@ -342,11 +250,7 @@ def predict_dataset(
                 shape = read_shape(folder)
                 sid = shape.id
                 graph = _graph_for(folder, data, shape, cache, cache_rows if cache is not None else None)
-                pred = predict_graphs(r, [graph], options)[0]
-                if axis_model is not None:
-                    from kinmo.refine.refine import refine_shape_prediction
-
-                    pred = refine_shape_prediction(pred, axis_net, refine_config, options)[0]
+                pred = predictor.predict(graph)
                 paths = write_prediction(pred, out / sid, shape, formats)
                 if render:
                     from kinmo.viz import render_prediction

@@ -11,7 +11,7 @@ For every shape folder below ``DIR`` (:func:`kinmo.data.readers.find_shapes`):
    from a ``kinmo prepare`` cache);
 2. predict every sibling edge's motion (:func:`kinmo.predict.infer_edges`), make the fine
    types agree with the predicted axes only with ``consistent=True``
-   (:func:`kinmo.predict.consistent_fine`, as ``kinmo predict`` and ``kinmo eval
+   (:func:`kinmo.mobility_tree.consistent_fine`, as ``kinmo predict`` and ``kinmo eval
    pre-segmented`` do; off by default, see :class:`PseudoLabelConfig`) and refine the axes
    of the moving ones (:func:`kinmo.refine.refine.refine_predictions`);
 3. build the mobility tree from the refined predictions
@@ -119,7 +119,7 @@ class PseudoLabelConfig(BaseModel):
         part) or the direction the axis-selection network found feasible.
     consistent : bool
         Make the fine types agree with the GNN's own axes before refining
-        (:func:`kinmo.predict.consistent_fine`, as the evaluated predictor does). Default
+        (:func:`kinmo.mobility_tree.consistent_fine`, as the evaluated predictor does). Default
         False (the paper's pipeline): the raw arg-max types, whose candidates may all be
         perpendicular to the GNN's axis (a ``P_V`` drawer with a horizontal axis scores
         direction agreement 0 and is rejected). That disagreement between the type and axis
@@ -237,8 +237,7 @@ def _fingerprint(source_fp: str, models_fp: str, config: PseudoLabelConfig) -> s
 
 @dataclass
 class _Models:
-    run: Any
-    axis: Any
+    predictor: Any
     models_fp: str
     gnn_path: str
     axis_path: str
@@ -247,15 +246,12 @@ class _Models:
 _WORKER_MODELS: _Models | None = None
 
 
-def _load_models(gnn_run: Path, axis_run: Path, device: str) -> _Models:
-    from kinmo.refine.train import load_axis_model
-    from kinmo.train.gnn import load_run
+def _load_models(gnn_run: Path, axis_run: Path, device: str, refine: Any = None) -> _Models:
+    from kinmo.inference.predictor import Predictor
 
     fp = _models_fingerprint(gnn_run, axis_run)
-    axis = None
-    if not (axis_run.is_dir() and not (axis_run / "model.pt").is_file()):
-        axis = load_axis_model(axis_run, device)
-    return _Models(load_run(gnn_run, device), axis, fp, str(gnn_run), str(axis_run))
+    return _Models(Predictor.from_parts(gnn_run, axis_run, refine, device=device), fp,
+                   str(gnn_run), str(axis_run))
 
 
 def _link_or_copy(src: Path, dst: Path, mode: str) -> None:
@@ -353,11 +349,10 @@ def pseudo_label_shape(
         Bad input gives status ``failed`` with the reason; nothing is raised for it.
     """
     from kinmo.data.build import build_graph
-    from kinmo.data.graph import PartGraph
+    from kinmo.data.cache import cached_graph
     from kinmo.data.readers import HIERARCHY_FILES, read_shape
-    from kinmo.mobility_tree import EdgePrediction, TreeOptions, build_mobility_tree
-    from kinmo.predict import consistent_fine, infer_edges, infer_edges_with_priors
-    from kinmo.refine.refine import refine_predictions
+    from kinmo.inference.gnn import predict_graphs
+    from kinmo.mobility_tree import TreeOptions
 
     t0 = time.perf_counter()
     folder = Path(folder)
@@ -369,32 +364,16 @@ def pseudo_label_shape(
         rec.id, rec.category = shape.id, shape.category
         graph = None
         if cache is not None:
-            p = Path(cache) / f"{cache_key(folder, root or folder.parent)}.npz"
-            if p.is_file():
-                graph = PartGraph.load(p)
+            graph = cached_graph(cache, cache_key(folder, root or folder.parent), folder)
         if graph is None:
             if cache is not None:
                 logger.debug("%s: not in the cache %s, building its part graph", folder, cache)
             graph = build_graph(shape)
-        prior = None
-        if config.refine.selector == "ranker":  # the GNN's raw outputs are its priors
-            preds, priors = infer_edges_with_priors(models.run, [graph])
-            pred, prior = preds[0], priors[0]
-        else:
-            pred = infer_edges(models.run, [graph])[0]
-        if config.consistent:
-            pred = consistent_fine(graph, pred)
-        if models.axis is None and config.refine.selector != "ranker":
-            raise KinmoDataError(models.axis_path, "no axis network (model.pt) for the paper's "
-                                 "scoring; give a run of `kinmo train axis` or a ranker")
-        refined = refine_predictions(graph, pred, models.axis, config.refine, priors=prior)
-        d = refined.axis_direction.copy()
-        tree_pred = EdgePrediction(pred.probs, d, refined.axis_origin.copy())
-        if config.refine.selector == "ranker":  # the fine type follows the selected axis
-            tree_pred = consistent_fine(graph, tree_pred)
-        type_names = refined.type_names
-        tree = build_mobility_tree(graph, tree_pred, TreeOptions(
-            tuple(config.hinge_limit), config.slider_fraction))
+        predictor = models.predictor
+        options = TreeOptions(tuple(config.hinge_limit), config.slider_fraction)
+        gnn = predict_graphs(predictor.run, [graph], options, consistent=config.consistent)[0]
+        sp, refined = predictor.refine_with_details(gnn, options=options)
+        tree, tree_pred, type_names = sp.tree, sp.edges, refined.type_names
         links = list(tree.links)
         joints: list[dict[str, Any]] = []
         for n, lk in enumerate(links):
@@ -473,13 +452,16 @@ def _record_from_json(d: dict[str, Any]) -> ShapeRecord:
     return ShapeRecord(**d)
 
 
-def _worker_init(gnn_run: str, axis_run: str, device: str) -> None:
+def _worker_init(gnn_run: str, axis_run: str, device: str, refine_json: dict | None = None) -> None:
     import torch
 
     torch.set_num_threads(1)
     os.environ.setdefault("RAYON_NUM_THREADS", "1")
     global _WORKER_MODELS
-    _WORKER_MODELS = _load_models(Path(gnn_run), Path(axis_run), device)
+    from kinmo.refine.config import RefineConfig
+
+    _WORKER_MODELS = _load_models(Path(gnn_run), Path(axis_run), device,
+                                  None if refine_json is None else RefineConfig(**refine_json))
 
 
 def _worker_run(folder: str | Path, out: str, config_json: dict, cache: str | None, root: str
@@ -625,13 +607,14 @@ def pseudo_label_dataset(
             workers = resolve_workers(workers, len(todo)) if workers >= 0 else 1
             if workers == 1 and parse_executor(executor).kind == "local":
                 # in this process: map_unordered calls fn directly, no initializer
-                models = _load_models(gnn_run, axis_run, config.device)
+                models = _load_models(gnn_run, axis_run, config.device, config.refine)
                 fn = partial(pseudo_label_shape, out=out, models=models, config=config,
                              cache=cache, root=data)
             else:  # each worker loads the models once (_worker_init)
                 fn = partial(_worker_run, out=str(out), config_json=config.model_dump(mode="json"),
                              cache=None if cache is None else str(cache), root=str(data))
             stage.map(fn, todo, workers, _worker_failed, initializer=_worker_init,
-                      initargs=(str(gnn_run), str(axis_run), config.device), executor=executor)
+                      initargs=(str(gnn_run), str(axis_run), config.device,
+                                config.refine.model_dump(mode="json")), executor=executor)
     return PseudoLabelResult(out, sorted(stage.results, key=lambda r: r.id), stage.n_skipped,
                              time.perf_counter() - t0)

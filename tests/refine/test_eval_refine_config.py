@@ -38,16 +38,16 @@ def setup(tmp_path_factory):
 @pytest.fixture
 def seen(monkeypatch):
     """The RefineConfig of every refine_shape_prediction call (the real function still runs)."""
-    import kinmo.refine.refine as rr
+    import kinmo.inference.predictor as ip
 
     configs = []
-    real = rr.refine_shape_prediction
+    real = ip.refine_shape_prediction
 
-    def spy(prediction, axis_model, config=None, options=None):
+    def spy(prediction, axis_model, config=None, options=None, meshes=None):
         configs.append(config)
-        return real(prediction, axis_model, config, options)
+        return real(prediction, axis_model, config, options, meshes=meshes)
 
-    monkeypatch.setattr(rr, "refine_shape_prediction", spy)
+    monkeypatch.setattr(ip, "refine_shape_prediction", spy)
     return configs
 
 
@@ -68,7 +68,7 @@ def test_refine_config_is_used_for_the_obb_columns(setup, seen):
     seen.clear()
     run_evaluation([setup / "fine"], setup / "cache", out=setup / "eval2", all_shapes=True,
                    device="cpu", progress=False, axis_model=setup / "axis")
-    assert seen == [None, None]  # default: the paper's scoring (RefineConfig())
+    assert seen == [RefineConfig()] * 2  # default: the paper's scoring
 
 
 def test_cli_flags_reach_the_refinement(setup, seen):

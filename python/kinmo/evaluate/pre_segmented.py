@@ -138,7 +138,8 @@ def run_evaluation(
         No model, unreadable runs or split, or no labelled test graph.
     """
     from kinmo.errors import KinmoDataError
-    from kinmo.predict import predict_graphs
+    from kinmo.inference.gnn import predict_graphs
+    from kinmo.inference.predictor import Predictor
     from kinmo.train.gnn import load_run
     from kinmo.train.split import Split
 
@@ -160,17 +161,9 @@ def run_evaluation(
     names = _model_names(runs)
     preds = {n: predict_graphs(r, graphs) for n, r in zip(names, runs)}
     if axis_model is not None:
-        from kinmo.refine.refine import refine_shape_prediction
-        from kinmo.refine.train import load_axis_model
-
-        net = None  # a folder with only a ranker.json: the learned selector needs no network
-        if not (Path(axis_model).is_dir() and not (Path(axis_model) / "model.pt").is_file()
-                and getattr(refine_config, "selector", "paper") == "ranker"):
-            net = load_axis_model(axis_model,
-                                  "cpu" if runs[0].device.type == "cpu" else str(runs[0].device))
-        for n in list(preds):
-            preds[n.replace("GNN_", "OBB_", 1)] = [refine_shape_prediction(p, net, refine_config)[0]
-                                                  for p in preds[n]]
+        refined = [Predictor.from_parts(r, axis_model, refine_config) for r in runs]
+        for (n, plist), pr in zip(list(preds.items()), refined):
+            preds[n.replace("GNN_", "OBB_", 1)] = [pr.refine_prediction(p) for p in plist]
     report = evaluate_graphs(graphs, preds)
     out = Path(out) if out is not None else runs[0].path / "eval"
     paths = write_report(report, out)

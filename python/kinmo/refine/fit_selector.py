@@ -91,7 +91,7 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
     dict of str to kinmo.predict.ShapePrediction
         By shape id, with :attr:`~kinmo.predict.ShapePrediction.priors`.
     """
-    from kinmo.predict import predict_graphs
+    from kinmo.inference.gnn import predict_graphs
     from kinmo.train.config import preset as make_preset
     from kinmo.train.gnn import load_run, train_gnn
     from kinmo.train.split import Split

@@ -38,6 +38,7 @@ Frames and units: mesh frame (y-up), mesh units.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -49,12 +50,15 @@ from kinmo.data.model import COARSE_TYPES, FINE_TYPES
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import EdgeRefinement, refine_edge, select_edge
 
+logger = logging.getLogger(__name__)
+
 __all__ = [
     "EdgePredictions",
     "EdgeRefinement",
     "RefineConfig",
     "RefinedPredictions",
     "as_edge_predictions",
+    "ranker_needs_meshes",
     "refine_edge",
     "refine_predictions",
     "refine_shape_prediction",
@@ -235,6 +239,12 @@ class RefinedPredictions:
         return {"edges": rows}
 
 
+def ranker_needs_meshes(ranker) -> bool:
+    """True when a ranker (:class:`kinmo.refine.ranker.Ranker`) uses mesh features (the
+    swept-collision terms, ``attach_mesh``)."""
+    return any(f.startswith("sweep") or f == "attach_mesh" for f in ranker.features)
+
+
 def refine_predictions(
     graph: PartGraph,
     edge_predictions: Any,
@@ -242,6 +252,7 @@ def refine_predictions(
     config: RefineConfig | None = None,
     only: Sequence[int] | None = None,
     priors=None,
+    meshes=None,
 ) -> RefinedPredictions:
     """Refine the axes of every edge the GNN predicts moving (``OBB_fine`` / ``OBB_coarse``).
 
@@ -261,6 +272,11 @@ def refine_predictions(
         The GNN's raw outputs (:func:`kinmo.predict.infer_edges_with_priors`), used by the
         learned selector; without them it takes the types of ``edge_predictions`` as type
         priors and no axis-candidate prior.
+    meshes : kinmo.refine.selector.ShapeMeshes, optional
+        The shape's leaf meshes, for a ranker with swept-collision / mesh features. Without
+        them they are read from the graph's source folder
+        (:func:`kinmo.refine.selector.shape_meshes`); when that fails too, a warning names
+        the shape and the point terms stand in (never silently).
 
     Returns
     -------
@@ -297,12 +313,14 @@ def refine_predictions(
         ranker = load_ranker(str(cfg.ranker))
         if priors is None:
             priors = GNNPriors(pred.type_prob, pred.type_names)
-        meshes = None
-        if moving.any() and any(f.startswith("sweep") or f == "attach_mesh"
-                                for f in ranker.features):
+        if meshes is None and moving.any() and ranker_needs_meshes(ranker):
             from kinmo.refine.selector import shape_meshes
 
             meshes = shape_meshes(graph)
+            if meshes is None:
+                logger.warning("%s: no meshes (source folder %s unreadable or not matching the "
+                               "graph): the ranker's sweep features use the point proxy",
+                               graph.shape_id, graph.meta.get("source", "unknown"))
     for k in np.flatnonzero(moving):
         i, j = (int(x) for x in pred.edges[k])
         if ranker is not None:
@@ -327,6 +345,7 @@ def refine_shape_prediction(
     axis_model,
     config: RefineConfig | None = None,
     options=None,
+    meshes=None,
 ):
     """Refine a :class:`kinmo.predict.ShapePrediction` and rebuild its mobility tree.
 
@@ -341,6 +360,8 @@ def refine_shape_prediction(
     axis_model : AxisSelectionNet
     config : RefineConfig, optional
     options : kinmo.mobility_tree.TreeOptions, optional
+    meshes : kinmo.refine.selector.ShapeMeshes, optional
+        The shape's leaf meshes (see :func:`refine_predictions`).
 
     Returns
     -------
@@ -357,7 +378,7 @@ def refine_shape_prediction(
     )
 
     refined = refine_predictions(prediction.graph, prediction.edges, axis_model, config,
-                                 priors=getattr(prediction, "priors", None))
+                                 priors=getattr(prediction, "priors", None), meshes=meshes)
     edges = EdgePrediction(np.asarray(prediction.edges.probs), refined.axis_direction.copy(),
                            refined.axis_origin.copy())
     if (config or RefineConfig()).selector == "ranker":

@@ -54,7 +54,7 @@ def four_settings(
         Models ``GNN_coarse``, ``GNN_fine``, ``OBB_coarse``, ``OBB_fine`` (those available).
     """
     from kinmo.evaluate.pre_segmented import evaluate_graphs
-    from kinmo.predict import predict_graphs
+    from kinmo.inference.gnn import predict_graphs
 
     preds: dict[str, list] = {}
     for kind, run in (("coarse", coarse_run), ("fine", fine_run)):
