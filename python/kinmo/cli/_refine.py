@@ -91,6 +91,35 @@ class RefineOptions:
     paper_selector: bool = False
     ranker: Optional[Path] = None  # noqa: UP007
 
+    def resolve(self, model: Any, axis_model: Any = None) -> tuple[Any, Any, Any]:
+        """What ``--model`` / ``--axis-model`` / ``--ranker`` name, resolved once
+        (:func:`kinmo.inference.bundle.resolve_bundle`: a bundle folder, or a GNN run with
+        the ranker found in or beside the axis folder).
+
+        Returns
+        -------
+        (Path, Path or None, RefineConfig)
+            The GNN run, the axis folder (None when there is neither an axis network nor a
+            ranker; the ranker's folder when there is only a ranker) and the
+            refinement configuration (the learned selector when a ranker was found, unless an
+            option of the paper's scoring is set).
+
+        Raises
+        ------
+        KinmoDataError
+            ``model`` is missing or a malformed bundle.
+        """
+        from dataclasses import replace
+
+        from kinmo.inference.bundle import resolve_bundle
+
+        b = resolve_bundle(model, axis_model, self.ranker)
+        rc = replace(self, ranker=b.ranker).config(b.axis)
+        # the learned selector needs no network (then the folder of its ranker.json stands for
+        # it); the paper's does (the Predictor names a folder without one)
+        axis = b.axis if b.has_axis_network or rc.selector != "ranker" else Path(rc.ranker).parent
+        return b.gnn, axis, rc
+
     def config(self, axis_model: Any = None) -> Any:
         """:func:`refine_config` of these options (``axis_model`` may hold a ranker.json)."""
         return refine_config(self.feasibility_only, self.keep_gnn, self.snap_angle,

@@ -14,7 +14,7 @@ from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 @eval_app.command("pre-segmented")
 @with_refine_options
 def pre_segmented_cmd(
-    model: Optional[list[Path]] = typer.Option(None, "--model", "-m", help="Run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns (default: the motion GNNs and axis network of the last `kinmo train all`, runs/all)."),  # noqa: UP007
+    model: Optional[list[Path]] = typer.Option(None, "--model", "-m", help="Model bundle folder (runs/all/model) or run folder(s) of `kinmo train gnn`; give a fine and a coarse run for both columns (default: the motion GNNs and axis network of the last `kinmo train all`, runs/all)."),  # noqa: UP007
     data: Path = typer.Option(..., "--data", "-d", help="Part-graph cache (`kinmo prepare`) or PartNet-Mobility dataset folder."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for table1.csv, table1.md, shapes.csv [default: first run folder/eval]."),  # noqa: UP007
     split: Optional[Path] = typer.Option(None, "--split", help="Split file; default: the first run's split.json. Shapes of DATA that are not its training ids are evaluated (the test split, or every new shape of another folder)."),  # noqa: UP007
@@ -47,8 +47,10 @@ def pre_segmented_cmd(
         Console(stderr=True).print(
             f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
             highlight=False, soft_wrap=True)
-    rc = refine.config(axis_model)
     with cli_errors(1):
+        resolved = [refine.resolve(m, axis_model) for m in model]
+        model = [r[0] for r in resolved]
+        axis_model, rc = resolved[0][1], resolved[0][2]
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,
                                        console=console, axis_model=axis_model,

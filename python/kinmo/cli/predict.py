@@ -16,7 +16,7 @@ from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 @with_refine_options
 def predict_cmd(
     data: Path = typer.Argument(..., metavar="DIR|FILE", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder; or your own part-segmented asset: a GLB/glTF scene (a node per part), an OBJ with o/g groups, a folder of part meshes, or a URDF (a link per part)."),
-    model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
+    model: Path = typer.Option(..., "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model: GNN, axis network, ranker; the learned selector by default) or a run folder of `kinmo train gnn`."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
@@ -43,9 +43,9 @@ def predict_cmd(
 
     console = Console()
     err = Console(stderr=True)
-    rc = refine.config(axis_model)
     check_formats(fmt)
     with cli_errors(1):
+        model, axis_model, rc = refine.resolve(model, axis_model)
         from kinmo.user_input import is_user_input, predict_user_input
 
         kw = dict(device=device, options=TreeOptions((0.0, hinge_max), slider_fraction),

@@ -17,8 +17,8 @@ from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 @with_refine_options
 def pseudo_label_cmd(
     data_dir: Path = typer.Argument(..., metavar="DIR", help="PartNet dataset folder (or one shape folder)."),
-    model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
-    axis_model: Path = typer.Option(..., "--axis-model", "-a", help="Run folder of `kinmo train axis` (its ranker.json, when present, selects the axes), or a folder holding only a ranker.json."),
+    model: Path = typer.Option(..., "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model) or a run folder of `kinmo train gnn`."),
+    axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis` (its ranker.json, or ../ranker/ranker.json, when present, selects the axes), or a folder holding only a ranker.json [default: the bundle's]."),  # noqa: UP007
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: one PartNet-Mobility folder per kept shape."),
     threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, help="Minimum refinement score of every joint of a kept shape."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
@@ -53,9 +53,14 @@ def pseudo_label_cmd(
         summary_rows,
     )
 
+    from kinmo.cli._errors import fail
+
     console = Console()
-    rc = refine.config(axis_model)
     check_formats(fmt)
+    with cli_errors(2):
+        model, axis_model, rc = refine.resolve(model, axis_model)
+    if axis_model is None:
+        fail("no axis network and no ranker: give a model bundle with them, or --axis-model", 2)
     with cli_errors(2, also=(ValueError,)):
         config = PseudoLabelConfig(
             threshold=threshold,

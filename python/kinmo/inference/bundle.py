@@ -201,8 +201,9 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
         tmp.mkdir()
         (tmp / "gnn").mkdir()
         shutil.copy2(gnn_pt, tmp / "gnn" / "model.pt")
-        if gnn.is_dir() and (gnn / "config.json").is_file():
-            shutil.copy2(gnn / "config.json", tmp / "gnn" / "config.json")
+        for name in ("config.json", "split.json"):  # eval reads the split of its run
+            if gnn.is_dir() and (gnn / name).is_file():
+                shutil.copy2(gnn / name, tmp / "gnn" / name)
         if axis is not None:
             axis = Path(axis)
             if axis.is_file():

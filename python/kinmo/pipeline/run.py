@@ -190,6 +190,29 @@ class _Context:
         self.res.stages["split"] = [str(split_file)]
         return split_file, hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]
 
+    def bundle(self, v: _Variant, base: dict[str, Any], gnn: Path, axis: Path | None,
+               ranker: Path | None, split_file: Path) -> Path:
+        """The ``model bundle`` stage: ``out/model/`` (:func:`kinmo.inference.bundle.write_bundle`)
+        with ``trained_on`` the split's training ids; rewritten when a part changed.
+
+        Returns
+        -------
+        Path
+            The bundle folder.
+        """
+        from kinmo.inference.bundle import write_bundle
+        from kinmo.stages import file_fingerprint
+        from kinmo.train.split import Split
+
+        folder = v.out / "model"
+        parts = [gnn / "model.pt", *([axis / "model.pt"] if axis is not None else []),
+                 *([ranker] if ranker is not None else [])]
+        key = {**base, "bundle": {str(p): file_fingerprint(p) for p in parts if p.is_file()}}
+        self.stage(folder, key, lambda: write_bundle(
+            folder, gnn, axis, ranker, Split.load(split_file).train), f"{v.prefix}model bundle")
+        self.res.stages[f"{v.prefix}model"] = [str(folder)]
+        return folder
+
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
         """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
         fit on out-of-fold GNN predictions of ``v``'s training objects
@@ -258,6 +281,10 @@ class _Context:
         from kinmo.refine.refine import RefineConfig
 
         refine = (RefineConfig(selector="ranker", ranker=str(ranker)) if ranker is not None else RefineConfig())
+
+        # 5b. the model bundle (issue 22): GNN (fine), axis network, ranker and the training
+        # ids in one folder that `--model` accepts whole (learned selector by default)
+        self.bundle(v, base, gnn_runs["fine"], axis_dir if cfg.refine else None, ranker, split_file)
 
         # 6. Table 1 on the held-out pre-segmented shapes (always the real labelled ones),
         # with renders of the predictions for the report's gallery; with the learned
