@@ -129,7 +129,7 @@ def test_shape_prediction_refinement_and_the_four_settings(model, tmp_path):
     from kinmo.models.motion_gnn import MotionGNN
     from kinmo.predict import ShapePrediction
     from kinmo.refine.refine import refine_shape_prediction
-    from kinmo.refine.table import four_settings
+    from kinmo.evaluate.settings import four_settings
     from kinmo.train.config import preset
     from kinmo.train.gnn import load_run, save_checkpoint
 

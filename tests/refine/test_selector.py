@@ -19,7 +19,7 @@ from kinmo.refine.selector import (
     fit_ranker,
     load_ranker,
 )
-from kinmo.refine.table import failure_kind
+from kinmo.evaluate.settings import failure_kind
 
 from motion_cabinet import cabinet_graph
 

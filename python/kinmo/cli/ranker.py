@@ -1,4 +1,4 @@
-"""``kinmo train ranker``: fit the learned candidate selector (:mod:`kinmo.refine.fit_selector`)."""
+"""``kinmo train ranker``: fit the learned candidate selector (:mod:`kinmo.train.ranker`)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def train_ranker_cmd(
     from rich.console import Console
 
     from kinmo.cli._errors import cli_errors, fail
-    from kinmo.refine.fit_selector import train_ranker
+    from kinmo.train.ranker import train_ranker
 
     ts = tuple(t.strip() for t in types.split(",") if t.strip())
     if not ts or any(t not in ("fine", "coarse") for t in ts):

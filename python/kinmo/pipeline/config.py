@@ -69,7 +69,7 @@ class PipelineConfig(BaseModel):
     selector : {"learned", "paper"}
         How refinement picks a candidate axis (Table 1's ``OBB_*`` rows, pseudo-labels):
         ``learned`` (kinmo extension, issue 11): the ranker of
-        :func:`kinmo.refine.fit_selector.train_ranker`, fit in the ``ranker`` stage on
+        :func:`kinmo.train.ranker.train_ranker`, fit in the ``ranker`` stage on
         out-of-fold GNN predictions of the training objects (fold GNNs of this preset);
         Table 1 then also gets the paper selector's rows (``eval/pre-segmented-paper/``).
         ``paper``: the paper's 0.5 feasibility + 0.3 direction + 0.2 position, no ranker.

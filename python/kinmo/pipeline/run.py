@@ -216,7 +216,7 @@ class _Context:
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
         """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
         fit on out-of-fold GNN predictions of ``v``'s training objects
-        (:func:`kinmo.refine.fit_selector.train_ranker`) into ``out/ranker/``.
+        (:func:`kinmo.train.ranker.train_ranker`) into ``out/ranker/``.
 
         Returns
         -------
@@ -452,7 +452,7 @@ class _Context:
 
 
 def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool) -> None:
-    """Fit the ranker of ``v`` into ``folder`` (:func:`kinmo.refine.fit_selector.train_ranker`
+    """Fit the ranker of ``v`` into ``folder`` (:func:`kinmo.train.ranker.train_ranker`
     on ``v``'s cache and split, fold GNNs of ``cfg.preset`` and ``cfg.gnn_epochs``).
 
     ``train_ranker`` skips a fold whose ``folds/<types>_<f>/model.pt`` exists; ``folds.json``
@@ -460,7 +460,7 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     """
     import shutil
 
-    from kinmo.refine.fit_selector import train_ranker
+    from kinmo.train.ranker import train_ranker
     from kinmo.train.config import preset as gnn_preset
 
     configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="cpu")

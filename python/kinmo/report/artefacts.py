@@ -44,7 +44,7 @@ def _table1_metrics() -> tuple[tuple[str, str, bool], ...]:
 
 
 def _paper_table1() -> dict[str, dict[str, float]]:
-    from kinmo.refine.table import PAPER_MEANS
+    from kinmo.evaluate.settings import PAPER_MEANS
 
     return {k: dict(v) for k, v in PAPER_MEANS.items()}
 

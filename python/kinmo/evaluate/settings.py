@@ -1,4 +1,5 @@
-"""The four settings of the paper's Table 1 (Liu et al. 2023, Sec. 4.1).
+"""The four settings of the paper's Table 1 (Liu et al. 2023, Sec. 4.1) (moved from
+``kinmo.refine.table``, issue 22: ``refine/`` stays below ``evaluate/``).
 
 - ``GNN_coarse`` / ``GNN_fine``: the motion GNN trained on coarse (5) or fine (10) types,
   axes as regressed;
@@ -17,6 +18,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from kinmo.data.graph import PartGraph
+from kinmo.evaluate.pre_segmented import evaluate_graphs
+from kinmo.inference.gnn import predict_graphs
 from kinmo.refine.refine import RefineConfig, refine_shape_prediction
 
 __all__ = ["FAILURE_KINDS", "PAPER_MEANS", "failure_kind", "failure_table", "four_settings"]
@@ -53,8 +56,6 @@ def four_settings(
     kinmo.evaluate.pre_segmented.EvalReport
         Models ``GNN_coarse``, ``GNN_fine``, ``OBB_coarse``, ``OBB_fine`` (those available).
     """
-    from kinmo.evaluate.pre_segmented import evaluate_graphs
-    from kinmo.inference.gnn import predict_graphs
 
     preds: dict[str, list] = {}
     for kind, run in (("coarse", coarse_run), ("fine", fine_run)):

@@ -1,0 +1,142 @@
+"""``kinmo train ranker``: out-of-fold motion GNNs on a split's training objects, then the
+learned candidate selector fit on their predictions (kinmo extension, issue 11).
+
+Moved here from :mod:`kinmo.refine.fit_selector` (issue 22) so that ``refine/`` stays below
+:mod:`kinmo.inference`: the fold GNNs are trained (:func:`kinmo.train.gnn.train_gnn`) and
+predict through :func:`kinmo.inference.gnn.predict_graphs`; the groups and the fit are
+:mod:`kinmo.refine.fit_selector`'s (see its docstring for the method).
+
+Outputs (``OUT/``): ``ranker.json``, ``cv.json``, ``oof_groups.npz``, ``folds/<types>_<f>/``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from kinmo.data.cache import load_cache
+from kinmo.data.graph import PartGraph
+from kinmo.errors import KinmoDataError
+from kinmo.inference.gnn import predict_graphs
+from kinmo.io import write_json
+from kinmo.refine.fit_selector import (
+    DEFAULT_FEATURES,
+    EdgeGroups,
+    collect_groups,
+    fit_selector,
+    fold_ids,
+)
+from kinmo.refine.ranker import Ranker
+from kinmo.refine.semantic_prior import SemanticPrior
+from kinmo.train.config import preset as make_preset
+from kinmo.train.gnn import load_run, train_gnn
+from kinmo.train.split import Split
+
+__all__ = ["oof_predictions", "train_ranker"]
+
+
+def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
+                    k: int = 3, preset: str = "quick", types: str = "fine", seed: int = 0,
+                    threads: int = 1, progress: bool = False, epochs: int | None = None
+                    ) -> dict[str, object]:
+    """Out-of-fold predictions of the training objects (module docstring).
+
+    Parameters
+    ----------
+    graphs : sequence of PartGraph
+        Labelled graphs (at least those of ``train_ids``).
+    train_ids : sequence of str
+        The training split's ids; only these are used.
+    out : Path
+        ``out/folds/<types>_<f>/`` receive the fold runs (skipped when their
+        ``model.pt`` exists).
+    k, preset, types, seed, threads
+        Folds and the GNN's training options (:func:`kinmo.train.config.preset`).
+    progress : bool
+    epochs : int, optional
+        The fold GNNs' epochs instead of the preset's (``kinmo train all --preset tiny``).
+
+    Returns
+    -------
+    dict of str to kinmo.predict.ShapePrediction
+        By shape id, with :attr:`~kinmo.predict.ShapePrediction.priors`.
+    """
+    by_id = {g.shape_id: g for g in graphs}
+    ids = [i for i in sorted(train_ids) if i in by_id]
+    cats = [by_id[i].category for i in ids]
+    folds = fold_ids(ids, cats, k, seed)
+    preds: dict[str, object] = {}
+    for f in range(k):
+        held = [i for i, ff in zip(ids, folds) if ff == f]
+        rest = [i for i, ff in zip(ids, folds) if ff != f]
+        run_dir = out / "folds" / f"{types}_{f}"
+        if not (run_dir / "model.pt").is_file():
+            cfg = make_preset(preset, types=types, seed=seed, threads=threads, device="cpu",
+                              epochs=epochs)
+            split = Split(rest, held, {i: by_id[i].category for i in ids}, seed, 1.0 / k)
+            train_gnn([by_id[i] for i in ids], run_dir, cfg, split, progress=progress)
+        run = load_run(run_dir, "cpu")
+        for p in predict_graphs(run, [by_id[i] for i in held]):
+            preds[p.shape_id] = p
+    return preds
+
+
+
+def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds: int = 3,
+                 preset: str = "quick", types: Sequence[str] = ("fine", "coarse"), seed: int = 0,
+                 threads: int = 1, progress: bool = True, epochs: int | None = None
+                 ) -> tuple[Ranker, dict]:
+    """``kinmo train ranker``: OOF GNNs on the split's training objects, then the ranker.
+
+    Parameters
+    ----------
+    data : str or Path
+        A ``kinmo prepare`` cache of PartNet-Mobility (labelled).
+    out : str or Path
+        Output folder: ``ranker.json``, ``cv.json``, ``oof_groups.npz``, ``folds/``.
+    split : str or Path
+        The GNN runs' ``split.json``: only its ``train`` ids are used.
+    folds, preset, seed, threads
+        OOF folds and the fold GNNs' training options.
+    epochs : int, optional
+        The fold GNNs' epochs instead of the preset's.
+    types : sequence of {"fine", "coarse"}
+        Fold GNNs of these type sets; their groups are pooled (one ranker serves both).
+    progress : bool
+
+    Returns
+    -------
+    (Ranker, dict)
+        The ranker (also written) and the cross-validated numbers (:func:`fit_selector`).
+
+    Raises
+    ------
+    KinmoDataError
+        No labelled graph of the split's training ids in ``data``, or no moving edge.
+    """
+    out = Path(out)
+    sp = Split.load(split)
+    train = set(sp.train)
+    graphs = [g for g in load_cache(data) if g.shape_id in train and g.has_labels]
+    if not graphs:
+        raise KinmoDataError(data, "no labelled graph of the split's training ids")
+    semantic = SemanticPrior.from_graphs(graphs)
+    parts = []
+    for t in types:
+        preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,
+                                seed=seed, threads=threads, progress=progress, epochs=epochs)
+        parts.append(collect_groups(list(preds.values()), seed=seed, semantic=semantic))
+    groups = EdgeGroups(*[[v for p in parts for v in getattr(p, f)]
+                          for f in EdgeGroups.__dataclass_fields__])
+    if not groups.y:
+        raise KinmoDataError(data, "no moving edge predicted moving in the out-of-fold predictions")
+    ranker, stats = fit_selector(groups, features=DEFAULT_FEATURES, k=folds, seed=seed)
+    ranker.semantic = semantic
+    ranker.meta["trained_on"] = {"data": str(data), "split": str(split), "types": list(types),
+                                 "preset": preset, "folds": folds}
+    groups.save(out / "oof_groups.npz")
+    ranker.save(out / "ranker.json")
+    write_json(out / "cv.json", {k: v for k, v in stats.items() if not isinstance(v, np.ndarray)})
+    return ranker, stats
