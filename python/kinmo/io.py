@@ -11,6 +11,9 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
+from kinmo.errors import KinmoDataError
+from kinmo.errors import KinmoError
+from kinmo.errors import KinmoUsageError
 
 
 def _read_umask() -> int:
@@ -73,7 +76,6 @@ def output_dir(path: str | Path) -> Path:
         ``path`` (or a parent) exists and is not a folder, or cannot be created; one line
         naming it.
     """
-    from kinmo.errors import KinmoDataError
 
     path = Path(path)
     if path.exists() and not path.is_dir():
@@ -119,7 +121,6 @@ def read_checkpoint(path: str | Path, fmt: str, what: str) -> dict[str, Any]:
 
     import torch
 
-    from kinmo.errors import KinmoDataError
 
     path = Path(path)
     try:
@@ -173,7 +174,6 @@ def folder_lock(folder: str | Path, command: str) -> Iterator[None]:
     KinmoError
         Another process holds the lock: ``"<folder>: another <command> is writing this folder"``.
     """
-    from kinmo.errors import KinmoError
 
     try:
         import fcntl
@@ -220,7 +220,6 @@ def check_outputs_apart(out: str | Path, inputs: Iterable[str | Path],
     KinmoUsageError
         One line naming ``out``, the input and what to do; the command line exits with code 2.
     """
-    from kinmo.errors import KinmoUsageError
 
     o = Path(os.path.realpath(out))
     names = None if written is None else set(written)

@@ -41,6 +41,11 @@ from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
 from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
 from kinmo.inference.predictor import Predictor
 from kinmo.train.gnn import Run, load_run
+from kinmo.data.model import ShapeFormat
+from kinmo.export import DEFAULT_FORMATS, export
+from kinmo.data.readers import find_shapes, read_shape
+from kinmo.io import check_outputs_apart, output_dir
+from kinmo.data.build import build_graph
 
 __all__ = [
     "PredictRow",
@@ -129,8 +134,6 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
         Format name -> its main file (``mobility_v2``, ``semantics``, ``urdf``, ``mjcf``,
         ``usd``, ``gltf`` as written) and ``edges``.
     """
-    from kinmo.data.model import ShapeFormat
-    from kinmo.export import DEFAULT_FORMATS, export
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -224,9 +227,7 @@ def predict_dataset(
     """
     from rich.progress import Progress
 
-    from kinmo.data.readers import find_shapes, read_shape
 
-    from kinmo.io import check_outputs_apart, output_dir
 
     data = Path(data)
     folders = find_shapes(data)
@@ -276,6 +277,5 @@ def _graph_for(folder: Path, root: Path, shape: Shape, cache: str | Path | None,
         graph = cached_graph(cache, cache_key(folder, root), folder, rows)
         if graph is not None:
             return graph
-    from kinmo.data.build import build_graph
 
     return build_graph(shape)

@@ -75,6 +75,10 @@ from kinmo.stages import (
     one_line,
     source_fingerprint,
 )
+from kinmo.data.graph import CACHE_VERSION, PartGraph
+from kinmo.data.build import build_graph
+from kinmo.data.readers import detect_format, read_meta, read_shape
+from kinmo.data.graph import CACHE_VERSION
 
 logger = logging.getLogger(__name__)
 
@@ -220,7 +224,6 @@ def _cached_row(npz: Path, key: str, folder: Path, config: PrepareConfig, fp: st
 
     The file is read whole and its checksum checked (:meth:`PartGraph.load`): a corrupt file
     is rebuilt, never reported up to date."""
-    from kinmo.data.graph import CACHE_VERSION, PartGraph
 
     if not npz.is_file():
         return None
@@ -291,8 +294,6 @@ def prepare_one(
         a one-line ``error``: a :class:`~kinmo.errors.KinmoDataError`'s message (naming the
         file), or for an unexpected exception ``"<folder>: internal error <Type>: <message>"``.
     """
-    from kinmo.data.build import build_graph
-    from kinmo.data.readers import detect_format, read_meta, read_shape
 
     t0 = time.perf_counter()
     folder = Path(path)
@@ -436,7 +437,6 @@ def prepare_dataset(
     out = output_dir(out)
 
     def save(rows: list[ManifestRow], complete: bool) -> None:
-        from kinmo.data.graph import CACHE_VERSION
 
         stages.write_manifest(
             out, sorted(rows, key=lambda r: r.id), MANIFEST_COLUMNS,

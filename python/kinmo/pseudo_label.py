@@ -79,6 +79,14 @@ from kinmo.executor import parse_executor
 from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
 from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
+from kinmo.inference.predictor import Predictor
+from kinmo.data.readers import read_shape
+from kinmo.export import export
+from kinmo.data.build import build_graph
+from kinmo.data.cache import cached_graph
+from kinmo.data.readers import HIERARCHY_FILES, read_shape
+from kinmo.inference.gnn import predict_graphs
+from kinmo.mobility_tree import TreeOptions
 
 logger = logging.getLogger(__name__)
 
@@ -247,7 +255,6 @@ _WORKER_MODELS: _Models | None = None
 
 
 def _load_models(gnn_run: Path, axis_run: Path, device: str, refine: Any = None) -> _Models:
-    from kinmo.inference.predictor import Predictor
 
     fp = _models_fingerprint(gnn_run, axis_run)
     return _Models(Predictor.from_parts(gnn_run, axis_run, refine, device=device), fp,
@@ -274,8 +281,6 @@ def _write_folder(
     config: PseudoLabelConfig, models: _Models,
 ) -> None:
     """Assemble the PartNet-Mobility folder of a kept shape in ``stage``."""
-    from kinmo.data.readers import read_shape
-    from kinmo.export import export
 
     stage.mkdir(parents=True)
     shutil.copyfile(hierarchy_file, stage / "result.json")
@@ -348,11 +353,6 @@ def pseudo_label_shape(
     ShapeRecord
         Bad input gives status ``failed`` with the reason; nothing is raised for it.
     """
-    from kinmo.data.build import build_graph
-    from kinmo.data.cache import cached_graph
-    from kinmo.data.readers import HIERARCHY_FILES, read_shape
-    from kinmo.inference.gnn import predict_graphs
-    from kinmo.mobility_tree import TreeOptions
 
     t0 = time.perf_counter()
     folder = Path(folder)

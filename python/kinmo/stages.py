@@ -65,6 +65,9 @@ from kinmo.errors import KinmoDataError
 from kinmo.executor import map_unordered
 from kinmo.io import folder_lock
 from kinmo.progress import CountingBar
+from kinmo.data.readers import find_shapes
+from kinmo import __version__
+from kinmo.io import write_json, write_text
 
 __all__ = [
     "MANIFEST_INTERVAL_S",
@@ -215,7 +218,6 @@ def shape_jobs(root: str | Path, required: bool = True) -> list[tuple[Path, str]
     KinmoDataError
         ``root`` is not a folder, or (``required``) holds no shape folder.
     """
-    from kinmo.data.readers import find_shapes
 
     root = Path(root)
     folders = find_shapes(root)
@@ -305,8 +307,6 @@ def write_manifest(
     complete : bool
         Every job of the run has its rows.
     """
-    from kinmo import __version__
-    from kinmo.io import write_json, write_text
 
     # surrogateescape: non-UTF-8 folder names are written back as their bytes (read_manifest
     # reads them the same way); manifest.json escapes them (\udcxx)

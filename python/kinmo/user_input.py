@@ -48,6 +48,12 @@ import numpy as np
 
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json
+from kinmo.data.readers import find_shapes
+from kinmo.export.kinematics import write_obj
+from kinmo.data.readers import read_shape
+from kinmo.export import DEFAULT_FORMATS, export
+from kinmo.predict import predict_dataset
+from kinmo.io import check_outputs_apart
 
 __all__ = [
     "MESH_SUFFIXES",
@@ -70,7 +76,6 @@ Part = tuple[str, np.ndarray, np.ndarray]
 
 def is_user_input(path: str | Path) -> bool:
     """True for a mesh/URDF file, or a folder of mesh files that holds no shape folder."""
-    from kinmo.data.readers import find_shapes
 
     path = Path(path)
     if path.is_file():
@@ -237,7 +242,6 @@ def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown
     KinmoDataError
         As :func:`read_parts`.
     """
-    from kinmo.export.kinematics import write_obj
 
     path, folder = Path(path), Path(folder)
     parts = read_parts(path)
@@ -290,11 +294,7 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
     KinmoUsageError
         ``out`` would overwrite ``path`` (:func:`kinmo.io.check_outputs_apart`).
     """
-    from kinmo.data.readers import read_shape
-    from kinmo.export import DEFAULT_FORMATS, export
-    from kinmo.predict import predict_dataset
 
-    from kinmo.io import check_outputs_apart
 
     path, out = Path(path), Path(out)
     stem = _clean(path.stem, 0)

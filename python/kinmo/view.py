@@ -28,6 +28,13 @@ import numpy as np
 
 from kinmo.data.model import Link, Shape
 from kinmo.errors import KinmoDataError
+from kinmo.export.kinematics import link_meshes
+from kinmo.urdf import urdf_joints
+from kinmo.io import write_text
+from kinmo.data.readers import read_links, read_shape
+from kinmo.data.readers import read_shape
+from kinmo.data.writers import write_mobility_v2
+from kinmo.errors import KinmoError
 
 __all__ = ["PLOT_HEIGHT", "PLOT_WIDTH", "SOURCE_FILE", "gallery_page", "view_folder",
            "viewer_data", "viewer_fragment", "viewer_head", "write_view_links", "write_viewer"]
@@ -200,8 +207,6 @@ def viewer_data(shape: Shape, links: Sequence[Link] | None = None,
     """
     import math
 
-    from kinmo.export.kinematics import link_meshes
-    from kinmo.urdf import urdf_joints
 
     links = list(shape.links or [] if links is None else links)
     if not links:
@@ -283,7 +288,6 @@ def viewer_fragment(data: dict, div_id: str) -> str:
 
 def write_viewer(path: str | Path, data: dict) -> Path:
     """Write a self-contained viewer page (atomically) for ``data`` (:func:`viewer_data`)."""
-    from kinmo.io import write_text
 
     path = Path(path)
     page = ("<!doctype html>\n<html><head><meta charset=\"utf-8\">"
@@ -325,7 +329,6 @@ def view_folder(folder: str | Path, out: str | Path | None = None,
     KinmoDataError
         Unreadable folders, links naming parts missing from the hierarchy.
     """
-    from kinmo.data.readers import read_links, read_shape
 
     folder = Path(folder)
     truth_links = None
@@ -361,9 +364,6 @@ def write_view_links(folder: str | Path, links: Sequence[Link], source: str | Pa
     KinmoDataError
         ``source`` is not a readable shape folder, or the links are inconsistent.
     """
-    from kinmo.data.readers import read_shape
-    from kinmo.data.writers import write_mobility_v2
-    from kinmo.io import write_text
 
     folder = Path(folder)
     shape = read_shape(source)
@@ -391,9 +391,6 @@ def gallery_page(folders: Sequence[str | Path], path: str | Path, title: str = "
     (Path, list of str)
         The page and, per folder that could not be shown, ``"<folder>: <reason>"``.
     """
-    from kinmo.data.readers import read_links, read_shape
-    from kinmo.errors import KinmoError
-    from kinmo.io import write_text
 
     parts, problems = [], []
     for k, folder in enumerate(folders):

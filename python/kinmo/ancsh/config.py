@@ -33,6 +33,7 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
+from kinmo.train.loop import override, preset_values
 
 __all__ = ["PRESETS", "SETTINGS", "ANCSHConfig", "preset"]
 
@@ -222,6 +223,5 @@ def preset(name: str, **overrides: Any) -> ANCSHConfig:
     ValueError
         Unknown preset or field, or an invalid value.
     """
-    from kinmo.train.loop import override, preset_values
 
     return ANCSHConfig.model_validate(override(preset_values(PRESETS, name), overrides, "ANCSH training"))

@@ -46,6 +46,7 @@ from kinmo.ancsh.objects import (
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts
 from kinmo.ancsh.targets import joint_targets
 from kinmo.errors import KinmoDataError
+from kinmo.render.dataset import load_frame
 
 __all__ = [
     "ANCSHFrames",
@@ -296,7 +297,6 @@ def load_samples(
     KinmoDataError
         Unreadable frame, unknown object key, or an object not fitting ``structure``.
     """
-    from kinmo.render.dataset import load_frame
 
     out: list[FrameSample] = []
     skipped: list[str] = []

@@ -61,6 +61,17 @@ from kinmo.ancsh.table2 import (
     table2_markdown,
 )
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.ancsh.objects import category_key
+from kinmo.ancsh.structure import structure_slug
+from kinmo.ancsh.inference import load_run
+from kinmo.io import write_json, write_text
+from kinmo.train.loop import rows_csv
+from kinmo.ancsh.objects import scan_category
+from kinmo.ancsh.inference import predict_scans, quiet_estimate
+from kinmo.ancsh.scans import render_objects
+from kinmo.train.loop import torch_threads
+from kinmo.render.dataset import load_frame
+from kinmo.train.split import Split
 
 #: ``table2.csv`` text (:func:`kinmo.ancsh.table2.table2_csv`; this name is kept for the
 #: report's test fixtures).
@@ -94,7 +105,6 @@ def find_runs(paths: Sequence[str | Path], category: str | None = None) -> list[
     """
     import json
 
-    from kinmo.ancsh.objects import category_key
 
     found: list[tuple[int, str, Path]] = []
     seen: set[Path] = set()
@@ -227,11 +237,6 @@ def evaluate_category(
     """
     import json
 
-    from kinmo.ancsh.objects import category_key
-    from kinmo.ancsh.structure import structure_slug
-    from kinmo.ancsh.inference import load_run
-    from kinmo.io import write_json, write_text
-    from kinmo.train.loop import rows_csv
 
     t0 = time.perf_counter()
     if not runs:
@@ -375,12 +380,6 @@ def _evaluate_structure(
     KinmoError
         A test object a run trained on.
     """
-    from kinmo.ancsh.objects import scan_category
-    from kinmo.ancsh.inference import predict_scans, quiet_estimate
-    from kinmo.ancsh.scans import render_objects
-    from kinmo.train.loop import torch_threads
-    from kinmo.render.dataset import load_frame
-    from kinmo.train.split import Split
 
     cat = scan_category(data, category, structure)
     refused: list[str] = []

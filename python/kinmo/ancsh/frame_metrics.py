@@ -21,6 +21,7 @@ from kinmo.ancsh.symmetry import align_about_axis
 from kinmo.errors import KinmoDataError
 from kinmo.metrics.axis import axis_angle_deg, line_distance
 from kinmo.metrics.pose import box_iou_3d, rotation_error_deg
+from kinmo.ancsh.pose_fitting import Similarity
 
 __all__ = [
     "FrameErrors",
@@ -120,7 +121,6 @@ def frame_truth(frame: Mapping[str, Any], parts: ObjectParts) -> FrameTruth:
 def ground_truth_estimate(truth: FrameTruth, segmentation: np.ndarray | None = None) -> ANCSHEstimate:
     """An :class:`~kinmo.ancsh.postprocess.ANCSHEstimate` equal to the ground truth (the
     identity check of the metric path: :func:`frame_errors` of it is zero, IoU one)."""
-    from kinmo.ancsh.pose_fitting import Similarity
 
     parts = [PartPose(p.rotation.copy(), p.translation.copy(), p.scale, p.box_half.copy(), p.n_points)
              for p in truth.parts]

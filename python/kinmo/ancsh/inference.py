@@ -30,6 +30,7 @@ from kinmo.ancsh.model import ANCSH
 from kinmo.ancsh.structure import KinematicStructure
 from kinmo.train.loop import build_or_refuse, load_checkpoint, resolve_device
 from kinmo.train.loop import save_checkpoint as _save
+from kinmo.ancsh.postprocess import estimate
 
 __all__ = [
     "CHECKPOINT_FORMAT",
@@ -184,7 +185,6 @@ def quiet_estimate(points: np.ndarray, pred: dict[str, np.ndarray], structure: K
     (expected for the wild predictions of an undertrained network)."""
     import warnings
 
-    from kinmo.ancsh.postprocess import estimate
 
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)

@@ -25,6 +25,10 @@ import numpy as np
 
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts, category_structure, object_parts
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.data.labels import rigid_groups
+from kinmo.render.ancsh_gt import link_meshes
+from kinmo.data.readers import read_shape
+from kinmo.data.readers import find_shapes, read_meta
 
 __all__ = [
     "CategoryObjects",
@@ -94,8 +98,6 @@ def link_centroids(shape: Any) -> dict[int, np.ndarray]:
     KinmoDataError
         A mesh is missing or malformed.
     """
-    from kinmo.data.labels import rigid_groups
-    from kinmo.render.ancsh_gt import link_meshes
 
     links = list(shape.links or [])
     groups = rigid_groups(links)
@@ -141,7 +143,6 @@ def object_parts_of(folder: str | Path) -> tuple[Any, ObjectParts | None]:
     KinmoDataError
         Unreadable object, or not in the PartNet-Mobility format.
     """
-    from kinmo.data.readers import read_shape
 
     shape = read_shape(folder)
     if not shape.links:
@@ -219,7 +220,6 @@ def scan_category(
     KinmoError
         No object of that category under ``root``.
     """
-    from kinmo.data.readers import find_shapes, read_meta
 
     root = Path(root)
     folders: dict[str, Path] = {}

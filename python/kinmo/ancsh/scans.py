@@ -14,6 +14,8 @@ from pathlib import Path
 from kinmo.ancsh.config import ANCSHConfig
 from kinmo.ancsh.objects import category_key
 from kinmo.errors import KinmoDataError
+from kinmo.render.dataset import RenderConfig, render_dataset
+from kinmo.data.readers import find_shapes, read_meta
 
 __all__ = ["all_categories", "category_folders", "render_objects"]
 
@@ -69,7 +71,6 @@ def render_objects(
     failed : dict of str to str
         Object key -> reason for objects that failed.
     """
-    from kinmo.render.dataset import RenderConfig, render_dataset
 
     objects_dir, scans_dir = Path(objects_dir), Path(scans_dir)
     if not folders:
@@ -92,7 +93,6 @@ def render_objects(
 
 def all_categories(root: Path) -> tuple[list[str], list[str]]:
     """Ids and categories of every PartNet-Mobility object under ``root``."""
-    from kinmo.data.readers import find_shapes, read_meta
 
     ids, cats = [], []
     for f in find_shapes(root):
@@ -108,7 +108,6 @@ def all_categories(root: Path) -> tuple[list[str], list[str]]:
 
 def category_folders(root: Path, category: str) -> dict[str, Path]:
     """Shape folders of ``category`` under ``root`` (either format), by folder name."""
-    from kinmo.data.readers import find_shapes, read_meta
 
     out: dict[str, Path] = {}
     for f in find_shapes(root):

@@ -43,6 +43,11 @@ from kinmo.ancsh.postprocess import ANCSHEstimate
 from kinmo.ancsh.structure import KinematicStructure
 from kinmo.ancsh.targets import joint_targets
 from kinmo.errors import KinmoDataError
+from kinmo.data.readers import read_hierarchy
+from kinmo.train.loop import rows_csv
+from kinmo.ancsh.inference import predict_scans, quiet_estimate
+from kinmo.ancsh.scans import category_folders, render_objects
+from kinmo.render.dataset import load_frame
 
 __all__ = ["CUBE_MARGIN", "MIN_IN_CUBE", "RECORD_COLUMNS", "pose_npcs", "pseudo_sample", "records_csv",
            "scan_confidence", "semi_pseudo_targets", "softmax", "unlabeled_object"]
@@ -98,7 +103,6 @@ def unlabeled_object(source: str | Path, dest: str | Path) -> Path:
     KinmoDataError
         ``source`` is not a readable PartNet shape.
     """
-    from kinmo.data.readers import read_hierarchy
 
     src, dst = Path(source).resolve(), Path(dest)
     if not (src / "objs").is_dir():
@@ -258,7 +262,6 @@ RECORD_COLUMNS = ("id", "frame", "n_points", "seg_confidence", "inlier_ratio", "
 
 def records_csv(records: list[dict[str, Any]]) -> str:
     """``pseudo_targets.csv`` text (:data:`RECORD_COLUMNS`) of :func:`semi_pseudo_targets`'s records."""
-    from kinmo.train.loop import rows_csv
 
     return rows_csv(records, RECORD_COLUMNS, digits=None, nan="nan")
 
@@ -298,9 +301,6 @@ def semi_pseudo_targets(
     """
     import math
 
-    from kinmo.ancsh.inference import predict_scans, quiet_estimate
-    from kinmo.ancsh.scans import category_folders, render_objects
-    from kinmo.render.dataset import load_frame
 
     shapes = {k: f for k, f in category_folders(partnet, cat.category).items()
               if (f / "objs").is_dir() and k not in test_ids}

@@ -14,6 +14,8 @@ categories (and objects) with a single structure per category.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from kinmo.data.labels import rigid_groups
+from kinmo.data.model import JointType
 
 
 @dataclass(frozen=True)
@@ -99,8 +101,6 @@ def object_parts(links: list, centroids: dict[int, "object"] | None = None) -> O
     ObjectParts, or None when the object has a cylindrical joint (slider that rotates), which
     ANCSH's revolute/prismatic structures cannot express, or no moving joint.
     """
-    from kinmo.data.labels import rigid_groups
-    from kinmo.data.model import JointType
 
     groups = rigid_groups(links)
     by_id = {lk.id: lk for lk in links}

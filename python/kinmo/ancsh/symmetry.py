@@ -36,6 +36,8 @@ import numpy as np
 
 from kinmo.ancsh.postprocess import PartPose
 from kinmo.ancsh.structure import ObjectParts
+from kinmo.geometry.sampling import sample_surface
+from kinmo.render.ancsh_gt import link_meshes
 
 __all__ = ["MAX_RATIO", "TEST_ANGLES_DEG", "align_about_axis", "axis_rotation", "part_symmetry_axes",
            "symmetry_ratio"]
@@ -110,8 +112,6 @@ def part_symmetry_axes(shape: Any, parts: ObjectParts, n_points: int = 3000, see
         Per ANCSH part: its symmetry axis in the mesh frame (= NPCS directions), or None.
         Of several symmetric candidates, the one with the lowest ratio.
     """
-    from kinmo.geometry.sampling import sample_surface
-    from kinmo.render.ancsh_gt import link_meshes
 
     meshes = link_meshes(shape)
     by_id = {lk.id: lk for lk in shape.links}

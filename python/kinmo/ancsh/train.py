@@ -72,6 +72,9 @@ from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.io import write_json, write_text
 from kinmo.train import distributed
 from kinmo.train.loop import training_session
+from kinmo.ancsh.config import SETTINGS, preset
+from kinmo.train.loop import resolve_device
+from kinmo.train.split import Split, make_split
 
 #: ``metrics.csv`` text of a run (:func:`kinmo.ancsh.fit.metrics_csv`; this name is kept for
 #: the report's test fixtures).
@@ -211,10 +214,7 @@ def train_ancsh(
     ValueError
         Unknown setting.
     """
-    from kinmo.ancsh.config import SETTINGS, preset
     from kinmo.ancsh.semi import records_csv, semi_pseudo_targets
-    from kinmo.train.loop import resolve_device
-    from kinmo.train.split import Split, make_split
 
     if setting not in SETTINGS:
         raise ValueError(f"unknown setting {setting!r} (choose from {', '.join(SETTINGS)})")

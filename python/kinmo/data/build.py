@@ -33,6 +33,8 @@ from kinmo.data.graph import CACHE_VERSION, PartGraph
 from kinmo.data.labels import label_sibling_edges
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES, Link, Shape, ShapeFormat
 from kinmo.errors import KinmoDataError
+from kinmo.geometry import load_obj, load_objs
+from kinmo.geometry import contact_pairs, fit_obb_batch, sample_surface_groups
 
 __all__ = ["build_graph", "links_to_json", "load_shape_meshes"]
 
@@ -87,7 +89,6 @@ def load_shape_meshes(paths: list[Path]) -> list[tuple[np.ndarray, np.ndarray]]:
         several meshes of a leaf: a part silently missing its geometry would be cached as
         "ok".
     """
-    from kinmo.geometry import load_obj, load_objs
 
     try:
         meshes = load_objs(paths)
@@ -156,7 +157,6 @@ def build_graph(
     ValueError
         Bad parameters.
     """
-    from kinmo.geometry import contact_pairs, fit_obb_batch, sample_surface_groups
 
     if n_points < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")

@@ -32,6 +32,14 @@ from kinmo.evaluate.tables import (
     report_markdown,
     write_report,
 )
+from kinmo.data.cache import load_cache
+from kinmo.data.build import build_graph
+from kinmo.data.readers import find_shapes, read_shape
+from kinmo.errors import KinmoDataError
+from kinmo.inference.gnn import predict_graphs
+from kinmo.inference.predictor import Predictor
+from kinmo.train.gnn import load_run
+from kinmo.train.split import Split
 
 __all__ = [
     "METRICS",
@@ -62,14 +70,11 @@ def _model_names(runs: Sequence) -> list[str]:
 
 
 def _load_graphs(data: Path, progress: bool) -> list[PartGraph]:
-    from kinmo.data.cache import load_cache
 
     if (data / "manifest.csv").is_file() or any(data.glob("*.npz")):
         return load_cache(data)
     from rich.progress import Progress
 
-    from kinmo.data.build import build_graph
-    from kinmo.data.readers import find_shapes, read_shape
 
     folders = find_shapes(data)
     out = []
@@ -137,11 +142,6 @@ def run_evaluation(
     KinmoDataError
         No model, unreadable runs or split, or no labelled test graph.
     """
-    from kinmo.errors import KinmoDataError
-    from kinmo.inference.gnn import predict_graphs
-    from kinmo.inference.predictor import Predictor
-    from kinmo.train.gnn import load_run
-    from kinmo.train.split import Split
 
     if not models:
         raise KinmoDataError("--model", "give at least one run folder")

@@ -21,6 +21,8 @@ from kinmo.data.graph import PartGraph
 from kinmo.evaluate.pre_segmented import evaluate_graphs
 from kinmo.inference.gnn import predict_graphs
 from kinmo.refine.refine import RefineConfig, refine_shape_prediction
+from kinmo.metrics.axis import axis_angle_deg, line_distance
+from kinmo.data.model import FINE_TYPES
 
 __all__ = ["FAILURE_KINDS", "PAPER_MEANS", "failure_kind", "failure_table", "four_settings"]
 
@@ -98,7 +100,6 @@ def failure_kind(direction, origin, true_direction, true_origin, scale: float, r
     """
     import numpy as np
 
-    from kinmo.metrics.axis import axis_angle_deg, line_distance
 
     a = float(axis_angle_deg(direction, true_direction))
     if a > 45.0:
@@ -126,7 +127,6 @@ def failure_table(predictions: dict[str, Sequence]) -> dict[str, dict[str, int]]
     """
     import numpy as np
 
-    from kinmo.data.model import FINE_TYPES
 
     out: dict[str, dict[str, int]] = {}
     for name, preds in predictions.items():

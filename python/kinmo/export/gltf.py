@@ -29,6 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from kinmo.export import ExportContext, register
+from kinmo.urdf import urdf_joints
+from kinmo.io import atomic_path
+from kinmo.urdf import link_frame_origins
 
 __all__ = ["KEYFRAMES", "joint_samples", "write_gltf"]
 
@@ -45,7 +48,6 @@ def joint_samples(ctx: ExportContext) -> dict[int, np.ndarray]:
         Link id -> ``(translation, rotation)`` per key (mesh units, radians), sweeping the
         URDF range of each degree of freedom from lower to upper.
     """
-    from kinmo.urdf import urdf_joints
 
     out: dict[int, np.ndarray] = {}
     t = np.linspace(0.0, 1.0, KEYFRAMES)
@@ -80,8 +82,6 @@ def write_gltf(ctx: ExportContext) -> list[Path]:
     """
     import pygltflib as g
 
-    from kinmo.io import atomic_path
-    from kinmo.urdf import link_frame_origins
 
     frames = link_frame_origins(ctx.links, ctx.shape.path)
     by_id = {l.id: l for l in ctx.links}

@@ -28,6 +28,7 @@ import numpy as np
 
 from kinmo.data.model import JointType, Link, Shape
 from kinmo.errors import KinmoDataError
+from kinmo.render.ancsh_gt import link_meshes as leaf_meshes
 
 __all__ = [
     "JointValue",
@@ -181,7 +182,6 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
     KinmoDataError
         A link names a part missing from the hierarchy, or a mesh file cannot be read.
     """
-    from kinmo.render.ancsh_gt import link_meshes as leaf_meshes
 
     links = list(shape.links or [] if links is None else links)
     for link in links:

@@ -31,6 +31,9 @@ from pathlib import Path
 
 from kinmo.export import ExportContext, register
 from kinmo.io import atomic_path, write_text
+from kinmo.urdf import link_frame_origins, urdf_joints
+from kinmo.export.kinematics import write_obj
+from kinmo.export.urdf import convex_pieces
 
 __all__ = ["mjcf_string", "write_mjcf"]
 
@@ -46,7 +49,6 @@ def mjcf_string(ctx: ExportContext, meshes: dict[int, str],
     ``meshes``: link id -> visual mesh file name; ``collision``: link id -> convex piece file
     names (all relative to ``meshes/``, in the mesh frame).
     """
-    from kinmo.urdf import link_frame_origins, urdf_joints
 
     joints = urdf_joints(ctx.links, ctx.shape.path)
     frames = link_frame_origins(ctx.links, ctx.shape.path)
@@ -111,8 +113,6 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
     KinmoDataError
         Inconsistent links (as :func:`kinmo.urdf.urdf_joints`) or unreadable meshes.
     """
-    from kinmo.export.kinematics import write_obj
-    from kinmo.export.urdf import convex_pieces
 
     mdir = ctx.out_dir / "meshes"
     mdir.mkdir(parents=True, exist_ok=True)

@@ -36,6 +36,8 @@ from kinmo.errors import KinmoDataError
 from kinmo.export import ExportContext, register
 from kinmo.export.kinematics import LinkMesh, write_obj
 from kinmo.io import atomic_path, write_text
+from kinmo.urdf import write_urdf
+from kinmo.urdf import BASE_LINK
 
 __all__ = ["UrdfLink", "convex_pieces", "read_urdf", "read_urdf_tree", "write_urdf_convex"]
 
@@ -172,7 +174,6 @@ def write_urdf_convex(ctx: ExportContext, path: Path | None = None) -> list[Path
     list of Path
         The URDF, then the collision OBJ files.
     """
-    from kinmo.urdf import write_urdf
 
     path = path or ctx.out_dir / "mobility.urdf"
     pieces: dict[int, list[str]] = {}
@@ -289,7 +290,6 @@ def read_urdf(path: str | Path) -> list[Link]:
         Unreadable XML, a link with two parents, links not named ``link_<id>``, joints
         without origin/axis numbers (message names the file).
     """
-    from kinmo.urdf import BASE_LINK
 
     path = Path(path)
     ulinks, joints = read_urdf_tree(path)

@@ -33,6 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from kinmo.export import ExportContext, register
+from kinmo.io import atomic_path
+from kinmo.urdf import link_frame_origins, urdf_joints
 
 __all__ = ["axis_quaternion", "write_usd"]
 
@@ -66,8 +68,6 @@ def write_usd(ctx: ExportContext) -> list[Path]:
     """
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, Vt
 
-    from kinmo.io import atomic_path
-    from kinmo.urdf import link_frame_origins, urdf_joints
 
     joints = urdf_joints(ctx.links, ctx.shape.path)
     frames = link_frame_origins(ctx.links, ctx.shape.path)

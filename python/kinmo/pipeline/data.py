@@ -9,6 +9,10 @@ from pathlib import Path
 from typing import Any
 
 from kinmo.errors import KinmoDataError
+from kinmo.errors import KinmoError
+from kinmo.synth import CATEGORIES
+from kinmo.data.cache import load_cache
+from kinmo.data.readers import find_shapes
 
 __all__ = ["FoundData", "find_data", "missing_data_message"]
 
@@ -119,9 +123,6 @@ def _synth_categories(cache: Path) -> list[str]:
     KinmoError
         None of them.
     """
-    from kinmo.errors import KinmoError
-    from kinmo.synth import CATEGORIES
-    from kinmo.data.cache import load_cache
 
     real = sorted({g.category for g in load_cache(cache)})
     cats = [c for c in real if c in CATEGORIES]
@@ -135,7 +136,6 @@ def _graphs(source: Any) -> Any:
     """A cache folder as is, or the graphs of several caches concatenated."""
     if isinstance(source, (str, Path)):
         return source
-    from kinmo.data.cache import load_cache
 
     return [g for c in source for g in load_cache(c)]
 
@@ -143,7 +143,6 @@ def _graphs(source: Any) -> Any:
 def _link_folder(folder: Path, sources: list[Path]) -> Path:
     """``folder`` holding a symbolic link to every shape folder of ``sources`` (a dataset made
     of several); links are replaced, nothing else is touched."""
-    from kinmo.data.readers import find_shapes
 
     folder.mkdir(parents=True, exist_ok=True)
     for src in sources:

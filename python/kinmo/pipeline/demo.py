@@ -8,6 +8,7 @@ from typing import Any
 from kinmo.pipeline.config import TINY, PipelineConfig
 from kinmo.pipeline.run import run_pipeline
 from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
+from kinmo.synth import CATEGORIES, SYNTH_VERSION, generate_dataset
 
 __all__ = ["DEMO_CATEGORIES", "TINY_CATEGORIES", "run_demo"]
 
@@ -61,7 +62,6 @@ def run_demo(
     """
     from rich.console import Console
 
-    from kinmo.synth import CATEGORIES, SYNTH_VERSION, generate_dataset
 
     console = console or Console(stderr=True)
     out = Path(out)

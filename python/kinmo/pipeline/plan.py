@@ -10,6 +10,12 @@ from typing import Any
 
 from kinmo.errors import KinmoDataError
 from kinmo.runs import DEFAULT_RUN
+from kinmo.ancsh.objects import category_key
+from kinmo.ancsh.structure import structure_groups
+from kinmo.errors import KinmoError
+from kinmo.ancsh.structure import object_parts
+from kinmo.data.readers import find_shapes, read_shape
+from kinmo.train.split import make_split
 
 __all__ = ["ANCSH_PLAN_FILE", "CategoryRuns", "ancsh_plan", "category_runs", "default_categories",
            "structure_split"]
@@ -50,9 +56,6 @@ def ancsh_plan(labeled: Path, split_file: Path | None = None, categories: list[s
     KinmoError
         A named category has no object under ``labeled``.
     """
-    from kinmo.ancsh.objects import category_key
-    from kinmo.ancsh.structure import structure_groups
-    from kinmo.errors import KinmoError
 
     per = _object_structures(labeled)
     test: set[str] = set()
@@ -88,8 +91,6 @@ def ancsh_plan(labeled: Path, split_file: Path | None = None, categories: list[s
 def _object_structures(labeled: Path) -> dict[str, dict[str, Any]]:
     """Category → object id → its ANCSH parts (None: not expressible) of every readable
     PartNet-Mobility object under ``labeled``."""
-    from kinmo.ancsh.structure import object_parts
-    from kinmo.data.readers import find_shapes, read_shape
 
     per: dict[str, dict[str, Any]] = {}
     for path in find_shapes(labeled):
@@ -126,7 +127,6 @@ def structure_split(labeled: Path, test_fraction: float = 0.25, seed: int = 0) -
     """
     from collections import Counter
 
-    from kinmo.train.split import make_split
 
     per = _object_structures(labeled)
     key = {(c, i): (o.structure.signature() if o is not None else None) for c, objs in per.items()
@@ -200,7 +200,6 @@ def category_runs(category: str, cwd: Path | None = None) -> CategoryRuns:
     -------
     CategoryRuns
     """
-    from kinmo.ancsh.objects import category_key
 
     cwd = Path.cwd() if cwd is None else cwd
     key = category_key(category)

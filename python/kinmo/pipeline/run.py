@@ -18,6 +18,25 @@ from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
 from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
 from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
 from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
+from kinmo.prepare import PrepareConfig
+from kinmo.report import write_report
+from kinmo.train.ranker import train_ranker
+from kinmo.train.config import preset as gnn_preset
+from kinmo.prepare import prepare_dataset
+from kinmo.data.readers import find_shapes
+from kinmo.inference.bundle import write_bundle
+from kinmo.stages import file_fingerprint
+from kinmo.train.split import Split
+from kinmo.train.gnn import train_gnn
+from kinmo.refine.train import preset_config as axis_preset
+from kinmo.refine.train import train_axis_model
+from kinmo.refine.refine import RefineConfig
+from kinmo.evaluate.pre_segmented import run_evaluation
+from kinmo.ancsh.config import preset as ancsh_preset
+from kinmo.ancsh.evaluate import evaluate_category
+from kinmo.ancsh.structure import structure_slug
+from kinmo.synth import SYNTH_VERSION, generate_dataset
+from kinmo.data.cache import load_cache
 
 __all__ = ["RANKER_FOLDS", "RANKER_TYPES", "SPLIT_TEST_FRACTION", "run_pipeline"]
 
@@ -72,7 +91,6 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     split_file, split_digest = ctx.split()
 
     # 2. prepare
-    from kinmo.prepare import PrepareConfig
 
     cache_l, cache_u = out / "cache" / "labeled", out / "cache" / "unlabeled"
     prep = PrepareConfig(seed=cfg.seed)
@@ -93,7 +111,6 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
         ctx.synth_extra(baseline, cache_l, prep, synth_cats)
 
     # 10. report
-    from kinmo.report import write_report
 
     write_json(out / RESULT_FILE, json.loads(res.model_dump_json()))  # the report shows the times
     rep = ctx.clock.run("report", lambda: write_report(out, out / "report"))
@@ -159,7 +176,6 @@ class _Context:
         return _stage(folder, key, run, self.console.print, name, self.clock)
 
     def prepare(self, src: Path, cache: Path, prep: Any, name: str) -> None:
-        from kinmo.prepare import prepare_dataset
 
         self.stage(cache, {"src": str(src), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
             src, cache, prep, workers=self.cfg.workers, progress=self.progress), name)
@@ -175,7 +191,6 @@ class _Context:
         """
         import hashlib
 
-        from kinmo.data.readers import find_shapes
 
         cfg, out = self.cfg, self.cfg.out
         split_file = out / "split.json"
@@ -200,9 +215,6 @@ class _Context:
         Path
             The bundle folder.
         """
-        from kinmo.inference.bundle import write_bundle
-        from kinmo.stages import file_fingerprint
-        from kinmo.train.split import Split
 
         folder = v.out / "model"
         parts = [gnn / "model.pt", *([axis / "model.pt"] if axis is not None else []),
@@ -245,8 +257,6 @@ class _Context:
         split_file = v.split
 
         # 3. motion GNN, fine and coarse types (Sec. 3.1-3.2)
-        from kinmo.train.config import preset as gnn_preset
-        from kinmo.train.gnn import train_gnn
 
         gnn_runs: dict[str, Path] = {}
         for types in ("fine", "coarse"):
@@ -263,8 +273,6 @@ class _Context:
         res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
 
         # 4. axis-selection network (Sec. 3.3)
-        from kinmo.refine.train import preset_config as axis_preset
-        from kinmo.refine.train import train_axis_model
 
         axis_dir = v.reuse.get("axis", out / "axis")
         if "axis" not in v.reuse and cfg.refine:
@@ -278,7 +286,6 @@ class _Context:
 
         # 5. the learned candidate selector (kinmo extension)
         ranker = self.ranker(v, base)
-        from kinmo.refine.refine import RefineConfig
 
         refine = (RefineConfig(selector="ranker", ranker=str(ranker)) if ranker is not None else RefineConfig())
 
@@ -289,7 +296,6 @@ class _Context:
         # 6. Table 1 on the held-out pre-segmented shapes (always the real labelled ones),
         # with renders of the predictions for the report's gallery; with the learned
         # selector, the paper selector's OBB rows too (eval/pre-segmented-paper)
-        from kinmo.evaluate.pre_segmented import run_evaluation
 
         render = cfg.render and not v.prefix  # the gallery shows the main run
         if not ("gnn_fine" in v.reuse and "axis" in v.reuse):
@@ -323,8 +329,6 @@ class _Context:
         # 8. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
         if cfg.skip_ancsh:
             return
-        from kinmo.ancsh.config import preset as ancsh_preset
-        from kinmo.ancsh.evaluate import evaluate_category
         from kinmo.ancsh.train import train_ancsh
 
         if not v.prefix:
@@ -348,7 +352,6 @@ class _Context:
             "labeled_fraction": cfg.labeled_fraction, "seed": cfg.seed,
         }
         ac = ancsh_preset(cfg.preset, **{k: val for k, val in overrides.items() if val is not None})
-        from kinmo.ancsh.structure import structure_slug
 
         for cat in res.categories:
             groups = self.plan[cat]
@@ -395,9 +398,6 @@ class _Context:
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
         ``out/synth-extra-<labeled|unlabeled>-<N>/`` (:data:`SYNTH_EXTRA_FILE` says how)."""
-        from kinmo.synth import SYNTH_VERSION, generate_dataset
-        from kinmo.data.cache import load_cache
-        from kinmo.train.split import Split
 
         cfg, res = self.cfg, self.res
         vout = cfg.out / f"synth-extra-{cfg.synth_as}-{cfg.synth_extra}"
@@ -460,8 +460,6 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     """
     import shutil
 
-    from kinmo.train.ranker import train_ranker
-    from kinmo.train.config import preset as gnn_preset
 
     configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="cpu")
                for t in RANKER_TYPES}

@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo.refine.axis_net import AxisNetConfig
 from kinmo.refine.motions import MotionAmounts
+from kinmo.train.loop import preset_values
 
 __all__ = ["PRESETS", "AxisTrainConfig", "preset_config"]
 
@@ -170,7 +171,6 @@ def preset_config(preset: str = "quick", **overrides: Any) -> AxisTrainConfig:
     ValueError
         Unknown preset or invalid values.
     """
-    from kinmo.train.loop import preset_values
 
     values = preset_values(PRESETS, preset)
     net = dict(values.pop("net"))

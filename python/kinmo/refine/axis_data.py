@@ -57,6 +57,10 @@ from kinmo.data.model import FINE_TYPES
 from kinmo.errors import KinmoDataError
 from kinmo.refine.candidates import candidate_axes, motion_of
 from kinmo.refine.motions import PairCloud, edge_cloud, network_inputs
+from kinmo.geometry import apply_motions
+from kinmo.data.cache import load_cache
+from kinmo.train.gnn import labelled_graphs
+from kinmo.train.split import Split, make_split
 
 if TYPE_CHECKING:
     from kinmo.refine.axis_config import AxisTrainConfig
@@ -303,7 +307,6 @@ def build_triples(
         Network clouds with the moving flag (:func:`kinmo.refine.motions.network_inputs`);
         ``B = len(edges)``; the first ``ceil(N / 2)`` points are the moving part's.
     """
-    from kinmo.geometry import apply_motions
 
     n = config.net.n_points
     out = np.empty((3, len(edges), n, 4), dtype=np.float32)
@@ -380,8 +383,6 @@ def load_graphs(data: str | Path) -> list[PartGraph]:
     KinmoDataError
         The folder does not exist or holds no labelled graph (message names it).
     """
-    from kinmo.data.cache import load_cache
-    from kinmo.train.gnn import labelled_graphs
 
     graphs = labelled_graphs(load_cache(data))
     if not graphs:
@@ -421,7 +422,6 @@ def split_graphs(
     test : list of str
         The excluded test ids.
     """
-    from kinmo.train.split import Split, make_split
 
     if split is None:
         sp = make_split([g.shape_id for g in graphs], [g.category for g in graphs],

@@ -24,6 +24,8 @@ from typing import Any
 
 from kinmo.errors import KinmoDataError
 from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
+from kinmo.train.loop import save_checkpoint
+from kinmo.train.loop import build_or_refuse, load_checkpoint
 
 __all__ = ["AxisModelSet", "load_axis_model", "load_axis_models", "save_axis_model"]
 
@@ -49,13 +51,11 @@ def save_axis_model(path: str | Path, model: AxisSelectionNet, **extra: Any) -> 
     -------
     Path
     """
-    from kinmo.train.loop import save_checkpoint
 
     return save_checkpoint(path, CHECKPOINT_FORMAT, model, net=model.config.model_dump(), **extra)
 
 
 def _read_checkpoint(p: Path, device: str) -> AxisSelectionNet:
-    from kinmo.train.loop import build_or_refuse, load_checkpoint
 
     blob, p = load_checkpoint(p, CHECKPOINT_FORMAT, "axis-selection", "kinmo train axis")
 

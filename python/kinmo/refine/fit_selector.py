@@ -39,6 +39,10 @@ from kinmo.refine.selector import (
     shape_meshes,
 )
 from kinmo.refine.semantic_prior import SemanticPrior
+from kinmo.data.model import FINE_TYPES
+from kinmo.metrics.axis import axis_angle_deg, line_distance
+from kinmo.refine.selector import GNNPriors
+from kinmo.io import atomic_path
 
 __all__ = ["DEFAULT_FEATURES", "EdgeGroups", "collect_groups", "fit_selector", "fold_ids",
            "joint_weights", "select_groups"]
@@ -105,7 +109,6 @@ class EdgeGroups:
 
     def save(self, path: Path) -> None:
         """Write all groups into one ``.npz`` (ragged arrays concatenated with offsets)."""
-        from kinmo.io import atomic_path
 
         sizes = np.array([len(y) for y in self.y], dtype=np.int64)
         with atomic_path(path) as tmp, open(tmp, "wb") as fh:
@@ -141,9 +144,6 @@ def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = 
     -------
     EdgeGroups
     """
-    from kinmo.data.model import FINE_TYPES
-    from kinmo.metrics.axis import axis_angle_deg, line_distance
-    from kinmo.refine.selector import GNNPriors
 
     out = EdgeGroups([], [], [], [], [], [], [], [], [], [], [])
     for p in predictions:

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinmo.refine.candidates import Candidates, obb_of
+from kinmo.geometry import apply_motions
 
 __all__ = [
     "CandidateMotions",
@@ -327,7 +328,6 @@ def network_inputs(
     after : (M, N, 4) float32
         The same after each motion.
     """
-    from kinmo.geometry import apply_motions
 
     m = pair.n_moving
     flags = pair.flags[:, None]

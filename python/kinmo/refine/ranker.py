@@ -22,6 +22,8 @@ import numpy as np
 
 from kinmo.refine.features import FEATURE_INDEX, FEATURES
 from kinmo.refine.semantic_prior import SemanticPrior
+from kinmo.errors import KinmoDataError
+from kinmo.io import write_json
 
 __all__ = ["Ranker", "calibrate", "fit_ranker", "load_ranker"]
 
@@ -83,7 +85,6 @@ class Ranker:
 
     def save(self, path: str | Path) -> Path:
         """Write ``path`` (JSON, atomic)."""
-        from kinmo.io import write_json
 
         write_json(Path(path), self.to_json())
         return Path(path)
@@ -102,7 +103,6 @@ def load_ranker(path: str | Path) -> Ranker:
 
 @lru_cache(maxsize=8)
 def _load_ranker_cached(path: str) -> Ranker:
-    from kinmo.errors import KinmoDataError
 
     try:
         d = json.loads(Path(path).read_text())

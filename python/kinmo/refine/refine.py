@@ -49,6 +49,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import EdgeRefinement, refine_edge, select_edge
+from kinmo.mobility_tree import EdgePrediction, ShapePrediction, TreeOptions, build_mobility_tree, consistent_fine
 
 logger = logging.getLogger(__name__)
 
@@ -369,13 +370,6 @@ def refine_shape_prediction(
         The refined prediction (same graph and type names) and the refinement details
         (per-edge confidence, candidates and scores).
     """
-    from kinmo.mobility_tree import (
-        EdgePrediction,
-        ShapePrediction,
-        TreeOptions,
-        build_mobility_tree,
-        consistent_fine,
-    )
 
     refined = refine_predictions(prediction.graph, prediction.edges, axis_model, config,
                                  priors=getattr(prediction, "priors", None), meshes=meshes)

@@ -66,6 +66,8 @@ from kinmo.refine.features import FEATURE_GROUPS, FEATURES
 from kinmo.refine.features import FEATURE_INDEX as _F
 from kinmo.refine.ranker import Ranker, calibrate, fit_ranker, load_ranker
 from kinmo.refine.semantic_prior import SemanticPrior, motion_of
+from kinmo.errors import KinmoError
+from kinmo.metrics.axis import line_distance
 
 __all__ = [
     "FEATURES",
@@ -298,7 +300,6 @@ def shape_meshes(graph: PartGraph) -> ShapeMeshes | None:
         None when the graph has no readable source folder or its parts do not match the
         graph's node ids (the callers then fall back to the point terms).
     """
-    from kinmo.errors import KinmoError
 
     src = graph.meta.get("source") if isinstance(graph.meta, dict) else None
     if not src or not Path(src).is_dir():
@@ -534,7 +535,6 @@ def candidate_labels(
     normaliser; the distance is the line-to-line distance
     (:func:`kinmo.metrics.axis.line_distance`).
     """
-    from kinmo.metrics.axis import line_distance
 
     t = np.asarray(true_direction, dtype=np.float64)
     t = t / np.linalg.norm(t)

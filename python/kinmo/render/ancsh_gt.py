@@ -38,6 +38,7 @@ from kinmo.data.labels import rigid_groups
 from kinmo.data.model import Link, Shape
 from kinmo.render.camera import Camera
 from kinmo.render.scene import MovingJoint
+from kinmo.data.build import load_shape_meshes
 
 __all__ = [
     "JOINT_KINDS",
@@ -73,7 +74,6 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
     KinmoDataError
         A mesh file is missing or malformed (named).
     """
-    from kinmo.data.build import load_shape_meshes
 
     links = list(shape.links if links is None else links)
     names = {l.id: [m for pid in l.parts for m in shape.hierarchy.mesh_names(pid)] for l in links}

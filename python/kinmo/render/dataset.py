@@ -71,6 +71,13 @@ from kinmo.render.frames import (
     save_frame,
 )
 from kinmo.stages import ShapeStage, StageRow, matches, one_line, source_fingerprint
+from kinmo.render.ancsh_gt import frame_ground_truth
+from kinmo.render.camera import back_project, sample_camera
+from kinmo.render.scene import sample_joint_state
+from kinmo import __version__
+from kinmo.data.readers import read_shape
+from kinmo.render.ancsh_gt import link_meshes, rest_geometry
+from kinmo.render.scene import Scene
 
 __all__ = [
     "FRAME_VERSION",
@@ -229,9 +236,6 @@ def render_frame(
         ``azimuth_deg``, ``elevation_deg``, ``distance``, ``near``, ``far``,
         ``state`` (link id -> [translation, angle]).
     """
-    from kinmo.render.ancsh_gt import frame_ground_truth
-    from kinmo.render.camera import back_project, sample_camera
-    from kinmo.render.scene import sample_joint_state
 
     state = sample_joint_state(scene.joints, rng)
     scene.set_state(state)
@@ -376,10 +380,6 @@ def _render_frames(
     folder: Path, out_dir: Path, config: RenderConfig, key: str, todo: list[int], fp: str,
     rows: dict[int, FrameRow],
 ) -> None:
-    from kinmo import __version__
-    from kinmo.data.readers import read_shape
-    from kinmo.render.ancsh_gt import link_meshes, rest_geometry
-    from kinmo.render.scene import Scene
 
     shape = read_shape(folder)
     if not shape.links:

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from kinmo.errors import KinmoDataError
+from kinmo.io import atomic_write
 
 __all__ = ["FRAME_VERSION", "frame_images", "frame_path", "load_frame", "read_frame_meta",
            "save_frame"]
@@ -75,7 +76,6 @@ def save_frame(path: Path, arrays: dict[str, np.ndarray], meta: dict[str, Any]) 
     meta : dict
         JSON-ready metadata.
     """
-    from kinmo.io import atomic_write
 
     payload = dict(arrays, meta_json=np.array(json.dumps(meta)))
     atomic_write(path, lambda f: _write_npz(f, payload), mode="wb")

@@ -15,6 +15,8 @@ from pathlib import Path
 
 from kinmo.errors import KinmoDataError
 from kinmo.paper import PAPER_TABLE2
+from kinmo.evaluate.pre_segmented import METRICS
+from kinmo.evaluate.settings import PAPER_MEANS
 
 __all__ = [
     "PAPER_TABLE1",
@@ -38,13 +40,11 @@ __all__ = [
 
 
 def _table1_metrics() -> tuple[tuple[str, str, bool], ...]:
-    from kinmo.evaluate.pre_segmented import METRICS
 
     return METRICS
 
 
 def _paper_table1() -> dict[str, dict[str, float]]:
-    from kinmo.evaluate.settings import PAPER_MEANS
 
     return {k: dict(v) for k, v in PAPER_MEANS.items()}
 

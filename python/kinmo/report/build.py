@@ -48,6 +48,7 @@ from kinmo.report.document import (
     Text,
 )
 from kinmo.report.paper_tables import t2_fmt, t2_label, table1_blocks, table2_blocks
+import kinmo
 
 __all__ = ["build_document", "fmt_value"]
 
@@ -339,7 +340,6 @@ def build_document(art: RunArtefacts, title: str | None = None) -> Document:
     -------
     Document
     """
-    import kinmo
 
     sections = [Section("overview", "Overview", _overview(art))]
     t1: list[Block] = [Text(

@@ -19,6 +19,8 @@ from kinmo.features import GraphBatch, GraphTensors, collate
 from kinmo.models.losses import MotionLoss
 from kinmo.models.motion_gnn import MotionGNN
 from kinmo.train.config import TrainConfig
+from kinmo.features import moving_fine_mask, rotating_fine_mask
+from kinmo.models.losses import position_loss
 
 __all__ = ["edge_metrics", "evaluate_edges", "merge_metrics", "per_class_recall", "summarize_metrics"]
 
@@ -48,8 +50,6 @@ def edge_metrics(logits: torch.Tensor, direction: torch.Tensor, origin: torch.Te
         true axis line over rotating edges, fraction of the shape's AABB diagonal, which is
         the unit of the normalised frame).
     """
-    from kinmo.features import moving_fine_mask, rotating_fine_mask
-    from kinmo.models.losses import position_loss
 
     target = batch.edge_labels(types).cpu()
     pred = logits.argmax(dim=1).cpu()
