@@ -11,9 +11,7 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
-from kinmo.errors import KinmoDataError
-from kinmo.errors import KinmoError
-from kinmo.errors import KinmoUsageError
+from kinmo.errors import KinmoDataError, KinmoError, KinmoUsageError
 
 
 def _read_umask() -> int:
@@ -120,7 +118,6 @@ def read_checkpoint(path: str | Path, fmt: str, what: str) -> dict[str, Any]:
     import zipfile
 
     import torch
-
 
     path = Path(path)
     try:

@@ -33,19 +33,17 @@ from pathlib import Path
 
 import numpy as np
 
+from kinmo.data.build import build_graph
 from kinmo.data.graph import PartGraph
-from kinmo.data.model import PartHierarchy, PartNode, Shape
+from kinmo.data.model import PartHierarchy, PartNode, Shape, ShapeFormat
+from kinmo.data.readers import find_shapes, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.io import write_json, write_text
-from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
+from kinmo.export import DEFAULT_FORMATS, export
 from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
 from kinmo.inference.predictor import Predictor
+from kinmo.io import check_outputs_apart, output_dir, write_json, write_text
+from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
 from kinmo.train.gnn import Run, load_run
-from kinmo.data.model import ShapeFormat
-from kinmo.export import DEFAULT_FORMATS, export
-from kinmo.data.readers import find_shapes, read_shape
-from kinmo.io import check_outputs_apart, output_dir
-from kinmo.data.build import build_graph
 
 __all__ = [
     "PredictRow",
@@ -226,8 +224,6 @@ def predict_dataset(
         (:func:`kinmo.io.check_outputs_apart`): outputs never overwrite inputs.
     """
     from rich.progress import Progress
-
-
 
     data = Path(data)
     folders = find_shapes(data)

@@ -63,6 +63,9 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from kinmo import stages
+from kinmo.data.build import build_graph
+from kinmo.data.graph import CACHE_VERSION, PartGraph
+from kinmo.data.readers import detect_format, read_meta, read_shape
 from kinmo.errors import KinmoDataError
 from kinmo.io import check_outputs_apart, output_dir
 from kinmo.parallel import available_cpus, resolve_workers
@@ -75,10 +78,6 @@ from kinmo.stages import (
     one_line,
     source_fingerprint,
 )
-from kinmo.data.graph import CACHE_VERSION, PartGraph
-from kinmo.data.build import build_graph
-from kinmo.data.readers import detect_format, read_meta, read_shape
-from kinmo.data.graph import CACHE_VERSION
 
 logger = logging.getLogger(__name__)
 
@@ -437,7 +436,6 @@ def prepare_dataset(
     out = output_dir(out)
 
     def save(rows: list[ManifestRow], complete: bool) -> None:
-
         stages.write_manifest(
             out, sorted(rows, key=lambda r: r.id), MANIFEST_COLUMNS,
             {"cache_version": CACHE_VERSION, "root": str(root), "config": config.as_dict(),

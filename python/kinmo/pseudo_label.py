@@ -73,20 +73,19 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from kinmo import stages
-from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.io import check_outputs_apart, write_json, write_text
-from kinmo.executor import parse_executor
-from kinmo.parallel import resolve_workers
-from kinmo.refine.refine import RefineConfig
-from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
-from kinmo.inference.predictor import Predictor
-from kinmo.data.readers import read_shape
-from kinmo.export import export
 from kinmo.data.build import build_graph
 from kinmo.data.cache import cached_graph
 from kinmo.data.readers import HIERARCHY_FILES, read_shape
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.executor import parse_executor
+from kinmo.export import export
 from kinmo.inference.gnn import predict_graphs
+from kinmo.inference.predictor import Predictor
+from kinmo.io import check_outputs_apart, write_json, write_text
 from kinmo.mobility_tree import TreeOptions
+from kinmo.parallel import resolve_workers
+from kinmo.refine.refine import RefineConfig
+from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
 
 logger = logging.getLogger(__name__)
 
@@ -255,7 +254,6 @@ _WORKER_MODELS: _Models | None = None
 
 
 def _load_models(gnn_run: Path, axis_run: Path, device: str, refine: Any = None) -> _Models:
-
     fp = _models_fingerprint(gnn_run, axis_run)
     return _Models(Predictor.from_parts(gnn_run, axis_run, refine, device=device), fp,
                    str(gnn_run), str(axis_run))

@@ -61,13 +61,12 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
+from kinmo import __version__
+from kinmo.data.readers import find_shapes
 from kinmo.errors import KinmoDataError
 from kinmo.executor import map_unordered
-from kinmo.io import folder_lock
+from kinmo.io import folder_lock, write_json, write_text
 from kinmo.progress import CountingBar
-from kinmo.data.readers import find_shapes
-from kinmo import __version__
-from kinmo.io import write_json, write_text
 
 __all__ = [
     "MANIFEST_INTERVAL_S",

@@ -46,14 +46,12 @@ from pathlib import Path
 
 import numpy as np
 
+from kinmo.data.readers import find_shapes, read_shape
 from kinmo.errors import KinmoDataError
-from kinmo.io import write_json
-from kinmo.data.readers import find_shapes
-from kinmo.export.kinematics import write_obj
-from kinmo.data.readers import read_shape
 from kinmo.export import DEFAULT_FORMATS, export
+from kinmo.export.kinematics import write_obj
+from kinmo.io import check_outputs_apart, write_json
 from kinmo.predict import predict_dataset
-from kinmo.io import check_outputs_apart
 
 __all__ = [
     "MESH_SUFFIXES",
@@ -294,7 +292,6 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
     KinmoUsageError
         ``out`` would overwrite ``path`` (:func:`kinmo.io.check_outputs_apart`).
     """
-
 
     path, out = Path(path), Path(out)
     stem = _clean(path.stem, 0)

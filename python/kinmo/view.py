@@ -27,14 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from kinmo.data.model import Link, Shape
-from kinmo.errors import KinmoDataError
-from kinmo.export.kinematics import link_meshes
-from kinmo.urdf import urdf_joints
-from kinmo.io import write_text
 from kinmo.data.readers import read_links, read_shape
-from kinmo.data.readers import read_shape
 from kinmo.data.writers import write_mobility_v2
-from kinmo.errors import KinmoError
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.export.kinematics import link_meshes
+from kinmo.io import write_text
+from kinmo.urdf import urdf_joints
 
 __all__ = ["PLOT_HEIGHT", "PLOT_WIDTH", "SOURCE_FILE", "gallery_page", "view_folder",
            "viewer_data", "viewer_fragment", "viewer_head", "write_view_links", "write_viewer"]
@@ -206,7 +204,6 @@ def viewer_data(shape: Shape, links: Sequence[Link] | None = None,
         No links, inconsistent links, unreadable meshes.
     """
     import math
-
 
     links = list(shape.links or [] if links is None else links)
     if not links:

@@ -47,7 +47,10 @@ from kinmo.ancsh.frame_metrics import (
     ground_truth_estimate,
     ground_truth_predictions,
 )
-from kinmo.ancsh.structure import KinematicStructure
+from kinmo.ancsh.inference import load_run, predict_scans, quiet_estimate
+from kinmo.ancsh.objects import category_key, scan_category
+from kinmo.ancsh.scans import render_objects
+from kinmo.ancsh.structure import KinematicStructure, structure_slug
 from kinmo.ancsh.table2 import (
     METRICS,
     SETTING_ORDER,
@@ -61,16 +64,9 @@ from kinmo.ancsh.table2 import (
     table2_markdown,
 )
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.ancsh.objects import category_key
-from kinmo.ancsh.structure import structure_slug
-from kinmo.ancsh.inference import load_run
 from kinmo.io import write_json, write_text
-from kinmo.train.loop import rows_csv
-from kinmo.ancsh.objects import scan_category
-from kinmo.ancsh.inference import predict_scans, quiet_estimate
-from kinmo.ancsh.scans import render_objects
-from kinmo.train.loop import torch_threads
 from kinmo.render.dataset import load_frame
+from kinmo.train.loop import rows_csv, torch_threads
 from kinmo.train.split import Split
 
 #: ``table2.csv`` text (:func:`kinmo.ancsh.table2.table2_csv`; this name is kept for the
@@ -104,7 +100,6 @@ def find_runs(paths: Sequence[str | Path], category: str | None = None) -> list[
     setting (supervised, semi, semi-weakly), then path.
     """
     import json
-
 
     found: list[tuple[int, str, Path]] = []
     seen: set[Path] = set()
@@ -236,7 +231,6 @@ def evaluate_category(
         trained on, no test object.
     """
     import json
-
 
     t0 = time.perf_counter()
     if not runs:

@@ -15,13 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from kinmo.ancsh.pose_fitting import Similarity
 from kinmo.ancsh.postprocess import ANCSHEstimate, JointEstimate, PartPose
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts
 from kinmo.ancsh.symmetry import align_about_axis
 from kinmo.errors import KinmoDataError
 from kinmo.metrics.axis import axis_angle_deg, line_distance
 from kinmo.metrics.pose import box_iou_3d, rotation_error_deg
-from kinmo.ancsh.pose_fitting import Similarity
 
 __all__ = [
     "FrameErrors",

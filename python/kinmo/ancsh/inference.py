@@ -27,10 +27,14 @@ import torch
 from kinmo.ancsh.config import ANCSHConfig
 from kinmo.ancsh.dataset import normalize_points, subsample_indices
 from kinmo.ancsh.model import ANCSH
-from kinmo.ancsh.structure import KinematicStructure
-from kinmo.train.loop import build_or_refuse, load_checkpoint, resolve_device
-from kinmo.train.loop import save_checkpoint as _save
 from kinmo.ancsh.postprocess import estimate
+from kinmo.ancsh.structure import KinematicStructure
+from kinmo.train.loop import (
+    build_or_refuse,
+    load_checkpoint,
+    resolve_device,
+    save_checkpoint as _save,
+)
 
 __all__ = [
     "CHECKPOINT_FORMAT",
@@ -184,7 +188,6 @@ def quiet_estimate(points: np.ndarray, pred: dict[str, np.ndarray], structure: K
     """:func:`kinmo.ancsh.postprocess.estimate` without numpy / scipy overflow warnings
     (expected for the wild predictions of an undertrained network)."""
     import warnings
-
 
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)

@@ -24,11 +24,10 @@ from typing import Any
 import numpy as np
 
 from kinmo.ancsh.structure import KinematicStructure, ObjectParts, category_structure, object_parts
-from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.data.labels import rigid_groups
+from kinmo.data.readers import find_shapes, read_meta, read_shape
+from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.render.ancsh_gt import link_meshes
-from kinmo.data.readers import read_shape
-from kinmo.data.readers import find_shapes, read_meta
 
 __all__ = [
     "CategoryObjects",

@@ -13,9 +13,9 @@ from pathlib import Path
 
 from kinmo.ancsh.config import ANCSHConfig
 from kinmo.ancsh.objects import category_key
+from kinmo.data.readers import find_shapes, read_meta
 from kinmo.errors import KinmoDataError
 from kinmo.render.dataset import RenderConfig, render_dataset
-from kinmo.data.readers import find_shapes, read_meta
 
 __all__ = ["all_categories", "category_folders", "render_objects"]
 

@@ -39,15 +39,15 @@ from typing import Any
 import numpy as np
 
 from kinmo.ancsh.dataset import FrameSample
+from kinmo.ancsh.inference import predict_scans, quiet_estimate
 from kinmo.ancsh.postprocess import ANCSHEstimate
+from kinmo.ancsh.scans import category_folders, render_objects
 from kinmo.ancsh.structure import KinematicStructure
 from kinmo.ancsh.targets import joint_targets
-from kinmo.errors import KinmoDataError
 from kinmo.data.readers import read_hierarchy
-from kinmo.train.loop import rows_csv
-from kinmo.ancsh.inference import predict_scans, quiet_estimate
-from kinmo.ancsh.scans import category_folders, render_objects
+from kinmo.errors import KinmoDataError
 from kinmo.render.dataset import load_frame
+from kinmo.train.loop import rows_csv
 
 __all__ = ["CUBE_MARGIN", "MIN_IN_CUBE", "RECORD_COLUMNS", "pose_npcs", "pseudo_sample", "records_csv",
            "scan_confidence", "semi_pseudo_targets", "softmax", "unlabeled_object"]
@@ -300,7 +300,6 @@ def semi_pseudo_targets(
         One per scan (:data:`RECORD_COLUMNS`), ``kept`` telling which were.
     """
     import math
-
 
     shapes = {k: f for k, f in category_folders(partnet, cat.category).items()
               if (f / "objs").is_dir() and k not in test_ids}

@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from kinmo.ancsh.config import ANCSHConfig
+from kinmo.ancsh.config import ANCSHConfig, SETTINGS, preset
 from kinmo.ancsh.dataset import ANCSHFrames, load_samples, object_parts_of, scan_category
 from kinmo.ancsh.fit import METRIC_COLUMNS, fit, metrics_csv
 from kinmo.ancsh.inference import (
@@ -71,9 +71,7 @@ from kinmo.ancsh.structure import KinematicStructure, ObjectParts
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.io import write_json, write_text
 from kinmo.train import distributed
-from kinmo.train.loop import training_session
-from kinmo.ancsh.config import SETTINGS, preset
-from kinmo.train.loop import resolve_device
+from kinmo.train.loop import resolve_device, training_session
 from kinmo.train.split import Split, make_split
 
 #: ``metrics.csv`` text of a run (:func:`kinmo.ancsh.fit.metrics_csv`; this name is kept for

@@ -33,8 +33,7 @@ from kinmo.data.graph import CACHE_VERSION, PartGraph
 from kinmo.data.labels import label_sibling_edges
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES, Link, Shape, ShapeFormat
 from kinmo.errors import KinmoDataError
-from kinmo.geometry import load_obj, load_objs
-from kinmo.geometry import contact_pairs, fit_obb_batch, sample_surface_groups
+from kinmo.geometry import contact_pairs, fit_obb_batch, load_obj, load_objs, sample_surface_groups
 
 __all__ = ["build_graph", "links_to_json", "load_shape_meshes"]
 

@@ -12,10 +12,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from kinmo.data.build import build_graph
+from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
+from kinmo.data.readers import find_shapes, read_shape
+from kinmo.errors import KinmoDataError
 from kinmo.evaluate.shape_metrics import (
-    METRICS,
     EvalReport,
+    METRICS,
     ShapeEval,
     aggregate,
     build_report,
@@ -32,10 +36,6 @@ from kinmo.evaluate.tables import (
     report_markdown,
     write_report,
 )
-from kinmo.data.cache import load_cache
-from kinmo.data.build import build_graph
-from kinmo.data.readers import find_shapes, read_shape
-from kinmo.errors import KinmoDataError
 from kinmo.inference.gnn import predict_graphs
 from kinmo.inference.predictor import Predictor
 from kinmo.train.gnn import load_run
@@ -70,11 +70,9 @@ def _model_names(runs: Sequence) -> list[str]:
 
 
 def _load_graphs(data: Path, progress: bool) -> list[PartGraph]:
-
     if (data / "manifest.csv").is_file() or any(data.glob("*.npz")):
         return load_cache(data)
     from rich.progress import Progress
-
 
     folders = find_shapes(data)
     out = []

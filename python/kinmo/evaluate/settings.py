@@ -18,11 +18,11 @@ from collections.abc import Sequence
 from typing import Any
 
 from kinmo.data.graph import PartGraph
+from kinmo.data.model import FINE_TYPES
 from kinmo.evaluate.pre_segmented import evaluate_graphs
 from kinmo.inference.gnn import predict_graphs
-from kinmo.refine.refine import RefineConfig, refine_shape_prediction
 from kinmo.metrics.axis import axis_angle_deg, line_distance
-from kinmo.data.model import FINE_TYPES
+from kinmo.refine.refine import RefineConfig, refine_shape_prediction
 
 __all__ = ["FAILURE_KINDS", "PAPER_MEANS", "failure_kind", "failure_table", "four_settings"]
 
@@ -100,7 +100,6 @@ def failure_kind(direction, origin, true_direction, true_origin, scale: float, r
     """
     import numpy as np
 
-
     a = float(axis_angle_deg(direction, true_direction))
     if a > 45.0:
         return "orientation flip"
@@ -126,7 +125,6 @@ def failure_table(predictions: dict[str, Sequence]) -> dict[str, dict[str, int]]
     dict of str to dict of str to int
     """
     import numpy as np
-
 
     out: dict[str, dict[str, int]] = {}
     for name, preds in predictions.items():

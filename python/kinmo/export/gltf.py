@@ -29,9 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from kinmo.export import ExportContext, register
-from kinmo.urdf import urdf_joints
 from kinmo.io import atomic_path
-from kinmo.urdf import link_frame_origins
+from kinmo.urdf import link_frame_origins, urdf_joints
 
 __all__ = ["KEYFRAMES", "joint_samples", "write_gltf"]
 
@@ -81,7 +80,6 @@ def write_gltf(ctx: ExportContext) -> list[Path]:
         Inconsistent links or unreadable meshes.
     """
     import pygltflib as g
-
 
     frames = link_frame_origins(ctx.links, ctx.shape.path)
     by_id = {l.id: l for l in ctx.links}

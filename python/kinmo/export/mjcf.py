@@ -30,10 +30,10 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from kinmo.export import ExportContext, register
-from kinmo.io import atomic_path, write_text
-from kinmo.urdf import link_frame_origins, urdf_joints
 from kinmo.export.kinematics import write_obj
 from kinmo.export.urdf import convex_pieces
+from kinmo.io import atomic_path, write_text
+from kinmo.urdf import link_frame_origins, urdf_joints
 
 __all__ = ["mjcf_string", "write_mjcf"]
 

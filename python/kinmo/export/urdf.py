@@ -36,8 +36,7 @@ from kinmo.errors import KinmoDataError
 from kinmo.export import ExportContext, register
 from kinmo.export.kinematics import LinkMesh, write_obj
 from kinmo.io import atomic_path, write_text
-from kinmo.urdf import write_urdf
-from kinmo.urdf import BASE_LINK
+from kinmo.urdf import BASE_LINK, write_urdf
 
 __all__ = ["UrdfLink", "convex_pieces", "read_urdf", "read_urdf_tree", "write_urdf_convex"]
 

@@ -68,7 +68,6 @@ def write_usd(ctx: ExportContext) -> list[Path]:
     """
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, Vt
 
-
     joints = urdf_joints(ctx.links, ctx.shape.path)
     frames = link_frame_origins(ctx.links, ctx.shape.path)
     by_id = {l.id: l for l in ctx.links}

@@ -8,11 +8,10 @@ import json
 from pathlib import Path
 from typing import Any
 
-from kinmo.errors import KinmoDataError
-from kinmo.errors import KinmoError
-from kinmo.synth import CATEGORIES
 from kinmo.data.cache import load_cache
 from kinmo.data.readers import find_shapes
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.synth import CATEGORIES
 
 __all__ = ["FoundData", "find_data", "missing_data_message"]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from kinmo.pipeline.config import TINY, PipelineConfig
+from kinmo.pipeline.config import PipelineConfig, TINY
 from kinmo.pipeline.run import run_pipeline
 from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
 from kinmo.synth import CATEGORIES, SYNTH_VERSION, generate_dataset
@@ -61,7 +61,6 @@ def run_demo(
         :attr:`PipelineConfig.selector`.
     """
     from rich.console import Console
-
 
     console = console or Console(stderr=True)
     out = Path(out)

@@ -8,13 +8,11 @@ import json
 from pathlib import Path
 from typing import Any
 
-from kinmo.errors import KinmoDataError
-from kinmo.runs import DEFAULT_RUN
 from kinmo.ancsh.objects import category_key
-from kinmo.ancsh.structure import structure_groups
-from kinmo.errors import KinmoError
-from kinmo.ancsh.structure import object_parts
+from kinmo.ancsh.structure import object_parts, structure_groups
 from kinmo.data.readers import find_shapes, read_shape
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.runs import DEFAULT_RUN
 from kinmo.train.split import make_split
 
 __all__ = ["ANCSH_PLAN_FILE", "CategoryRuns", "ancsh_plan", "category_runs", "default_categories",
@@ -126,7 +124,6 @@ def structure_split(labeled: Path, test_fraction: float = 0.25, seed: int = 0) -
         Its ``categories`` are the real categories.
     """
     from collections import Counter
-
 
     per = _object_structures(labeled)
     key = {(c, i): (o.structure.signature() if o is not None else None) for c, objs in per.items()

@@ -11,32 +11,30 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from kinmo.ancsh.config import preset as ancsh_preset
+from kinmo.ancsh.evaluate import evaluate_category
+from kinmo.ancsh.structure import structure_slug
+from kinmo.data.cache import load_cache
+from kinmo.data.readers import find_shapes
 from kinmo.errors import KinmoDataError
+from kinmo.evaluate.pre_segmented import run_evaluation
+from kinmo.inference.bundle import write_bundle
 from kinmo.io import write_json
 from kinmo.pipeline.config import PipelineConfig
 from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
 from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
 from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
-from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
-from kinmo.prepare import PrepareConfig
-from kinmo.report import write_report
-from kinmo.train.ranker import train_ranker
-from kinmo.train.config import preset as gnn_preset
-from kinmo.prepare import prepare_dataset
-from kinmo.data.readers import find_shapes
-from kinmo.inference.bundle import write_bundle
-from kinmo.stages import file_fingerprint
-from kinmo.train.split import Split
-from kinmo.train.gnn import train_gnn
-from kinmo.refine.train import preset_config as axis_preset
-from kinmo.refine.train import train_axis_model
+from kinmo.prepare import PrepareConfig, prepare_dataset
 from kinmo.refine.refine import RefineConfig
-from kinmo.evaluate.pre_segmented import run_evaluation
-from kinmo.ancsh.config import preset as ancsh_preset
-from kinmo.ancsh.evaluate import evaluate_category
-from kinmo.ancsh.structure import structure_slug
+from kinmo.refine.train import preset_config as axis_preset, train_axis_model
+from kinmo.report import write_report
+from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
+from kinmo.stages import file_fingerprint
 from kinmo.synth import SYNTH_VERSION, generate_dataset
-from kinmo.data.cache import load_cache
+from kinmo.train.config import preset as gnn_preset
+from kinmo.train.gnn import train_gnn
+from kinmo.train.ranker import train_ranker
+from kinmo.train.split import Split
 
 __all__ = ["RANKER_FOLDS", "RANKER_TYPES", "SPLIT_TEST_FRACTION", "run_pipeline"]
 
@@ -176,7 +174,6 @@ class _Context:
         return _stage(folder, key, run, self.console.print, name, self.clock)
 
     def prepare(self, src: Path, cache: Path, prep: Any, name: str) -> None:
-
         self.stage(cache, {"src": str(src), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
             src, cache, prep, workers=self.cfg.workers, progress=self.progress), name)
 
@@ -190,7 +187,6 @@ class _Context:
             The split file and a digest of its content (part of every later stage's key).
         """
         import hashlib
-
 
         cfg, out = self.cfg, self.cfg.out
         split_file = out / "split.json"
@@ -459,7 +455,6 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     holds the fold GNNs' configuration, and folds of another one are trained again.
     """
     import shutil
-
 
     configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="cpu")
                for t in RANKER_TYPES}

@@ -52,13 +52,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TYPES
 from kinmo.errors import KinmoDataError
+from kinmo.geometry import apply_motions
 from kinmo.refine.candidates import candidate_axes, motion_of
 from kinmo.refine.motions import PairCloud, edge_cloud, network_inputs
-from kinmo.geometry import apply_motions
-from kinmo.data.cache import load_cache
 from kinmo.train.gnn import labelled_graphs
 from kinmo.train.split import Split, make_split
 

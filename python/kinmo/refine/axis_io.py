@@ -24,8 +24,7 @@ from typing import Any
 
 from kinmo.errors import KinmoDataError
 from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
-from kinmo.train.loop import save_checkpoint
-from kinmo.train.loop import build_or_refuse, load_checkpoint
+from kinmo.train.loop import build_or_refuse, load_checkpoint, save_checkpoint
 
 __all__ = ["AxisModelSet", "load_axis_model", "load_axis_models", "save_axis_model"]
 
@@ -56,7 +55,6 @@ def save_axis_model(path: str | Path, model: AxisSelectionNet, **extra: Any) -> 
 
 
 def _read_checkpoint(p: Path, device: str) -> AxisSelectionNet:
-
     blob, p = load_checkpoint(p, CHECKPOINT_FORMAT, "axis-selection", "kinmo train axis")
 
     def build() -> AxisSelectionNet:

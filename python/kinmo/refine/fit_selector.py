@@ -30,19 +30,19 @@ from pathlib import Path
 
 import numpy as np
 
-from kinmo.refine.features import FEATURE_GROUPS, FEATURES
+from kinmo.data.model import FINE_TYPES
+from kinmo.io import atomic_path
+from kinmo.metrics.axis import axis_angle_deg, line_distance
+from kinmo.refine.features import FEATURES, FEATURE_GROUPS
 from kinmo.refine.ranker import Ranker, calibrate, fit_ranker
 from kinmo.refine.selector import (
+    GNNPriors,
     candidate_features,
     candidate_labels,
     edge_candidates,
     shape_meshes,
 )
 from kinmo.refine.semantic_prior import SemanticPrior
-from kinmo.data.model import FINE_TYPES
-from kinmo.metrics.axis import axis_angle_deg, line_distance
-from kinmo.refine.selector import GNNPriors
-from kinmo.io import atomic_path
 
 __all__ = ["DEFAULT_FEATURES", "EdgeGroups", "collect_groups", "fit_selector", "fold_ids",
            "joint_weights", "select_groups"]

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinmo.refine.candidates import Candidates, obb_of
 from kinmo.geometry import apply_motions
+from kinmo.refine.candidates import Candidates, obb_of
 
 __all__ = [
     "CandidateMotions",

@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from kinmo.refine.features import FEATURE_INDEX, FEATURES
-from kinmo.refine.semantic_prior import SemanticPrior
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json
+from kinmo.refine.features import FEATURES, FEATURE_INDEX
+from kinmo.refine.semantic_prior import SemanticPrior
 
 __all__ = ["Ranker", "calibrate", "fit_ranker", "load_ranker"]
 
@@ -103,7 +103,6 @@ def load_ranker(path: str | Path) -> Ranker:
 
 @lru_cache(maxsize=8)
 def _load_ranker_cached(path: str) -> Ranker:
-
     try:
         d = json.loads(Path(path).read_text())
         feats = tuple(d["features"])

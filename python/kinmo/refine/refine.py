@@ -47,9 +47,15 @@ import numpy as np
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES
+from kinmo.mobility_tree import (
+    EdgePrediction,
+    ShapePrediction,
+    TreeOptions,
+    build_mobility_tree,
+    consistent_fine,
+)
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import EdgeRefinement, refine_edge, select_edge
-from kinmo.mobility_tree import EdgePrediction, ShapePrediction, TreeOptions, build_mobility_tree, consistent_fine
 
 logger = logging.getLogger(__name__)
 

@@ -55,6 +55,8 @@ import numpy as np
 from kinmo.data.graph import PartGraph
 from kinmo.data.labels import VERTICAL_COS, pivot_is_central
 from kinmo.data.model import FINE_TYPES
+from kinmo.errors import KinmoError
+from kinmo.metrics.axis import line_distance
 from kinmo.refine.candidates import (
     Candidates,
     candidate_axes,
@@ -62,12 +64,9 @@ from kinmo.refine.candidates import (
     frame_box,
     merge_candidates,
 )
-from kinmo.refine.features import FEATURE_GROUPS, FEATURES
-from kinmo.refine.features import FEATURE_INDEX as _F
+from kinmo.refine.features import FEATURES, FEATURE_GROUPS, FEATURE_INDEX as _F
 from kinmo.refine.ranker import Ranker, calibrate, fit_ranker, load_ranker
 from kinmo.refine.semantic_prior import SemanticPrior, motion_of
-from kinmo.errors import KinmoError
-from kinmo.metrics.axis import line_distance
 
 __all__ = [
     "FEATURES",

@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinmo.data.build import load_shape_meshes
 from kinmo.data.labels import rigid_groups
 from kinmo.data.model import Link, Shape
 from kinmo.render.camera import Camera
 from kinmo.render.scene import MovingJoint
-from kinmo.data.build import load_shape_meshes
 
 __all__ = [
     "JOINT_KINDS",

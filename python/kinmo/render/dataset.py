@@ -59,9 +59,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from kinmo import stages
+from kinmo import __version__, stages
+from kinmo.data.readers import read_shape
 from kinmo.errors import KinmoDataError
 from kinmo.io import check_outputs_apart
+from kinmo.render.ancsh_gt import frame_ground_truth, link_meshes, rest_geometry
+from kinmo.render.camera import back_project, sample_camera
 from kinmo.render.frames import (
     FRAME_VERSION,
     frame_images,
@@ -70,14 +73,8 @@ from kinmo.render.frames import (
     read_frame_meta,
     save_frame,
 )
+from kinmo.render.scene import Scene, sample_joint_state
 from kinmo.stages import ShapeStage, StageRow, matches, one_line, source_fingerprint
-from kinmo.render.ancsh_gt import frame_ground_truth
-from kinmo.render.camera import back_project, sample_camera
-from kinmo.render.scene import sample_joint_state
-from kinmo import __version__
-from kinmo.data.readers import read_shape
-from kinmo.render.ancsh_gt import link_meshes, rest_geometry
-from kinmo.render.scene import Scene
 
 __all__ = [
     "FRAME_VERSION",
@@ -380,7 +377,6 @@ def _render_frames(
     folder: Path, out_dir: Path, config: RenderConfig, key: str, todo: list[int], fp: str,
     rows: dict[int, FrameRow],
 ) -> None:
-
     shape = read_shape(folder)
     if not shape.links:
         raise KinmoDataError(folder / "mobility_v2.json",

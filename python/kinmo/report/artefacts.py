@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from kinmo.errors import KinmoDataError
-from kinmo.paper import PAPER_TABLE2
 from kinmo.evaluate.pre_segmented import METRICS
 from kinmo.evaluate.settings import PAPER_MEANS
+from kinmo.paper import PAPER_TABLE2
 
 __all__ = [
     "PAPER_TABLE1",
@@ -40,12 +40,10 @@ __all__ = [
 
 
 def _table1_metrics() -> tuple[tuple[str, str, bool], ...]:
-
     return METRICS
 
 
 def _paper_table1() -> dict[str, dict[str, float]]:
-
     return {k: dict(v) for k, v in PAPER_MEANS.items()}
 
 

@@ -26,12 +26,13 @@ import math
 from collections.abc import Callable
 from datetime import datetime, timezone
 
-import kinmo.report.charts as charts
+import kinmo
 from kinmo.report.blocks import chart_block, file_slug, fmt_value
+import kinmo.report.charts as charts
 from kinmo.report.collect import (
+    Curves,
     PAPER_TABLE1,
     PAPER_TABLE2,
-    Curves,
     RunArtefacts,
     SynthExtra,
     to_float,
@@ -48,7 +49,6 @@ from kinmo.report.document import (
     Text,
 )
 from kinmo.report.paper_tables import t2_fmt, t2_label, table1_blocks, table2_blocks
-import kinmo
 
 __all__ = ["build_document", "fmt_value"]
 

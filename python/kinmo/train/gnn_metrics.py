@@ -15,12 +15,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from kinmo.features import GraphBatch, GraphTensors, collate
-from kinmo.models.losses import MotionLoss
+from kinmo.features import GraphBatch, GraphTensors, collate, moving_fine_mask, rotating_fine_mask
+from kinmo.models.losses import MotionLoss, position_loss
 from kinmo.models.motion_gnn import MotionGNN
 from kinmo.train.config import TrainConfig
-from kinmo.features import moving_fine_mask, rotating_fine_mask
-from kinmo.models.losses import position_loss
 
 __all__ = ["edge_metrics", "evaluate_edges", "merge_metrics", "per_class_recall", "summarize_metrics"]
 
