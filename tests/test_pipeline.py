@@ -69,10 +69,20 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert {p.name for p in renders.iterdir()} == {"GNN_fine", "GNN_coarse", "OBB_fine", "OBB_coarse"}
     gallery = html.split('id="gallery"')[1]
     assert gallery.count("<img") == 4 * len(test) and "data:image/png;base64," in gallery
+    # the model bundle: one folder that --model accepts whole, the learned selector by default
+    bundle = json.loads((run / "model/bundle.json").read_text())
+    assert (bundle["selector"], bundle["ranker"], bundle["axis"]) == ("ranker", "ranker.json", "axis")
+    assert bundle["trained_on"] == sorted(split["train"])
+    assert result["stages"]["model"] == [str(run / "model")]
+    obj = out / "data" / "partnet-mobility" / test[0]
+    pr = runner.invoke(app, ["predict", str(obj), "--model", str(run / "model"), "--out",
+                             str(tmp_path / "pred"), "--quiet", "--device", "cpu"])
+    assert pr.exit_code == 0, pr.output
+    assert (tmp_path / "pred" / test[0] / "mobility_v2.json").is_file()
     # every stage was timed, and the overview shows the times
     timings = result["timings"]
     assert {"generate 12 labelled + 6 unlabelled objects", "split", "prepare labelled", "train gnn (fine)",
-            "train axis", "train ranker", "eval pre-segmented (Table 1)",
+            "train axis", "train ranker", "model bundle", "eval pre-segmented (Table 1)",
             "eval pre-segmented, paper selector (Table 1)",
             "pseudo-label", "train ancsh Laptop (semi-weakly)", "eval Laptop (Table 2)", "report"} <= set(timings)
     assert all(t["ran"] and t["cpu_s"] >= 0 and t["wall_s"] >= 0 for t in timings.values())

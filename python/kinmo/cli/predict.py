@@ -45,15 +45,22 @@ def predict_cmd(
     err = Console(stderr=True)
     check_formats(fmt)
     with cli_errors(1):
-        model, axis_model, rc = refine.resolve(model, axis_model)
+        from kinmo.inference.predictor import Predictor
         from kinmo.user_input import is_user_input, predict_user_input
 
-        kw = dict(device=device, options=TreeOptions((0.0, hinge_max), slider_fraction),
-                  progress=not quiet, render=render, axis_model=axis_model, refine_config=rc)
+        if out.exists() and not out.is_dir():  # named before the models load
+            from kinmo.io import output_dir
+
+            output_dir(out)
+        model, axis_model, rc = refine.resolve(model, axis_model)
+        options = TreeOptions((0.0, hinge_max), slider_fraction)
+        predictor = Predictor.from_parts(model, axis_model, rc, options, device)
+        err.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)
+        kw = dict(device=device, options=options, progress=not quiet, render=render)
         if is_user_input(data):
-            rows = predict_user_input(data, model, out, formats=fmt or None, **kw)
+            rows = predict_user_input(data, predictor, out, formats=fmt or None, **kw)
         else:
-            rows = predict_dataset(data, model, out, cache=cache, formats=fmt or None, **kw)
+            rows = predict_dataset(data, predictor, out, cache=cache, formats=fmt or None, **kw)
     ok = [r for r in rows if r.status == "ok"]
     bad = [r for r in rows if r.status != "ok"]
     console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {out}")

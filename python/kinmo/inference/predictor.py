@@ -163,7 +163,7 @@ class Predictor:
 
     def describe(self) -> str:
         """One line: which model and selector are used."""
-        src = self.bundle.root or self.bundle.gnn if self.bundle is not None else "a loaded run"
+        src = (self.bundle.root or self.bundle.gnn) if self.bundle is not None else self.run.path
         sel = {"ranker": f"learned selector ({self.refine.ranker})" if self.refine else "",
                "paper": "paper selector (0.5/0.3/0.2, axis network)",
                "none": "no refinement (GNN axes)"}[self.selector]
