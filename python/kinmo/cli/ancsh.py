@@ -64,14 +64,14 @@ def train_ancsh_cmd(
     and data.json to OUT. Test objects of the split are never used.
     """
     _single_blas_thread()
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.ancsh.config import SETTINGS
     from kinmo.ancsh.config import preset as make_preset
     from kinmo.ancsh.train import train_ancsh
     from kinmo.cli._errors import cli_errors, fail
 
-    console = Console()
+    console = new_console()
     if setting not in SETTINGS:
         fail(f"--setting must be one of {', '.join(SETTINGS)}, got {setting!r}", 2)
     data = data or _default_data("partnet-mobility")
@@ -90,12 +90,12 @@ def train_ancsh_cmd(
     d = res.data
     console.print(
         f"trained ANCSH ({res.config.preset}, {setting}) for {res.config.category} "
-        f"[{res.structure.signature()}] in {res.seconds:.1f} s on {d['labeled_scans']} labelled, "
+        f"{literal('[' + res.structure.signature() + ']')} in {res.seconds:.1f} s on {d['labeled_scans']} labelled, "
         f"{d['pseudo_labeled_scans']} pseudo-labelled and {d['pseudo_target_scans']} pseudo-target scans: "
         f"loss {last['loss']:.3f}, segmentation accuracy {last['seg_acc']:.3f}",
         highlight=False, soft_wrap=True,
     )
-    console.print(f"run folder: {res.run_dir}", highlight=False, soft_wrap=True)
+    console.print(f"run folder: {literal(res.run_dir)}", highlight=False, soft_wrap=True)
 
 
 @eval_app.callback()
@@ -121,11 +121,11 @@ def eval_ancsh_cmd(
     if ctx.invoked_subcommand is not None:
         return
     _single_blas_thread()
-    from rich.console import Console
+    from kinmo.progress import console as new_console
 
-    console = Console()
+    console = new_console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 9-column tables
-        console = Console(width=max(console.width, 140))
+        console = new_console(width=max(console.width, 140))
     if category is None:
         console.print(ctx.get_help())
         raise typer.Exit(0)
@@ -141,7 +141,7 @@ def eval_ancsh_cmd(
         found = category_runs(category)
         if found.runs is None:
             fail(found.message)
-        Console(stderr=True).print(f"{found.category}: {found.message}", highlight=False, soft_wrap=True)
+        new_console(stderr=True).print(f"{literal(found.category)}: {literal(found.message)}", highlight=False, soft_wrap=True)
         run_paths, category = [found.runs], found.category
         if scans is None and found.scans is not None and data is None:
             scans = found.scans  # the test scans `kinmo train all` rendered

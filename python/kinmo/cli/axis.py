@@ -33,12 +33,12 @@ def train_axis_cmd(
     part of the split; the selection accuracy (best candidate = true axis) is logged per epoch
     in OUT/metrics.csv and picks the saved model (OUT/model.pt).
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors
     from kinmo.refine.train import preset_config, train_axis_model
 
-    console = Console()
+    console = new_console()
     overrides: dict = {"seed": seed, "device": device, "threads": threads}
     for key, val in (("epochs", epochs), ("batch_size", batch_size), ("lr", lr)):
         if val is not None:
@@ -61,5 +61,5 @@ def train_axis_cmd(
     )
     kept = res.categories_kept
     if kept:
-        console.print(f"per-category networks: {', '.join(kept)}", highlight=False)
-    console.print(f"run folder: {res.run_dir}", highlight=False)
+        console.print(f"per-category networks: {literal(', '.join(kept))}", highlight=False)
+    console.print(f"run folder: {literal(res.run_dir)}", highlight=False)

@@ -37,20 +37,20 @@ def export_cmd(
     urdf: PyBullet/SAPIEN/ROS (convex collision pieces); mjcf: MuJoCo; usd: Isaac Sim
     (UsdPhysics joints); gltf: any 3D viewer, one animation per joint.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors
     from kinmo.data.readers import find_shapes
     from kinmo.export import export_folder
 
     check_formats(fmt)
-    console = Console()
+    console = new_console()
     with cli_errors(1):
         if source is not None or not find_shapes(src):
             if (src / "mobility_v2.json").is_file():  # one predicted folder
                 files = export_folder(src, out, fmt, source=source)
                 console.print(f"exported 1 object as {', '.join(dict.fromkeys(fmt))}: "
-                              f"{sum(len(v) for v in files.values())} file(s) -> {out}",
+                              f"{sum(len(v) for v in files.values())} file(s) -> {literal(out)}",
                               highlight=False)
                 return
         folders = find_shapes(src)
@@ -64,4 +64,4 @@ def export_cmd(
             files = export_folder(folder, out if single else out / folder.name, fmt)
             n += sum(len(v) for v in files.values())
     console.print(f"exported {len(folders)} object(s) as {', '.join(dict.fromkeys(fmt))}: "
-                  f"{n} file(s) -> {out}", highlight=False)
+                  f"{n} file(s) -> {literal(out)}", highlight=False)

@@ -30,13 +30,13 @@ def train_gnn_cmd(
     The labelled graphs of DATA are split into train and test sets by category (written to
     OUT/split.json); test metrics are logged every epoch in OUT/metrics.csv.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors, fail
     from kinmo.train.config import preset as make_preset
     from kinmo.train.gnn import train_gnn
 
-    console = Console()
+    console = new_console()
     if types not in (None, "fine", "coarse"):
         fail(f"--types must be fine or coarse, got {types!r}", 2)
     with cli_errors(2, also=(ValueError,)):
@@ -50,4 +50,4 @@ def train_gnn_cmd(
         f"{res.seconds:.1f} s: loss {last['loss']:.3f}, train acc {last['train_acc']:.3f}"
         + (f", test acc {last['test_acc']:.3f}" if res.split.test else "")
     )
-    console.print(f"run folder: {res.run_dir}")
+    console.print(f"run folder: {literal(res.run_dir)}")

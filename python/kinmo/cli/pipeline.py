@@ -47,12 +47,12 @@ def train_all(
     categories it supports) added as labelled training objects or as unlabelled shapes to
     pseudo-label; the test objects stay the real ones and the report's section "Generated
     shapes" says whether they helped."""
-    from rich.console import Console
+    from kinmo.progress import console as new_console
 
     from kinmo.cli._errors import cli_errors, fail
     from kinmo.pipeline import TINY, PipelineConfig, find_data, missing_data_message, run_pipeline
 
-    console = Console(stderr=True)
+    console = new_console(stderr=True)
     found = find_data(labeled=labeled, unlabeled=unlabeled)
     if found.labeled is None:
         fail(missing_data_message())
@@ -84,12 +84,12 @@ def demo(
 ) -> None:
     """The whole pipeline on objects kinmo generates itself: synth, prepare, train all (quick),
     pseudo-label, eval, report."""
-    from rich.console import Console
+    from kinmo.progress import console as new_console
 
     from kinmo.cli._errors import cli_errors
     from kinmo.pipeline import run_demo
 
-    console = Console(stderr=True)
+    console = new_console(stderr=True)
     with cli_errors(1, also=(ValueError,)):
         res = run_demo(out, n_labeled=n, n_unlabeled=max(n // 2, 2), seed=seed, data=data, unlabeled=unlabeled,
                        tiny=tiny, console=console, selector=selector)

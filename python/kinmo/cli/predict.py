@@ -35,14 +35,14 @@ def predict_cmd(
 
     Exit code 1 when any shape failed (listed at the end, and in OUT/predictions.csv).
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
-    from kinmo.cli._errors import cli_errors, printable
+    from kinmo.cli._errors import cli_errors
     from kinmo.mobility_tree import TreeOptions
     from kinmo.predict import predict_dataset
 
-    console = Console()
-    err = Console(stderr=True)
+    console = new_console()
+    err = new_console(stderr=True)
     rc = refine.config(axis_model)
     check_formats(fmt)
     with cli_errors(1):
@@ -56,8 +56,8 @@ def predict_cmd(
             rows = predict_dataset(data, model, out, cache=cache, formats=fmt or None, **kw)
     ok = [r for r in rows if r.status == "ok"]
     bad = [r for r in rows if r.status != "ok"]
-    console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {out}")
+    console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {literal(out)}")
     for r in bad:
-        err.print(f"[red]failed[/] {printable(r.id)}: {printable(r.error)}")
+        err.print(f"[red]failed[/] {literal(r.id)}: {literal(r.error)}")
     if bad:
         raise typer.Exit(1)

@@ -42,7 +42,7 @@ def pseudo_label_cmd(
     scores.json). OUT/summary.csv counts kept and rejected shapes per category,
     OUT/shapes.csv gives every shape's status and reason. Re-running resumes.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
     from rich.table import Table
 
     from kinmo.cli._errors import cli_errors
@@ -53,7 +53,7 @@ def pseudo_label_cmd(
         summary_rows,
     )
 
-    console = Console()
+    console = new_console()
     rc = refine.config(axis_model)
     check_formats(fmt)
     with cli_errors(2, also=(ValueError,)):
@@ -74,7 +74,7 @@ def pseudo_label_cmd(
     for s in STATUSES:
         table.add_column(s.replace("_", " "), justify="right")
     for row in summary_rows(res.records):
-        table.add_row(str(row["category"]), str(row["shapes"]), *(str(row[s]) for s in STATUSES),
+        table.add_row(literal(row["category"]), str(row["shapes"]), *(str(row[s]) for s in STATUSES),
                       end_section=row["category"] == "all")
     console.print(table)
     failed = [r for r in res.records if r.status == "failed"]
@@ -83,10 +83,10 @@ def pseudo_label_cmd(
         ft.add_column("id", no_wrap=True)
         ft.add_column("reason", overflow="fold")
         for r in failed:
-            ft.add_row(r.id, r.reason)
+            ft.add_row(literal(r.id), literal(r.reason))
         console.print(ft)
     console.print(
         f"{len(res.records)} shapes in {res.seconds:.1f} s ({res.n_skipped} up to date): "
-        f"{res.count('kept')} kept -> {res.out}/summary.csv, {res.out}/shapes.csv",
+        f"{res.count('kept')} kept -> {literal(res.out)}/summary.csv, {literal(res.out)}/shapes.csv",
         highlight=False, soft_wrap=True,
     )

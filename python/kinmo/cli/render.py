@@ -41,13 +41,13 @@ def render(
     link labels, NPCS, NAOCS, part poses, joints) and manifest.csv. Re-running resumes:
     up-to-date frames are skipped. Exit code 1 if any object failed.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
     from rich.table import Table
 
     from kinmo.cli._errors import cli_errors
     from kinmo.render.dataset import RenderConfig, render_dataset
 
-    console = Console()
+    console = new_console()
     try:
         config = RenderConfig(width=size, height=size, fov_y=fov, seed=seed)
     except ValueError as e:
@@ -58,7 +58,7 @@ def render(
     console.print(
         f"{len(result.rows)} frames of {result.n_objects} objects in {result.seconds:.1f} s: "
         f"{result.count('ok')} rendered, {result.count('skipped')} skipped (up to date), "
-        f"{result.count('failed')} failed -> {result.out}/manifest.csv",
+        f"{result.count('failed')} failed -> {literal(result.out)}/manifest.csv",
         highlight=False, soft_wrap=True,
     )
     failed = [r for r in result.rows if r.status == "failed"]
@@ -71,6 +71,6 @@ def render(
         for r in failed:
             by_obj.setdefault(r.id, []).append(r)
         for oid, rows in sorted(by_obj.items()):
-            table.add_row(oid, str(len(rows)), rows[0].error)
+            table.add_row(literal(oid), str(len(rows)), literal(rows[0].error))
         console.print(table)
         raise typer.Exit(1)

@@ -59,11 +59,11 @@ def run_demo(
     selector : {"learned", "paper"}
         :attr:`PipelineConfig.selector`.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console
 
     from kinmo.synth import CATEGORIES, SYNTH_VERSION, generate_dataset
 
-    console = console or Console(stderr=True)
+    console = console or new_console(stderr=True)
     out = Path(out)
     timings: dict[str, StageTiming] = {}
     if data is None:
