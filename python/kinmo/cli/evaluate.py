@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+from kinmo.cli import _values
+
 from kinmo.cli._apps import eval_app
 from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
@@ -22,7 +24,7 @@ def pre_segmented_cmd(
     render: bool = typer.Option(False, "--render", help="Write a PNG per shape and model (OUT/renders/<model>/<id>.png)."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: add OBB_fine / OBB_coarse columns with refined axes."),  # noqa: UP007
     refine: RefineOptions = REFINE,
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
+    device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda ..."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Evaluate motion GNN(s) on the shapes they did not train on (the test split of their own

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+from kinmo.cli import _values
+
 from kinmo.cli._apps import train_app
 
 
@@ -19,9 +21,9 @@ def train_gnn_cmd(
     epochs: Optional[int] = typer.Option(None, "--epochs", min=1, help="Override the preset's epochs."),  # noqa: UP007
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed [default: 0]."),  # noqa: UP007
     split: Optional[Path] = typer.Option(None, "--split", help="A split.json to use instead of making one."),  # noqa: UP007
-    device: Optional[str] = typer.Option(None, "--device", help="auto, cpu, cuda, cuda:1 ... [default: auto]."),  # noqa: UP007
+    device: Optional[str] = typer.Option(None, "--device", callback=_values.device, help="auto, cpu, cuda, cuda:1 ... [default: auto]."),  # noqa: UP007
     batch_size: Optional[int] = typer.Option(None, "--batch-size", min=1, help="Shapes per step."),  # noqa: UP007
-    lr: Optional[float] = typer.Option(None, "--lr", help="Learning rate."),  # noqa: UP007
+    lr: Optional[float] = typer.Option(None, "--lr", callback=_values.learning_rate, help="Learning rate."),  # noqa: UP007
     threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: default)."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:

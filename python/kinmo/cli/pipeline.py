@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from kinmo.cli import _values
+
 from kinmo.cli._apps import app, train_app
 
 
@@ -17,7 +19,7 @@ def train_all(
     preset: str = typer.Option("quick", envvar="KINMO_PRESET",
                                help="quick (2 CPU cores), paper (GPU) or tiny (seconds per stage: a check, not results)."),
     category: list[str] | None = typer.Option(None, "--category", help="ANCSH categories (repeatable)."),
-    labeled_fraction: float = typer.Option(1.0, help="Share of labelled training objects for ANCSH."),
+    labeled_fraction: float = typer.Option(1.0, callback=_values.finite, help="Share of labelled training objects for ANCSH."),
     seed: int = typer.Option(0),
     workers: int = typer.Option(0, "--workers", "-j", help="Processes for per-shape stages (0: all cores)."),
     skip_ancsh: bool = typer.Option(False, "--skip-ancsh", help="Stop after the pseudo-labels (Table 1 only)."),

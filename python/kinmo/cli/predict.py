@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+from kinmo.cli import _values
+
 from kinmo.cli._apps import app
 from kinmo.cli.export import FORMAT_HELP, check_formats
 from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
@@ -19,9 +21,9 @@ def predict_cmd(
     model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
-    hinge_max: float = typer.Option(90.0, "--hinge-max", help="Upper limit of predicted hinges (degrees)."),
-    slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, help="Slider range as a fraction of the part's size."),
+    device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda ..."),
+    hinge_max: float = typer.Option(90.0, "--hinge-max", callback=_values.angle_deg, help="Upper limit of predicted hinges (degrees)."),
+    slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, callback=_values.finite, help="Slider range as a fraction of the part's size."),
     render: bool = typer.Option(False, "--render", help="Also write OUT/<id>/prediction.png."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the predicted axes (paper Sec. 3.3)."),  # noqa: UP007
     refine: RefineOptions = REFINE,

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+from kinmo.cli import _values
+
 from kinmo.cli._apps import app
 from kinmo.cli._executor import EXECUTOR
 
@@ -31,11 +33,11 @@ def prepare(
     ),
     seed: int = typer.Option(0, "--seed", help="Sampling seed."),
     contact_tolerance: float = typer.Option(
-        0.01, "--contact-tolerance", min=0.0,
+        0.01, "--contact-tolerance", min=0.0, callback=_values.finite,
         help="Contact threshold, fraction of the shape's bounding-box diagonal.",
     ),
     distance_cap: float = typer.Option(
-        0.1, "--distance-cap", min=0.0, help="Distance clip, fraction of the diagonal."
+        0.1, "--distance-cap", min=0.0, callback=_values.finite, help="Distance clip, fraction of the diagonal."
     ),
     merged: bool = typer.Option(
         False, "--merged",

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+from kinmo.cli import _values
+
 from kinmo.cli._apps import app
 from kinmo.cli.export import FORMAT_HELP, check_formats
 from kinmo.cli._executor import EXECUTOR
@@ -20,7 +22,7 @@ def pseudo_label_cmd(
     model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn`."),
     axis_model: Path = typer.Option(..., "--axis-model", "-a", help="Run folder of `kinmo train axis` (its ranker.json, when present, selects the axes), or a folder holding only a ranker.json."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: one PartNet-Mobility folder per kept shape."),
-    threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, help="Minimum refinement score of every joint of a kept shape."),
+    threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, callback=_values.finite, help="Minimum refinement score of every joint of a kept shape."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="A `kinmo prepare` cache of DIR (graphs are built when missing)."),  # noqa: UP007
     refine: RefineOptions = REFINE,
@@ -28,7 +30,7 @@ def pseudo_label_cmd(
     sign: str = typer.Option("tree", "--sign", help="Direction of motion: tree (away from the reference part) or feasibility (the network's)."),
     link: str = typer.Option("hardlink", "--link", help="How meshes get into OUT/<id>/textured_objs/: hardlink (default; a copy across file systems) or copy make self-contained folders; symlink links to the source dataset by absolute path, for a dataset that stays in place (kinmo's own readers refuse such links)."),
     copy: bool = typer.Option(False, "--copy", help="Same as --link copy."),
-    device: str = typer.Option("cpu", "--device", help="Torch device of both networks."),
+    device: str = typer.Option("cpu", "--device", callback=_values.device, help="Torch device of both networks."),
     force: bool = typer.Option(False, "--force", help="Redo shapes already processed with the same inputs."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf (mobility_v2 is always written)."),  # noqa: UP007

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from kinmo.cli import _values
+
 from kinmo.cli._apps import app
 from kinmo.cli._executor import EXECUTOR
 
@@ -26,7 +28,7 @@ def render(
         256, "--size", min=8, max=4096, help="Image width and height (pixels)."
     ),
     fov: float = typer.Option(
-        45.0, "--fov", min=1.0, max=170.0, help="Vertical field of view (degrees)."
+        45.0, "--fov", min=1.0, max=170.0, callback=_values.finite, help="Vertical field of view (degrees)."
     ),
     workers: int = typer.Option(
         0, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."
