@@ -17,7 +17,7 @@ from typing import Any, Optional
 
 import typer
 
-from kinmo.cli import _values
+import kinmo.cli._values as _values
 
 FEASIBILITY_ONLY = typer.Option(
     False, "--feasibility-only",

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from kinmo.cli import _values
+import kinmo.cli._values as _values
 
 from kinmo.cli._apps import train_app
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from kinmo.cli import _values
+import kinmo.cli._values as _values
 
 from kinmo.cli._apps import app
 from kinmo.cli._executor import EXECUTOR
