@@ -80,3 +80,112 @@ def test_diverged_training_stops_and_saves_no_model(tiny_gnn, tmp_path):
         train_gnn(tiny_gnn["cache"], tmp_path / "run", cfg, split=Split(["c1", "c2"], []),
                   progress=False)
     assert not list(tmp_path.rglob("*.pt"))
+
+
+# ---- finding 7 and the input rules: glTF node cycles, external URIs, URDF paths and entities --
+
+def _gltf(path, nodes, uri=None, scenes=None):
+    """A .gltf with one box mesh (12 triangles, embedded buffer) and the given node list."""
+    import base64
+
+    import numpy as np
+
+    v = np.array([(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float32)
+    f = np.array([(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+                  (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)], np.uint16)
+    blob = v.tobytes() + f.tobytes()
+    buf = {"byteLength": len(blob),
+           "uri": uri or "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}
+    doc = {
+        "asset": {"version": "2.0"},
+        "buffers": [buf],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": v.nbytes},
+                        {"buffer": 0, "byteOffset": v.nbytes, "byteLength": f.nbytes}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 1]},
+                      {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "nodes": nodes,
+        "scenes": scenes or [{"nodes": [0]}], "scene": 0,
+    }
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_gltf_node_cycle_is_one_clear_error(tmp_path):
+    from kinmo.errors import KinmoDataError
+    from kinmo.user_input import read_parts
+
+    nodes = [{"mesh": 0, "children": [1]}, {"mesh": 0, "children": [2]},
+             {"mesh": 0, "children": [0]}]
+    f = _gltf(tmp_path / "cycle.gltf", nodes)
+    with pytest.raises(KinmoDataError, match="cycle"):
+        read_parts(f)
+    res = runner.invoke(app, ["predict", str(f), "-m", str(tmp_path / "nomodel"), "-o",
+                              str(tmp_path / "out"), "-q"])
+    assert res.exit_code != 0 and "Traceback" not in res.output
+
+
+def test_gltf_external_uri_outside_the_folder_is_refused(tmp_path):
+    from kinmo.errors import KinmoDataError
+    from kinmo.user_input import read_parts
+
+    nodes = [{"mesh": 0}, {"mesh": 0, "translation": [2, 0, 0]}]
+    f = _gltf(tmp_path / "a.gltf", nodes, uri="../../etc/passwd",
+              scenes=[{"nodes": [0, 1]}])
+    with pytest.raises(KinmoDataError, match="uri '../../etc/passwd' refused"):
+        read_parts(f)
+
+
+def test_gltf_of_plain_parts_still_reads(tmp_path):
+    from kinmo.user_input import read_parts
+
+    nodes = [{"mesh": 0, "children": [1]}, {"mesh": 0, "translation": [2, 0, 0]}]
+    assert len(read_parts(_gltf(tmp_path / "ok.gltf", nodes))) == 2
+
+
+def _urdf(folder, filename, doctype=""):
+    from conftest import write_box_obj
+
+    folder.mkdir(parents=True, exist_ok=True)
+    write_box_obj(folder / "a.obj", (0, 0, 0), (1, 1, 1))
+    (folder / "sub").mkdir(exist_ok=True)
+    write_box_obj(folder / "sub" / "b.obj", (1, 0, 0), (2, 1, 1))
+    text = f"""{doctype}<robot name="r">
+  <link name="a"><visual><geometry><mesh filename="a.obj"/></geometry></visual></link>
+  <link name="b"><visual><geometry><mesh filename="{filename}"/></geometry></visual></link>
+  <joint name="j" type="revolute"><parent link="a"/><child link="b"/></joint>
+</robot>"""
+    (folder / "m.urdf").write_text(text)
+    return folder / "m.urdf"
+
+
+@pytest.mark.parametrize("filename", ["ABS", "../outside.obj", "sub/../../outside.obj",
+                                      "package://../outside.obj"])
+def test_urdf_mesh_paths_outside_its_folder_are_refused(tmp_path, filename):
+    from conftest import write_box_obj
+
+    from kinmo.errors import KinmoDataError
+    from kinmo.user_input import read_parts
+
+    write_box_obj(tmp_path / "outside.obj", (0, 0, 0), (1, 1, 1))
+    if filename == "ABS":
+        filename = str(tmp_path / "outside.obj")
+    with pytest.raises(KinmoDataError, match="refused"):
+        read_parts(_urdf(tmp_path / "asset", filename))
+
+
+def test_urdf_relative_mesh_inside_its_folder_reads(tmp_path):
+    from kinmo.user_input import read_parts
+
+    assert [p[0] for p in read_parts(_urdf(tmp_path / "asset", "package://sub/b.obj"))] == ["a", "b"]
+
+
+def test_urdf_with_entities_is_refused(tmp_path):
+    from kinmo.errors import KinmoDataError
+    from kinmo.user_input import read_parts
+
+    bomb = ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">'
+            '<!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">]>\n')
+    with pytest.raises(KinmoDataError, match="entity"):
+        read_parts(_urdf(tmp_path / "asset", "sub/b.obj", doctype=bomb))

@@ -173,15 +173,42 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
     from kinmo.io import output_dir
 
     out_dir = output_dir(out_dir)
-    ctx = ExportContext(shape, links, out_dir, name or shape.id)
+    ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id)
     return {f: EXPORTERS[f].write(ctx) for f in fmts}
+
+
+def self_contained(shape: Shape, out_dir: Path) -> Shape:
+    """``shape`` with its meshes inside ``out_dir``: every leaf mesh hard-linked (or copied)
+    to ``out_dir/textured_objs/<name>.obj`` unless the mesh folder already lies inside
+    ``out_dir``, so every path the formats write is relative inside the object folder and the
+    folder can be moved, zipped or sent (issue 21, finding 11). Mesh names were checked when
+    the hierarchy was read (:mod:`kinmo.data.names`).
+
+    Returns
+    -------
+    Shape
+        A copy whose ``mesh_dir`` is ``out_dir/textured_objs`` (or ``shape`` itself).
+    """
+    import dataclasses
+
+    from kinmo.data.names import inside
+    from kinmo.io import link_or_copy
+
+    if inside(shape.mesh_dir, out_dir):
+        return shape
+    dest = out_dir / "textured_objs"
+    for node in shape.hierarchy.nodes.values():
+        for o in node.objs:
+            link_or_copy(shape.mesh_path(o), dest / f"{o}.obj")
+    return dataclasses.replace(shape, mesh_dir=dest)
 
 
 def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
                   source: str | Path | None = None) -> dict[str, list[Path]]:
     """Export a PartNet-Mobility-format folder (real, generated or predicted) to ``out``.
 
-    Mesh references point back into the mesh folder (relative paths) where a format allows it.
+    The leaf meshes are hard-linked or copied into ``out/textured_objs`` (:func:`self_contained`):
+    every mesh reference is relative inside ``out``.
 
     Parameters
     ----------
