@@ -189,3 +189,67 @@ def test_urdf_with_entities_is_refused(tmp_path):
             '<!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">]>\n')
     with pytest.raises(KinmoDataError, match="entity"):
         read_parts(_urdf(tmp_path / "asset", "sub/b.obj", doctype=bomb))
+
+
+# ---- finding 10: control characters and markup in names of XML / HTML / Markdown writers ------
+
+def _renamed_cabinet(tmp_path, name):
+    from kinmo.data.readers import read_shape
+
+    folder = write_cabinet(tmp_path / "cab")
+    tree = json.loads((folder / "result.json").read_text())
+    tree[0]["children"][1]["name"] = name  # the door
+    tree[0]["children"][1]["text"] = name
+    (folder / "result.json").write_text(json.dumps(tree))
+    links = json.loads((folder / "mobility_v2.json").read_text())
+    links[0]["name"] = name
+    (folder / "mobility_v2.json").write_text(json.dumps(links))
+    return read_shape(folder)
+
+
+@pytest.mark.parametrize("fmt", ["urdf", "mjcf"])
+def test_control_characters_in_names_keep_xml_well_formed(tmp_path, fmt):
+    import xml.etree.ElementTree as ET
+
+    from kinmo.export import ExportContext
+    from kinmo.export.mjcf import mjcf_string
+    from kinmo.urdf import urdf_string
+
+    shape = _renamed_cabinet(tmp_path, "door\u0001\u001b[31m<x>&")
+    if fmt == "urdf":
+        text = urdf_string(shape, name="obj\u0002")
+    else:
+        ctx = ExportContext(shape, list(shape.links), tmp_path, "obj\u0002")
+        text = mjcf_string(ctx, {lid: f"link_{lid}.obj" for lid in ctx.meshes})
+    ET.fromstring(text.split("?>", 1)[-1])  # well-formed
+    assert "\u0001" not in text and "\u0002" not in text and "\u001b" not in text
+
+
+def test_viewer_json_cannot_end_or_remode_its_script_block():
+    from kinmo.view import script_json
+
+    blob = script_json({"name": "<!--<script></script>&"})
+    assert "<" not in blob and ">" not in blob and "&" not in blob
+    assert json.loads(blob) == {"name": "<!--<script></script>&"}
+
+
+def test_view_page_of_a_hostile_part_name_keeps_its_sliders(tmp_path):
+    from kinmo.view import view_folder
+
+    shape = _renamed_cabinet(tmp_path, "<!--<script>")
+    page = view_folder(shape.path)
+    html_text = page.read_text()
+    scripts = html_text.split("<script>")[1:]
+    # every script block ends where kinmo ended it: no name opened a comment or a script
+    assert all("<!--" not in s.split("</script>")[0] for s in scripts[2:])
+    assert "kinmoView(" in html_text and html_text.rstrip().endswith("</html>")
+
+
+def test_report_markdown_cells_escape_names():
+    from kinmo.report.document import Document, Section, Table
+    from kinmo.report.markdown import render_markdown
+
+    doc = Document(title="t", meta=[], sections=[Section(id="s", title="s", blocks=[
+        Table(columns=["shape"], rows=[["<img src=x onerror=alert(1)>|\u0001"]])])])
+    md = render_markdown(doc)
+    assert "<img src=x" not in md and "\u0001" not in md and "\\|" in md

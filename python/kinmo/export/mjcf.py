@@ -29,6 +29,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from kinmo.data.names import clean_xml_tree
 from kinmo.export import ExportContext, register
 from kinmo.io import atomic_path, write_text
 
@@ -94,6 +95,7 @@ def mjcf_string(ctx: ExportContext, meshes: dict[int, str],
                 ET.SubElement(body, "geom", name=f"link_{lid}_collision_{k}", type="mesh",
                               mesh=f"link_{lid}_collision_{k}", pos=_xyz(-frames[lid]),
                               group="3", rgba="0.5 0.5 0.5 0")
+    clean_xml_tree(root)  # names from input files: no control characters (issue 21)
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"
 
