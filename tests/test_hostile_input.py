@@ -253,3 +253,60 @@ def test_report_markdown_cells_escape_names():
         Table(columns=["shape"], rows=[["<img src=x onerror=alert(1)>|\u0001"]])])])
     md = render_markdown(doc)
     assert "<img src=x" not in md and "\u0001" not in md and "\\|" in md
+
+
+# ---- findings 11 and 12: self-contained objects, one writer per OUT, objects appear whole ------
+
+def test_exported_object_is_self_contained_and_loads_after_a_move(tmp_path):
+    import shutil
+
+    import pybullet as pb
+
+    src = write_cabinet(tmp_path / "src" / "cab")
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["export", str(src), "-f", "urdf", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    urdf = (out / "mobility.urdf").read_text()
+    assert "../" not in urdf and str(tmp_path) not in urdf
+    shutil.rmtree(tmp_path / "src")  # the source is gone ...
+    moved = shutil.move(str(out), str(tmp_path / "elsewhere"))  # ... and the object moved
+    assert not list(tmp_path.glob(".out.partial-*"))
+    cid = pb.connect(pb.DIRECT)
+    try:
+        body = pb.loadURDF(str(tmp_path / "elsewhere" / "mobility.urdf"), physicsClientId=cid)
+        assert pb.getNumJoints(body, physicsClientId=cid) >= 3
+    finally:
+        pb.disconnect(cid)
+    assert moved
+
+
+def test_export_refuses_an_out_another_run_is_writing(tmp_path):
+    from kinmo.io import folder_lock
+
+    src = write_cabinet(tmp_path / "src" / "cab")
+    out = tmp_path / "out"
+    out.mkdir()
+    with folder_lock(out, "kinmo predict"):
+        res = runner.invoke(app, ["export", str(src), "-f", "mjcf", "-o", str(out)])
+    assert res.exit_code == 1 and "is writing this folder" in res.output
+    assert not (out / "mobility.xml").exists()
+
+
+def test_staged_folder_appears_whole_or_not_at_all(tmp_path):
+    from kinmo.io import staged_folder
+
+    dst = tmp_path / "obj"
+    with pytest.raises(RuntimeError):
+        with staged_folder(dst) as tmp:
+            (tmp / "collision").mkdir()
+            raise RuntimeError("killed")
+    assert not dst.exists() and not list(tmp_path.iterdir())
+    with staged_folder(dst) as tmp:
+        (tmp / "a.txt").write_text("1")
+        assert not dst.exists()
+    assert (dst / "a.txt").read_text() == "1"
+    (dst / "keep.txt").write_text("k")
+    with staged_folder(dst) as tmp:
+        (tmp / "a.txt").write_text("2")
+    assert (dst / "a.txt").read_text() == "2" and (dst / "keep.txt").is_file()
+    assert [p.name for p in tmp_path.iterdir()] == ["obj"]

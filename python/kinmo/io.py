@@ -315,3 +315,58 @@ def link_or_copy(src: str | Path, dst: str | Path) -> Path:
         tmp.unlink(missing_ok=True)
         raise
     return dst
+
+
+@contextmanager
+def staged_folder(dst: str | Path) -> Iterator[Path]:
+    """Yield a temporary sibling of the folder ``dst`` to write an object into; on success it
+    appears at ``dst`` whole (issue 21, finding 12).
+
+    When ``dst`` does not exist (or is empty) the sibling is renamed onto it: one atomic step,
+    so a reader sees no object or the complete one, and ``kill -9`` leaves only a hidden
+    ``.<name>.partial-<pid>`` folder (removed by the next run into ``dst``). When ``dst``
+    already holds files (a rerun), each written entry replaces its namesake by a rename
+    (files atomically, folders by a swap); other files of ``dst`` are kept. On an exception
+    the sibling is removed and ``dst`` is untouched.
+    """
+    import shutil
+
+    dst = Path(dst)
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    for old in dst.parent.glob(f".{dst.name}.partial-*"):
+        pid = old.name.rsplit("-", 1)[-1]
+        if not (pid.isdigit() and _alive(int(pid))):
+            shutil.rmtree(old, ignore_errors=True)
+    tmp = dst.parent / f".{dst.name}.partial-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        yield tmp
+        if dst.is_dir() and not any(dst.iterdir()):
+            dst.rmdir()
+        if not dst.exists():
+            os.replace(tmp, dst)
+            return
+        for entry in sorted(tmp.iterdir()):
+            target = dst / entry.name
+            if entry.is_dir() and target.is_dir():
+                trash = dst / f".{entry.name}.old-{os.getpid()}"
+                os.replace(target, trash)
+                os.replace(entry, target)
+                shutil.rmtree(trash, ignore_errors=True)
+            else:
+                os.replace(entry, target)
+        shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True

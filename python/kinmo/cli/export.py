@@ -5,6 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import typer
 
 from kinmo.cli._apps import app
@@ -23,6 +26,19 @@ def check_formats(fmt: list[str] | None) -> None:
     if bad:
         raise typer.BadParameter(f"unknown format(s) {', '.join(bad)}; known: {', '.join(known)}",
                                  param_hint="--format")
+
+
+@contextmanager
+def _locked(out: Path, inputs: list[Path], command: str = "kinmo export") -> Iterator[None]:
+    """The checks and lock every writing command takes on its OUT (issue 21, finding 12):
+    outputs apart from inputs, SIGTERM runs the cleanups (temporary folders of V-HACD, the
+    staged object), one run per OUT at a time."""
+    from kinmo.io import check_outputs_apart, folder_lock, output_dir
+    from kinmo.parallel import sigterm_raises
+
+    check_outputs_apart(out, inputs)
+    with sigterm_raises(), folder_lock(output_dir(out), command):
+        yield
 
 
 @app.command("export")
@@ -45,7 +61,7 @@ def export_cmd(
 
     check_formats(fmt)
     console = new_console()
-    with cli_errors(1):
+    with cli_errors(1), _locked(out, [src, *([source] if source is not None else [])]):
         if source is not None or not find_shapes(src):
             if (src / "mobility_v2.json").is_file():  # one predicted folder
                 files = export_folder(src, out, fmt, source=source)

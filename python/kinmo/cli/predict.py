@@ -10,7 +10,7 @@ import typer
 import kinmo.cli._values as _values
 
 from kinmo.cli._apps import app
-from kinmo.cli.export import FORMAT_HELP, check_formats
+from kinmo.cli.export import FORMAT_HELP, _locked, check_formats
 from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
 
@@ -47,7 +47,7 @@ def predict_cmd(
     err = new_console(stderr=True)
     rc = refine.config(axis_model)
     check_formats(fmt)
-    with cli_errors(1):
+    with cli_errors(1), _locked(out, [data], "kinmo predict"):
         from kinmo.user_input import is_user_input, predict_user_input
 
         kw = dict(device=device, options=TreeOptions((0.0, hinge_max), slider_fraction),

@@ -240,8 +240,7 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
         shape = read_shape(source)
         if not (src / "mobility_v2.json").is_file():
             raise KinmoDataError(src / "mobility_v2.json", "file is missing")
-        return export(shape, out, fmts, links=read_links(src / "mobility_v2.json",
-                                                         shape.hierarchy))
+        return _staged(shape, out, fmts, read_links(src / "mobility_v2.json", shape.hierarchy))
     if not any((src / n).is_file() for n in ("result.json", "result_after_merging.json")) \
             and (src / "mobility_v2.json").is_file():
         raise KinmoDataError(src, "links without meshes (a `kinmo predict` output?): give the "
@@ -249,4 +248,16 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
     shape = read_shape(src)
     if not shape.links:
         raise KinmoDataError(src, "not a PartNet-Mobility folder: mobility_v2.json is missing")
-    return export(shape, out, fmts)
+    return _staged(shape, out, fmts, None)
+
+
+def _staged(shape: Shape, out: str | Path, fmts: Iterable[str],
+            links: Sequence[Link] | None) -> dict[str, list[Path]]:
+    """:func:`export` into a temporary sibling of ``out`` that appears at ``out`` whole
+    (:func:`kinmo.io.staged_folder`); the returned paths are those under ``out``."""
+    from kinmo.io import staged_folder
+
+    out = Path(out)
+    with staged_folder(out) as tmp:
+        files = export(shape, tmp, fmts, links=links)
+    return {f: [out / p.relative_to(tmp) for p in ps] for f, ps in files.items()}
