@@ -310,3 +310,40 @@ def test_staged_folder_appears_whole_or_not_at_all(tmp_path):
         (tmp / "a.txt").write_text("2")
     assert (dst / "a.txt").read_text() == "2" and (dst / "keep.txt").is_file()
     assert [p.name for p in tmp_path.iterdir()] == ["obj"]
+
+
+# ---- finding 9: parts a simulator cannot load ----------------------------------------------
+
+def _with_flat_knob(tmp_path, lines):
+    from kinmo.data.readers import read_shape
+
+    folder = write_cabinet(tmp_path / "cab")
+    (folder / "textured_objs" / "knob.obj").write_text("\n".join(lines) + "\n")
+    return read_shape(folder)
+
+
+@pytest.mark.parametrize("lines", [
+    ["v 0.2 0.6 0.6", "v 0.3 0.6 0.6", "v 0.2 0.7 0.6", "f 1 2 3"],  # one triangle
+    ["v 0.2 0.6 0.6", "v 0.3 0.6 0.6", "v 0.3 0.7 0.6", "v 0.2 0.7 0.6", "f 1 2 3", "f 1 3 4"],
+])
+def test_flat_parts_export_to_a_model_mujoco_loads(tmp_path, lines):
+    import mujoco
+
+    from kinmo.export import export
+
+    shape = _with_flat_knob(tmp_path, lines)
+    files = export(shape, tmp_path / "out", ["mjcf"])["mjcf"]
+    model = mujoco.MjModel.from_xml_path(str(files[0]))
+    assert model.nbody >= 4
+
+
+def test_zero_area_part_is_refused_by_export_as_by_prepare(tmp_path):
+    from kinmo.errors import KinmoDataError
+    from kinmo.export.kinematics import link_meshes
+
+    shape = _with_flat_knob(tmp_path, ["v 0.2 0.6 0.6", "v 0.3 0.6 0.6", "v 0.4 0.6 0.6",
+                                       "f 1 2 3"])
+    with pytest.raises(KinmoDataError, match="zero surface area"):
+        link_meshes(shape)
+    res = runner.invoke(app, ["prepare", str(shape.path), "-o", str(tmp_path / "c")])
+    assert res.exit_code == 1 and "zero area" in " ".join(res.output.split())

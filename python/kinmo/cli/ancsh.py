@@ -123,7 +123,7 @@ def eval_ancsh_cmd(
     if ctx.invoked_subcommand is not None:
         return
     _single_blas_thread()
-    from kinmo.progress import console as new_console
+    from kinmo.progress import console as new_console, literal
 
     console = new_console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 9-column tables
