@@ -347,3 +347,15 @@ def test_zero_area_part_is_refused_by_export_as_by_prepare(tmp_path):
         link_meshes(shape)
     res = runner.invoke(app, ["prepare", str(shape.path), "-o", str(tmp_path / "c")])
     assert res.exit_code == 1 and "zero area" in " ".join(res.output.split())
+
+
+# ---- finding 5: the convex decomposition of a many-link export shows progress ----------------
+
+def test_export_of_many_links_shows_vhacd_progress(tmp_path, monkeypatch):
+    import kinmo.export.urdf as export_urdf
+
+    monkeypatch.setattr(export_urdf, "PIECES_BAR_MIN_LINKS", 2)
+    src = write_cabinet(tmp_path / "src" / "cab")
+    res = runner.invoke(app, ["export", str(src), "-f", "urdf", "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert "V-HACD" in res.output and "5/5" in res.output

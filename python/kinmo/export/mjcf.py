@@ -114,24 +114,26 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
         Inconsistent links (as :func:`kinmo.urdf.urdf_joints`) or unreadable meshes.
     """
     from kinmo.export.kinematics import write_obj
-    from kinmo.export.urdf import convex_pieces
+    from kinmo.export.urdf import convex_pieces, pieces_bar
 
     mdir = ctx.out_dir / "meshes"
     mdir.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
     names: dict[int, str] = {}
     collision: dict[int, list[str]] = {}
-    for lid, m in ctx.meshes.items():
-        if len(m.faces) == 0:
-            continue
-        p = mdir / f"link_{lid}.obj"
-        with atomic_path(p) as tmp:
-            write_obj(tmp, m.vertices, m.faces)
-        files.append(p)
-        names[lid] = p.name
-        pieces = convex_pieces(m, mdir / f"link_{lid}_collision")
-        files.extend(pieces)
-        collision[lid] = [q.name for q in pieces]
+    with pieces_bar(ctx) as bar:
+        for lid, m in ctx.meshes.items():
+            bar.advance()
+            if len(m.faces) == 0:
+                continue
+            p = mdir / f"link_{lid}.obj"
+            with atomic_path(p) as tmp:
+                write_obj(tmp, m.vertices, m.faces)
+            files.append(p)
+            names[lid] = p.name
+            pieces = convex_pieces(m, mdir / f"link_{lid}_collision")
+            files.extend(pieces)
+            collision[lid] = [q.name for q in pieces]
     path = ctx.out_dir / "mobility.xml"
     write_text(path, mjcf_string(ctx, names, collision))
     return [path] + files
