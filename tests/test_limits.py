@@ -37,7 +37,8 @@ def test_check_names_file_and_limit(monkeypatch):
 
 
 def test_prepare_over_a_limit_is_one_line_and_the_option_raises_it(tmp_path, monkeypatch):
-    monkeypatch.delenv("KINMO_MAX_PARTS", raising=False)
+    monkeypatch.setenv("KINMO_MAX_PARTS", "2000")  # restored after the test: --limit sets it
+    monkeypatch.delenv("KINMO_MAX_PARTS")
     write_cabinet(tmp_path / "data" / "cab")
     runner = CliRunner()
     res = runner.invoke(app, ["--limit", "parts=3", "prepare", str(tmp_path / "data"), "-o",
@@ -50,7 +51,8 @@ def test_prepare_over_a_limit_is_one_line_and_the_option_raises_it(tmp_path, mon
     assert res.exit_code == 0, res.output
 
 
-def test_limit_option_refuses_bad_values(tmp_path):
+def test_limit_option_refuses_bad_values(tmp_path, monkeypatch):
+    monkeypatch.setenv("KINMO_MAX_PARTS", "2000")
     res = CliRunner().invoke(app, ["--limit", "parts=-1", "prepare", str(tmp_path)])
     assert res.exit_code == 2 and "error: --limit parts=-1" in res.output
 
