@@ -154,3 +154,27 @@ def chromium() -> str:
     from browser import find_chromium
 
     return find_chromium()
+
+
+@pytest.fixture(scope="session")
+def tiny_gnn(tmp_path_factory) -> dict[str, Path]:
+    """Two synthetic cabinets (``data``), their part graphs (``cache``) and a tiny motion GNN
+    trained on them (``run``, the ``tiny`` preset shrunk further: the code under test is not
+    the network's accuracy)."""
+    from kinmo.data.build import build_graph
+    from kinmo.data.readers import read_shape
+    from kinmo.train.config import preset
+    from kinmo.train.gnn import train_gnn
+    from kinmo.train.split import Split
+
+    root = tmp_path_factory.mktemp("tiny_gnn")
+    ids = ["c1", "c2"]
+    (root / "cache").mkdir()
+    for oid in ids:
+        write_cabinet(root / "data" / oid)
+        build_graph(read_shape(root / "data" / oid), n_points=32).save(root / "cache" / f"{oid}.npz")
+    cfg = preset("tiny", n_points=32, threads=1, epochs=1, batch_size=2)
+    cfg = cfg.model_copy(update={"model": cfg.model.model_copy(update=dict(
+        point_widths=[8], geo_dim=8, node_dim=8, edge_dim=8, semantic_dim=2, gnn_layers=1))})
+    train_gnn(root / "cache", root / "run", cfg, split=Split(ids, []), progress=False)
+    return {"root": root, "data": root / "data", "cache": root / "cache", "run": root / "run"}

@@ -46,3 +46,21 @@ class KinmoUsageError(KinmoError):
         self.path = str(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
+
+
+class KinmoTrainingError(KinmoError):
+    """Training diverged: a loss, gradient or parameter became ``nan`` or ``inf`` (for
+    instance with a learning rate far too large). No model is saved.
+
+    Parameters
+    ----------
+    what : str
+        The training run or checkpoint concerned.
+    problem : str
+        One line: what became non-finite and at which step, and what to try instead.
+    """
+
+    def __init__(self, what: str | Path, problem: str) -> None:
+        self.path = str(what)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")

@@ -232,3 +232,137 @@ def check_outputs_apart(out: str | Path, inputs: Iterable[str | Path],
                 raise KinmoUsageError(out, f"{option} holds the input {inp}, which this command "
                                       f"would overwrite ({o.name}/{top}); outputs never "
                                       f"overwrite inputs: choose another {option} folder")
+
+
+def parse_xml(path: str | Path) -> Any:
+    """Parse an untrusted XML file (a URDF) with no document type and no entities.
+
+    The standard library's parser does not fetch external entities, but it expands internal
+    ones ("billion laughs"); a document type declaration is refused before parsing, so no
+    entity can be defined. The file size is bounded by the ``file_bytes`` limit
+    (:mod:`kinmo.limits`).
+
+    Returns
+    -------
+    xml.etree.ElementTree.ElementTree
+
+    Raises
+    ------
+    KinmoDataError
+        Unreadable, over the limit, not UTF-8 compatible, a ``<!DOCTYPE`` / ``<!ENTITY``
+        declaration, or not well-formed XML (line and column).
+    """
+    import xml.etree.ElementTree as ET
+
+    from kinmo import limits
+    from kinmo.errors import KinmoDataError
+
+    path = Path(path)
+    limits.check_file(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise KinmoDataError(path, f"cannot read: {e.strerror}") from None
+    if b"<!DOCTYPE" in raw.upper() or b"<!ENTITY" in raw.upper():
+        raise KinmoDataError(path, "XML with a document type or entity declarations refused "
+                                   "(entity expansion)")
+    parser = ET.XMLParser()
+    try:
+        parser.feed(raw)
+        root = parser.close()
+    except ET.ParseError as e:
+        raise KinmoDataError(path, f"not well-formed XML ({e})") from None
+    return ET.ElementTree(root)
+
+
+def link_or_copy(src: str | Path, dst: str | Path) -> Path:
+    """Put the file ``src`` at ``dst``: a hard link where the file system allows it, else an
+    atomic copy. An existing ``dst`` with the same content (same inode, or same size and
+    bytes) is kept; another one is replaced atomically. Never a symbolic link: the output
+    folder stays whole when the source is moved or deleted (issue 21, finding 11).
+
+    Returns
+    -------
+    Path
+        ``dst``.
+    """
+    import filecmp
+    import shutil
+
+    src, dst = Path(src), Path(dst)
+    if dst.exists():
+        try:
+            if os.path.samefile(src, dst) or filecmp.cmp(src, dst, shallow=False):
+                return dst
+        except OSError:
+            pass
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dst.parent / f".{dst.name}.{os.getpid()}.link.tmp"
+    tmp.unlink(missing_ok=True)
+    try:
+        os.link(src, tmp)
+    except OSError:
+        with atomic_path(dst) as t:
+            shutil.copyfile(src, t)
+        return dst
+    try:
+        os.replace(tmp, dst)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return dst
+
+
+@contextmanager
+def staged_folder(dst: str | Path) -> Iterator[Path]:
+    """Yield a temporary sibling of the folder ``dst`` to write an object into; on success it
+    appears at ``dst`` whole (issue 21, finding 12).
+
+    When ``dst`` does not exist (or is empty) the sibling is renamed onto it: one atomic step,
+    so a reader sees no object or the complete one, and ``kill -9`` leaves only a hidden
+    ``.<name>.partial-<pid>`` folder (removed by the next run into ``dst``). When ``dst``
+    already holds files (a rerun), each written entry replaces its namesake by a rename
+    (files atomically, folders by a swap); other files of ``dst`` are kept. On an exception
+    the sibling is removed and ``dst`` is untouched.
+    """
+    import shutil
+
+    dst = Path(dst)
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    for old in dst.parent.glob(f".{dst.name}.partial-*"):
+        pid = old.name.rsplit("-", 1)[-1]
+        if not (pid.isdigit() and _alive(int(pid))):
+            shutil.rmtree(old, ignore_errors=True)
+    tmp = dst.parent / f".{dst.name}.partial-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        yield tmp
+        if dst.is_dir() and not any(dst.iterdir()):
+            dst.rmdir()
+        if not dst.exists():
+            os.replace(tmp, dst)
+            return
+        for entry in sorted(tmp.iterdir()):
+            target = dst / entry.name
+            if entry.is_dir() and target.is_dir():
+                trash = dst / f".{entry.name}.old-{os.getpid()}"
+                os.replace(target, trash)
+                os.replace(entry, target)
+                shutil.rmtree(trash, ignore_errors=True)
+            else:
+                os.replace(entry, target)
+        shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True

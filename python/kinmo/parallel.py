@@ -62,7 +62,9 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
-__all__ = ["IN_FLIGHT_PER_WORKER", "available_cpus", "map_unordered", "resolve_workers"]
+__all__ = [
+    "IN_FLIGHT_PER_WORKER", "available_cpus", "map_unordered", "resolve_workers", "sigterm_raises",
+]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -179,6 +181,11 @@ def _sigterm_raises() -> Iterator[dict[str, bool]]:
         yield state
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+#: Public name: commands wrap work that leaves temporary files (V-HACD folders, staged
+#: objects) in it, so SIGTERM runs their cleanups (issue 21, finding 12).
+sigterm_raises = _sigterm_raises
 
 
 def map_unordered(

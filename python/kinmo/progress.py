@@ -22,7 +22,10 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["LOG_ENV", "CountingBar", "TrainingBar", "log_level", "setup_logging", "stderr_console"]
+__all__ = [
+    "LOG_ENV", "CountingBar", "TrainingBar", "console", "literal", "log_level", "plain", "setup_logging",
+    "stderr_console",
+]
 
 #: Environment variable giving the ``kinmo`` loggers' level when ``-v`` is not given.
 LOG_ENV = "KINMO_LOG"
@@ -39,8 +42,42 @@ def stderr_console() -> Any:
     if _CONSOLE is None:
         from rich.console import Console
 
-        _CONSOLE = Console(stderr=True)
+        _CONSOLE = Console(stderr=True, emoji=False, highlight=False)
     return _CONSOLE
+
+
+def console(stderr: bool = False, **kw: Any) -> Any:
+    """A rich console for a command's report: no emoji codes (``:x:`` stays text), no
+    automatic highlighting. Names in its messages go through :func:`literal`."""
+    from rich.console import Console
+
+    kw = {"emoji": False, "highlight": False, "soft_wrap": True, **kw}
+    return Console(stderr=stderr, **kw)
+
+
+def literal(text: object) -> str:
+    """``text`` (a name from an input file, a path, an error message) as literal rich text.
+
+    Square brackets are escaped so rich never reads them as markup (``brk[old]/`` prints as
+    is and ``[/]`` cannot raise :class:`rich.errors.MarkupError`); characters UTF-8 cannot
+    encode (lone surrogates of non-UTF-8 file names) become ``\\udcxx`` escapes and control
+    characters ``\\xNN`` escapes, so a name can never move the cursor or end a line. Emoji
+    codes are left alone: the consoles of :func:`console` and :func:`stderr_console` do not
+    replace them.
+
+    Source: issue 21, finding 6 (printed names are literal text).
+    """
+    from rich.markup import escape
+
+    return escape(plain(text))
+
+
+def plain(text: object) -> str:
+    """``text`` with lone surrogates as ``\\udcxx`` and other unprintable characters (control
+    characters, line breaks) as ``\\xNN`` escapes: one line, safe on any terminal. For places
+    that never read markup (the description columns of the progress bars)."""
+    s = str(text).encode("utf-8", "backslashreplace").decode("utf-8")
+    return "".join(c if c.isprintable() or c == " " else f"\\x{ord(c):02x}" for c in s)
 
 
 def log_level(verbosity: int = 0, environ: Mapping[str, str] | None = None) -> int:
@@ -105,9 +142,11 @@ def setup_logging(verbosity: int = 0, environ: Mapping[str, str] | None = None) 
     return log
 
 
-def _rich_progress(title: str, fields: str) -> Any:
+def _rich_progress(title: str, fields: str, markup_fields: bool = True) -> Any:
     """kinmo's rich progress layout on stderr: bold ``title`` and the task description, bar,
-    done/total, ``fields`` (a rich ``TextColumn`` format), elapsed and remaining time."""
+    done/total, ``fields`` (a rich ``TextColumn`` format, read as markup when ``markup_fields``),
+    elapsed and remaining time. The description is never read as markup (it often holds a
+    folder name)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -118,10 +157,11 @@ def _rich_progress(title: str, fields: str) -> Any:
     )
 
     return Progress(
-        TextColumn(f"[bold]{title}[/] {{task.description}}"),
+        TextColumn(f"[bold]{literal(title)}[/]"),
+        TextColumn("{task.description}", markup=False),
         BarColumn(),
         MofNCompleteColumn(),
-        TextColumn(fields),
+        TextColumn(fields, markup=markup_fields),
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=stderr_console(),
@@ -163,7 +203,8 @@ class CountingBar:
             )
             self._progress = _rich_progress(self.title, fields)
             self._progress.__enter__()
-            self._task = self._progress.add_task(self.description, total=self.total, **self.counts)
+            self._task = self._progress.add_task(plain(self.description), total=self.total,
+                                                 **self.counts)
         return self
 
     def advance(self, n: int = 1, **increments: int) -> None:
@@ -198,7 +239,7 @@ class TrainingBar:
 
     def __enter__(self) -> TrainingBar:
         if self.enabled:
-            self._progress = _rich_progress(self.title, "{task.fields[info]}")
+            self._progress = _rich_progress(self.title, "{task.fields[info]}", markup_fields=False)
             self._progress.__enter__()
         return self
 
@@ -206,18 +247,18 @@ class TrainingBar:
         """Add a task of ``total`` steps; returns its handle (None when disabled)."""
         if self._progress is None:
             return None
-        return self._progress.add_task(description, total=total, info="")
+        return self._progress.add_task(plain(description), total=total, info="")
 
     def advance(self, task: Any, n: int = 1, info: str | None = None) -> None:
         """Count ``n`` steps of ``task``, replacing its info text when given."""
         if self._progress is not None:
-            fields = {} if info is None else {"info": info}
+            fields = {} if info is None else {"info": plain(info)}
             self._progress.update(task, advance=n, **fields)
 
     def describe(self, task: Any, description: str) -> None:
         """Replace ``task``'s description."""
         if self._progress is not None:
-            self._progress.update(task, description=description)
+            self._progress.update(task, description=plain(description))
 
     def log(self, text: str) -> None:
         """Print a line above the bar (nothing when disabled)."""

@@ -60,6 +60,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
+from kinmo.data.names import clean_xml_tree
 from kinmo.data.model import JointType, Link, Shape
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_text
@@ -401,6 +402,7 @@ def urdf_string(
                           effort=repr(_EFFORT), velocity=repr(_VELOCITY))
         if j.name == f"joint_{j.link_id}":
             ET.SubElement(je, "mobility_v2", _annotation(by_id[j.link_id]))
+    clean_xml_tree(robot)  # names from input files: no control characters (issue 21)
     ET.indent(robot, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 

@@ -46,11 +46,14 @@ from pathlib import Path
 
 import numpy as np
 
+from kinmo import limits
+from kinmo.data.names import inside, name_problem
 from kinmo.data.readers import find_shapes, read_shape
 from kinmo.errors import KinmoDataError
 from kinmo.export import DEFAULT_FORMATS, export
 from kinmo.export.kinematics import write_obj
-from kinmo.io import check_outputs_apart, write_json
+from kinmo.gltf_check import check_gltf
+from kinmo.io import check_outputs_apart, parse_xml, write_json
 from kinmo.predict import predict_dataset
 
 __all__ = [
@@ -93,19 +96,44 @@ def _clean(name: str, k: int) -> str:
 def _trimesh_parts(path: Path, **kw) -> list[Part]:
     import trimesh
 
+    if path.suffix.lower() in (".glb", ".gltf"):
+        check_gltf(path)  # cycles, external URIs, limits: before trimesh follows them
+    else:
+        limits.check_file(path)
     try:
         loaded = trimesh.load(path, force="scene", process=False, **kw)
+        parts: list[Part] = []
+        for node in loaded.graph.nodes_geometry:
+            T, gname = loaded.graph[node]
+            g = loaded.geometry[gname]
+            if not isinstance(g, trimesh.Trimesh) or len(g.faces) == 0:
+                continue
+            limits.check("triangles", len(g.faces), path)
+            v = np.asarray(g.vertices, dtype=np.float64) @ T[:3, :3].T + T[:3, 3]
+            parts.append((str(node), v, np.asarray(g.faces, dtype=np.int64)))
+            limits.check("parts", len(parts), path)
+    except KinmoDataError:
+        raise
     except Exception as e:  # trimesh raises many types on bad files
         raise KinmoDataError(path, f"cannot read the mesh: {' '.join(str(e).split())}") from None
-    parts: list[Part] = []
-    for node in loaded.graph.nodes_geometry:
-        T, gname = loaded.graph[node]
-        g = loaded.geometry[gname]
-        if not isinstance(g, trimesh.Trimesh) or len(g.faces) == 0:
-            continue
-        v = np.asarray(g.vertices, dtype=np.float64) @ T[:3, :3].T + T[:3, 3]
-        parts.append((str(node), v, np.asarray(g.faces, dtype=np.int64)))
     return parts
+
+
+def _urdf_mesh(path: Path, link: str, filename: str) -> Path:
+    """The mesh file a URDF ``<mesh filename>`` names: a relative path inside the URDF's
+    folder (``package://`` and ``file://`` prefixes dropped); absolute paths, ``..`` and
+    links leaving the folder are refused (issue 21, the rule for names from input files)."""
+    fname = re.sub(r"^(package|file)://", "", filename)
+    pieces = fname.replace("\\", "/").split("/")
+    if (not fname or Path(fname).is_absolute() or fname.startswith(("/", "\\")) or ".." in pieces
+            or any(name_problem(p) for p in pieces if p not in ("", "."))):
+        raise KinmoDataError(path, f"link {link!r}: mesh filename {filename!r} refused (it must be "
+                                   "a relative path inside the URDF's folder)")
+    mesh_path = path.parent / fname
+    if not inside(mesh_path, path.parent):
+        raise KinmoDataError(path, f"link {link!r}: mesh {filename!r} leads outside the URDF's "
+                                   "folder (a symbolic link)")
+    return mesh_path
 
 
 def _merge(parts: list[Part], name: str) -> Part:
@@ -141,9 +169,9 @@ def _origin(el: ET.Element | None, where: Path) -> np.ndarray:
 
 def _urdf_parts(path: Path) -> list[Part]:
     try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as e:
-        raise KinmoDataError(path, f"not a readable URDF: {e}") from None
+        root = parse_xml(path).getroot()
+    except KinmoDataError as e:
+        raise KinmoDataError(path, f"not a readable URDF: {e.problem}") from None
     joints = {}
     for j in root.findall("joint"):
         c, p = j.find("child"), j.find("parent")
@@ -168,8 +196,8 @@ def _urdf_parts(path: Path) -> list[Part]:
             m = vis.find("geometry/mesh")
             if m is None:
                 continue
-            fname = re.sub(r"^(package|file)://", "", m.get("filename", ""))
-            mesh_path = (path.parent / fname) if not Path(fname).is_absolute() else Path(fname)
+            fname = m.get("filename", "")
+            mesh_path = _urdf_mesh(path, name, fname)
             if not mesh_path.is_file():
                 raise KinmoDataError(path, f"link {name!r}: mesh {fname!r} not found")
             T = world(name) @ _origin(vis.find("origin"), path)
@@ -203,7 +231,8 @@ def read_parts(path: str | Path) -> list[Part]:
     path = Path(path)
     suffix = path.suffix.lower()
     if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+        files = sorted(p for p in path.iterdir()
+                       if p.is_file() and p.suffix.lower() in MESH_SUFFIXES and inside(p, path))
         parts = [_merge(ps, f.stem) for f in files if (ps := _trimesh_parts(f))]
     elif suffix == ".urdf":
         parts = _urdf_parts(path)
@@ -213,6 +242,7 @@ def read_parts(path: str | Path) -> list[Part]:
         parts = _trimesh_parts(path)
     else:
         raise KinmoDataError(path, f"unknown input kind {suffix or '(folder)'!r}; {_NEEDS}")
+    limits.check("parts", len(parts), path)
     if len(parts) < 2:
         raise KinmoDataError(path, f"found {len(parts)} part(s): an unsegmented mesh; {_NEEDS}")
     return parts

@@ -23,10 +23,12 @@ import html
 import json
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from kinmo.data.model import Link, Shape
+from kinmo.data.names import clean_text
 from kinmo.data.readers import read_links, read_shape
 from kinmo.data.writers import write_mobility_v2
 from kinmo.errors import KinmoDataError, KinmoError
@@ -168,6 +170,18 @@ def viewer_head() -> str:
             f"<style>{_CSS}</style>\n")
 
 
+def script_json(data: Any) -> str:
+    """``data`` as JSON safe inside an HTML ``<script>`` block: ``<``, ``>``, ``&`` and the
+    line separators U+2028/2029 as ``\\uXXXX`` escapes, so no name (``<!--``, ``</script``)
+    can end or re-mode the block (issue 21, finding 10); control characters are JSON-escaped
+    by :func:`json.dumps`."""
+    s = json.dumps(data, separators=(",", ":"))
+    for c, e in (("<", "\\u003c"), (">", "\\u003e"), ("&", "\\u0026"), ("\u2028", "\\u2028"),
+                 ("\u2029", "\\u2029")):
+        s = s.replace(c, e)
+    return s
+
+
 def _leaves(shape: Shape, link: Link) -> set[int]:
     return {leaf for pid in link.parts if pid in shape.hierarchy.nodes
             for leaf in shape.hierarchy.leaves(pid)}
@@ -276,7 +290,7 @@ def links_name(links: Sequence[Link], lid: int) -> str:
 
 def viewer_fragment(data: dict, div_id: str) -> str:
     """The HTML of one viewer (plot ``<div>``, slider panel, data and the call)."""
-    blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    blob = script_json(data)
     return (f'<div class="kinmo-viewer"><div id="{html.escape(div_id)}" '
             f'style="width:{data["width"]}px;height:{data["height"]}px"></div>'
             f'<div id="{html.escape(div_id)}-sliders"></div></div>\n'
@@ -288,7 +302,7 @@ def write_viewer(path: str | Path, data: dict) -> Path:
 
     path = Path(path)
     page = ("<!doctype html>\n<html><head><meta charset=\"utf-8\">"
-            f"<title>kinmo view: {html.escape(data['title'])}</title>\n"
+            f"<title>kinmo view: {html.escape(clean_text(data['title']))}</title>\n"
             "<style>body{margin:0}</style>\n" + viewer_head() + "</head><body>\n"
             + viewer_fragment(data, "kinmo-view")
             + "<p class=\"kinmo-viewer\" style=\"margin:6px\">coloured: moving parts; "
@@ -403,9 +417,9 @@ def gallery_page(folders: Sequence[str | Path], path: str | Path, title: str = "
             continue
         parts.append(viewer_fragment(data, f"kinmo-view-{k}"))
     page = ("<!doctype html>\n<html><head><meta charset=\"utf-8\">"
-            f"<title>{html.escape(title)}</title>\n<style>body{{margin:8px}} "
+            f"<title>{html.escape(clean_text(title))}</title>\n<style>body{{margin:8px}} "
             ".kinmo-viewer{display:inline-block;vertical-align:top;margin:6px}</style>\n"
-            + viewer_head() + f"</head><body>\n<h2 class=\"kinmo-viewer\">{html.escape(title)}</h2>"
+            + viewer_head() + f"</head><body>\n<h2 class=\"kinmo-viewer\">{html.escape(clean_text(title))}</h2>"
             "<p class=\"kinmo-viewer\">coloured: moving parts; solid lines: predicted axes; "
             "dashed: true axes; a slider per joint.</p>\n" + "".join(parts) + "</body></html>\n")
     path = Path(path)

@@ -29,6 +29,11 @@ def _root(
         help="Show diagnostics (skipped and resumed shapes, failures, fallbacks): -v info, "
         "-vv debug. Without it the KINMO_LOG environment variable sets the level.",
     ),
+    limits: list[str] = typer.Option(
+        [], "--limit", metavar="NAME=N",
+        help="Raise (or lower) a resource limit on inputs: parts, edges, triangles, file_bytes, "
+        "nodes (docs/security.md; also KINMO_MAX_<NAME>).",
+    ),
 ) -> None:
     """Predict how the parts of 3D objects move (PartNet / PartNet-Mobility)."""
     from kinmo.cli._errors import cli_errors
@@ -36,3 +41,8 @@ def _root(
 
     with cli_errors(2):
         setup_logging(verbose)
+        if limits:
+            from kinmo.limits import set_limit
+
+            for spec in limits:
+                set_limit(spec)

@@ -55,11 +55,10 @@ def fail(message: BaseException | str, code: int = 1) -> NoReturn:
     typer.Exit
         Always, with ``code``.
     """
-    from rich.console import Console
-    from rich.markup import escape
+    from kinmo.progress import console as new_console, literal
 
-    Console(stderr=True, soft_wrap=True).print(
-        f"[red]error:[/] {escape(error_line(message))}", highlight=False
+    new_console(stderr=True, soft_wrap=True).print(
+        f"[red]error:[/] {literal(error_line(message))}", highlight=False
     )
     raise typer.Exit(code)
 

@@ -17,6 +17,8 @@ from typing import Any, Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 FEASIBILITY_ONLY = typer.Option(
     False, "--feasibility-only",
     help="Select candidate axes by the axis network alone (the paper's released code) instead of "
@@ -39,7 +41,7 @@ PAPER_SELECTOR = typer.Option(
     help="Score candidates of the predicted type by the paper's 0.5 / 0.3 / 0.2 weights even when "
          "a learned ranker is available (ablation).")
 RANKER: Any = typer.Option(
-    None, "--ranker",
+    None, "--ranker", callback=_values.ranker_file,
     help="Ranker file of the learned selector [default: AXIS_MODEL/ranker.json when present]: "
          "candidates of every orientation scored from soft GNN priors and geometric terms.")
 

@@ -10,6 +10,8 @@ from typing import Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import eval_app, train_app
 
 
@@ -38,7 +40,7 @@ def train_ancsh_cmd(
     setting: str = typer.Option("supervised", "--setting", "-s", help="supervised, semi (self-training on unlabelled PartNet scans) or semi-weakly (adds `kinmo pseudo-label` shapes)."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder (default: runs/ancsh/<category>/<setting>)."),  # noqa: UP007
     preset: str = typer.Option("quick", "--preset", envvar="KINMO_PRESET", help="quick (CPU, minutes), paper (ANCSH's sizes, GPU) or tiny (seconds: a check, not results)."),
-    labeled_fraction: Optional[float] = typer.Option(None, "--labeled-fraction", min=0.0, max=1.0, help="Share of the labelled training objects used (default: 1)."),  # noqa: UP007
+    labeled_fraction: Optional[float] = typer.Option(None, "--labeled-fraction", min=0.0, max=1.0, callback=_values.finite, help="Share of the labelled training objects used (default: 1)."),  # noqa: UP007
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the split, renders, initialisation and sampling (default: 0)."),  # noqa: UP007
     data: Optional[Path] = typer.Option(None, "--data", "-d", help="PartNet-Mobility dataset folder (default: $KINMO_DATA/partnet-mobility)."),  # noqa: UP007
     partnet: Optional[Path] = typer.Option(None, "--partnet", help="semi: PartNet folder of unlabelled shapes (default: DATA/../partnet)."),  # noqa: UP007
@@ -51,7 +53,7 @@ def train_ancsh_cmd(
     semi_epochs: Optional[int] = typer.Option(None, "--semi-epochs", min=1, help="semi: epochs on labelled + pseudo-targeted scans."),  # noqa: UP007
     frames_per_object: Optional[int] = typer.Option(None, "--frames-per-object", min=1, help="Training scans per object."),  # noqa: UP007
     batch_size: Optional[int] = typer.Option(None, "--batch-size", min=2, help="Scans per step."),  # noqa: UP007
-    device: Optional[str] = typer.Option(None, "--device", help="auto, cpu, cuda, cuda:1 ... (default: auto)."),  # noqa: UP007
+    device: Optional[str] = typer.Option(None, "--device", callback=_values.device, help="auto, cpu, cuda, cuda:1 ... (default: auto)."),  # noqa: UP007
     threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: torch's default)."),  # noqa: UP007
     workers: Optional[int] = typer.Option(None, "--workers", "-j", min=0, help="Rendering processes (0: one per CPU, 1: none)."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bars."),
@@ -64,14 +66,14 @@ def train_ancsh_cmd(
     and data.json to OUT. Test objects of the split are never used.
     """
     _single_blas_thread()
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.ancsh.config import SETTINGS
     from kinmo.ancsh.config import preset as make_preset
     from kinmo.ancsh.train import train_ancsh
     from kinmo.cli._errors import cli_errors, fail
 
-    console = Console()
+    console = new_console()
     if setting not in SETTINGS:
         fail(f"--setting must be one of {', '.join(SETTINGS)}, got {setting!r}", 2)
     data = data or _default_data("partnet-mobility")
@@ -90,12 +92,12 @@ def train_ancsh_cmd(
     d = res.data
     console.print(
         f"trained ANCSH ({res.config.preset}, {setting}) for {res.config.category} "
-        f"[{res.structure.signature()}] in {res.seconds:.1f} s on {d['labeled_scans']} labelled, "
+        f"{literal('[' + res.structure.signature() + ']')} in {res.seconds:.1f} s on {d['labeled_scans']} labelled, "
         f"{d['pseudo_labeled_scans']} pseudo-labelled and {d['pseudo_target_scans']} pseudo-target scans: "
         f"loss {last['loss']:.3f}, segmentation accuracy {last['seg_acc']:.3f}",
         highlight=False, soft_wrap=True,
     )
-    console.print(f"run folder: {res.run_dir}", highlight=False, soft_wrap=True)
+    console.print(f"run folder: {literal(res.run_dir)}", highlight=False, soft_wrap=True)
 
 
 @eval_app.callback()
@@ -108,7 +110,7 @@ def eval_ancsh_cmd(
     scans: Optional[Path] = typer.Option(None, "--scans", help="Render cache of the test scans (default: OUT/scans)."),  # noqa: UP007
     frames: Optional[int] = typer.Option(None, "--frames", min=1, help="Scans per test object (default: the run's preset)."),  # noqa: UP007
     seed: int = typer.Option(0, "--seed", help="Seed of the test renders and point sampling."),
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
+    device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda ..."),
     workers: int = typer.Option(0, "--workers", "-j", min=0, help="Rendering processes (0: one per CPU, 1: none)."),
     symmetric: bool = typer.Option(True, "--symmetry/--no-symmetry", help="Evaluate rotationally symmetric parts (bucket bodies, dials) up to their symmetry axis, as NOCS / ANCSH do."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
@@ -121,11 +123,11 @@ def eval_ancsh_cmd(
     if ctx.invoked_subcommand is not None:
         return
     _single_blas_thread()
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
-    console = Console()
+    console = new_console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 9-column tables
-        console = Console(width=max(console.width, 140))
+        console = new_console(width=max(console.width, 140))
     if category is None:
         console.print(ctx.get_help())
         raise typer.Exit(0)
@@ -141,7 +143,7 @@ def eval_ancsh_cmd(
         found = category_runs(category)
         if found.runs is None:
             fail(found.message)
-        Console(stderr=True).print(f"{found.category}: {found.message}", highlight=False, soft_wrap=True)
+        new_console(stderr=True).print(f"{literal(found.category)}: {literal(found.message)}", highlight=False, soft_wrap=True)
         run_paths, category = [found.runs], found.category
         if scans is None and found.scans is not None and data is None:
             scans = found.scans  # the test scans `kinmo train all` rendered

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import train_app
 
 
@@ -19,9 +21,9 @@ def train_axis_cmd(
     split: Optional[Path] = typer.Option(None, "--split", help="The GNN run's split.json: its test shapes are never used."),  # noqa: UP007
     epochs: Optional[int] = typer.Option(None, "--epochs", min=1, help="Override the preset's epochs."),  # noqa: UP007
     batch_size: Optional[int] = typer.Option(None, "--batch-size", min=1, help="(rest, positive, negative) triples per step."),  # noqa: UP007
-    lr: Optional[float] = typer.Option(None, "--lr", help="Learning rate."),  # noqa: UP007
+    lr: Optional[float] = typer.Option(None, "--lr", callback=_values.learning_rate, help="Learning rate."),  # noqa: UP007
     n_points: Optional[int] = typer.Option(None, "--n-points", min=8, help="Points per cloud."),  # noqa: UP007
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:1 ..."),
+    device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda, cuda:1 ..."),
     threads: int = typer.Option(0, "--threads", min=0, help="CPU threads for torch (0: default)."),
     per_category: Optional[int] = typer.Option(None, "--per-category", min=0, help="Fine-tune a network per category with at least this many training objects, kept when it beats the global one on the category's validation objects (0: off; default: the preset's)."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
@@ -33,12 +35,12 @@ def train_axis_cmd(
     part of the split; the selection accuracy (best candidate = true axis) is logged per epoch
     in OUT/metrics.csv and picks the saved model (OUT/model.pt).
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors
     from kinmo.refine.train import preset_config, train_axis_model
 
-    console = Console()
+    console = new_console()
     overrides: dict = {"seed": seed, "device": device, "threads": threads}
     for key, val in (("epochs", epochs), ("batch_size", batch_size), ("lr", lr)):
         if val is not None:
@@ -61,5 +63,5 @@ def train_axis_cmd(
     )
     kept = res.categories_kept
     if kept:
-        console.print(f"per-category networks: {', '.join(kept)}", highlight=False)
-    console.print(f"run folder: {res.run_dir}", highlight=False)
+        console.print(f"per-category networks: {literal(', '.join(kept))}", highlight=False)
+    console.print(f"run folder: {literal(res.run_dir)}", highlight=False)

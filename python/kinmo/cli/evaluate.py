@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import eval_app
 from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
@@ -22,19 +24,19 @@ def pre_segmented_cmd(
     render: bool = typer.Option(False, "--render", help="Write a PNG per shape and model (OUT/renders/<model>/<id>.png)."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: add OBB_fine / OBB_coarse columns with refined axes."),  # noqa: UP007
     refine: RefineOptions = REFINE,
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
+    device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda ..."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Evaluate motion GNN(s) on the shapes they did not train on (the test split of their own
     data, or every shape of another folder): type accuracy, mobile-part detection, axis errors."""
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors
     from kinmo.evaluate.pre_segmented import run_evaluation
 
-    console = Console()
+    console = new_console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 11-column tables
-        console = Console(width=max(console.width, 140))
+        console = new_console(width=max(console.width, 140))
     if not model:
         from kinmo.cli._errors import fail
         from kinmo.runs import DEFAULT_RUN
@@ -44,8 +46,8 @@ def pre_segmented_cmd(
             fail(f"no --model given and no motion GNN of `kinmo train all` in {DEFAULT_RUN}")
         if axis_model is None and (DEFAULT_RUN / "axis" / ".done").is_file():
             axis_model = DEFAULT_RUN / "axis"
-        Console(stderr=True).print(
-            f"models of `kinmo train all`: {', '.join(map(str, model + ([axis_model] if axis_model else [])))}",
+        new_console(stderr=True).print(
+            f"models of `kinmo train all`: {literal(', '.join(map(str, model + ([axis_model] if axis_model else []))))}",
             highlight=False, soft_wrap=True)
     with cli_errors(1):
         resolved = [refine.resolve(m, axis_model) for m in model]
@@ -55,4 +57,4 @@ def pre_segmented_cmd(
                                        render=render, device=device, progress=not quiet,
                                        console=console, axis_model=axis_model,
                                        refine_config=rc)
-    console.print(f"wrote {paths['csv']} and {paths['markdown']}")
+    console.print(f"wrote {literal(paths['csv'])} and {literal(paths['markdown'])}")

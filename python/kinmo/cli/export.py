@@ -5,6 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import typer
 
 from kinmo.cli._apps import app
@@ -25,6 +28,19 @@ def check_formats(fmt: list[str] | None) -> None:
                                  param_hint="--format")
 
 
+@contextmanager
+def _locked(out: Path, inputs: list[Path], command: str = "kinmo export") -> Iterator[None]:
+    """The checks and lock every writing command takes on its OUT (issue 21, finding 12):
+    outputs apart from inputs, SIGTERM runs the cleanups (temporary folders of V-HACD, the
+    staged object), one run per OUT at a time."""
+    from kinmo.io import check_outputs_apart, folder_lock, output_dir
+    from kinmo.parallel import sigterm_raises
+
+    check_outputs_apart(out, inputs)
+    with sigterm_raises(), folder_lock(output_dir(out), command):
+        yield
+
+
 @app.command("export")
 def export_cmd(
     src: Path = typer.Argument(..., metavar="SRC", help="A PartNet-Mobility-format folder (real, generated or predicted), or a folder of them."),
@@ -37,20 +53,20 @@ def export_cmd(
     urdf: PyBullet/SAPIEN/ROS (convex collision pieces); mjcf: MuJoCo; usd: Isaac Sim
     (UsdPhysics joints); gltf: any 3D viewer, one animation per joint.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors
     from kinmo.data.readers import find_shapes
     from kinmo.export import export_folder
 
     check_formats(fmt)
-    console = Console()
-    with cli_errors(1):
+    console = new_console()
+    with cli_errors(1), _locked(out, [src, *([source] if source is not None else [])]):
         if source is not None or not find_shapes(src):
             if (src / "mobility_v2.json").is_file():  # one predicted folder
                 files = export_folder(src, out, fmt, source=source)
                 console.print(f"exported 1 object as {', '.join(dict.fromkeys(fmt))}: "
-                              f"{sum(len(v) for v in files.values())} file(s) -> {out}",
+                              f"{sum(len(v) for v in files.values())} file(s) -> {literal(out)}",
                               highlight=False)
                 return
         folders = find_shapes(src)
@@ -64,4 +80,4 @@ def export_cmd(
             files = export_folder(folder, out if single else out / folder.name, fmt)
             n += sum(len(v) for v in files.values())
     console.print(f"exported {len(folders)} object(s) as {', '.join(dict.fromkeys(fmt))}: "
-                  f"{n} file(s) -> {out}", highlight=False)
+                  f"{n} file(s) -> {literal(out)}", highlight=False)

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import train_app
 
 
@@ -19,9 +21,9 @@ def train_gnn_cmd(
     epochs: Optional[int] = typer.Option(None, "--epochs", min=1, help="Override the preset's epochs."),  # noqa: UP007
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed [default: 0]."),  # noqa: UP007
     split: Optional[Path] = typer.Option(None, "--split", help="A split.json to use instead of making one."),  # noqa: UP007
-    device: Optional[str] = typer.Option(None, "--device", help="auto, cpu, cuda, cuda:1 ... [default: auto]."),  # noqa: UP007
+    device: Optional[str] = typer.Option(None, "--device", callback=_values.device, help="auto, cpu, cuda, cuda:1 ... [default: auto]."),  # noqa: UP007
     batch_size: Optional[int] = typer.Option(None, "--batch-size", min=1, help="Shapes per step."),  # noqa: UP007
-    lr: Optional[float] = typer.Option(None, "--lr", help="Learning rate."),  # noqa: UP007
+    lr: Optional[float] = typer.Option(None, "--lr", callback=_values.learning_rate, help="Learning rate."),  # noqa: UP007
     threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: default)."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -30,13 +32,13 @@ def train_gnn_cmd(
     The labelled graphs of DATA are split into train and test sets by category (written to
     OUT/split.json); test metrics are logged every epoch in OUT/metrics.csv.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors, fail
     from kinmo.train.config import preset as make_preset
     from kinmo.train.gnn import train_gnn
 
-    console = Console()
+    console = new_console()
     if types not in (None, "fine", "coarse"):
         fail(f"--types must be fine or coarse, got {types!r}", 2)
     with cli_errors(2, also=(ValueError,)):
@@ -50,4 +52,4 @@ def train_gnn_cmd(
         f"{res.seconds:.1f} s: loss {last['loss']:.3f}, train acc {last['train_acc']:.3f}"
         + (f", test acc {last['test_acc']:.3f}" if res.split.test else "")
     )
-    console.print(f"run folder: {res.run_dir}")
+    console.print(f"run folder: {literal(res.run_dir)}")

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import app, train_app
 
 
@@ -17,7 +19,7 @@ def train_all(
     preset: str = typer.Option("quick", envvar="KINMO_PRESET",
                                help="quick (2 CPU cores), paper (GPU) or tiny (seconds per stage: a check, not results)."),
     category: list[str] | None = typer.Option(None, "--category", help="ANCSH categories (repeatable)."),
-    labeled_fraction: float = typer.Option(1.0, help="Share of labelled training objects for ANCSH."),
+    labeled_fraction: float = typer.Option(1.0, callback=_values.finite, help="Share of labelled training objects for ANCSH."),
     seed: int = typer.Option(0),
     workers: int = typer.Option(0, "--workers", "-j", help="Processes for per-shape stages (0: all cores)."),
     skip_ancsh: bool = typer.Option(False, "--skip-ancsh", help="Stop after the pseudo-labels (Table 1 only)."),
@@ -47,12 +49,12 @@ def train_all(
     categories it supports) added as labelled training objects or as unlabelled shapes to
     pseudo-label; the test objects stay the real ones and the report's section "Generated
     shapes" says whether they helped."""
-    from rich.console import Console
+    from kinmo.progress import console as new_console
 
     from kinmo.cli._errors import cli_errors, fail
     from kinmo.pipeline import TINY, PipelineConfig, find_data, missing_data_message, run_pipeline
 
-    console = Console(stderr=True)
+    console = new_console(stderr=True)
     found = find_data(labeled=labeled, unlabeled=unlabeled)
     if found.labeled is None:
         fail(missing_data_message())
@@ -84,12 +86,12 @@ def demo(
 ) -> None:
     """The whole pipeline on objects kinmo generates itself: synth, prepare, train all (quick),
     pseudo-label, eval, report."""
-    from rich.console import Console
+    from kinmo.progress import console as new_console
 
     from kinmo.cli._errors import cli_errors
     from kinmo.pipeline import run_demo
 
-    console = Console(stderr=True)
+    console = new_console(stderr=True)
     with cli_errors(1, also=(ValueError,)):
         res = run_demo(out, n_labeled=n, n_unlabeled=max(n // 2, 2), seed=seed, data=data, unlabeled=unlabeled,
                        tiny=tiny, console=console, selector=selector)

@@ -7,8 +7,10 @@ from typing import Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import app
-from kinmo.cli.export import FORMAT_HELP, check_formats
+from kinmo.cli.export import FORMAT_HELP, _locked, check_formats
 from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
 
@@ -19,9 +21,9 @@ def predict_cmd(
     model: Path = typer.Option(..., "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model: GNN, axis network, ranker; the learned selector by default) or a run folder of `kinmo train gnn`."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
-    hinge_max: float = typer.Option(90.0, "--hinge-max", help="Upper limit of predicted hinges (degrees)."),
-    slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, help="Slider range as a fraction of the part's size."),
+    device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda ..."),
+    hinge_max: float = typer.Option(90.0, "--hinge-max", callback=_values.angle_deg, help="Upper limit of predicted hinges (degrees)."),
+    slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, callback=_values.finite, help="Slider range as a fraction of the part's size."),
     render: bool = typer.Option(False, "--render", help="Also write OUT/<id>/prediction.png."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the predicted axes (paper Sec. 3.3)."),  # noqa: UP007
     refine: RefineOptions = REFINE,
@@ -35,16 +37,16 @@ def predict_cmd(
 
     Exit code 1 when any shape failed (listed at the end, and in OUT/predictions.csv).
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
-    from kinmo.cli._errors import cli_errors, printable
+    from kinmo.cli._errors import cli_errors
     from kinmo.mobility_tree import TreeOptions
     from kinmo.predict import predict_dataset
 
-    console = Console()
-    err = Console(stderr=True)
+    console = new_console()
+    err = new_console(stderr=True)
     check_formats(fmt)
-    with cli_errors(1):
+    with cli_errors(1), _locked(out, [data], "kinmo predict"):
         from kinmo.inference.predictor import Predictor
         from kinmo.user_input import is_user_input, predict_user_input
 
@@ -63,8 +65,8 @@ def predict_cmd(
             rows = predict_dataset(data, predictor, out, cache=cache, formats=fmt or None, **kw)
     ok = [r for r in rows if r.status == "ok"]
     bad = [r for r in rows if r.status != "ok"]
-    console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {out}")
+    console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {literal(out)}")
     for r in bad:
-        err.print(f"[red]failed[/] {printable(r.id)}: {printable(r.error)}")
+        err.print(f"[red]failed[/] {literal(r.id)}: {literal(r.error)}")
     if bad:
         raise typer.Exit(1)

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import app
 from kinmo.cli._executor import EXECUTOR
 
@@ -31,11 +33,11 @@ def prepare(
     ),
     seed: int = typer.Option(0, "--seed", help="Sampling seed."),
     contact_tolerance: float = typer.Option(
-        0.01, "--contact-tolerance", min=0.0,
+        0.01, "--contact-tolerance", min=0.0, callback=_values.finite,
         help="Contact threshold, fraction of the shape's bounding-box diagonal.",
     ),
     distance_cap: float = typer.Option(
-        0.1, "--distance-cap", min=0.0, help="Distance clip, fraction of the diagonal."
+        0.1, "--distance-cap", min=0.0, callback=_values.finite, help="Distance clip, fraction of the diagonal."
     ),
     merged: bool = typer.Option(
         False, "--merged",
@@ -50,13 +52,13 @@ def prepare(
     Re-running resumes: up-to-date shapes are skipped. Failed shapes are listed at the end;
     the exit code is 1 if any failed.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
     from rich.table import Table
 
-    from kinmo.cli._errors import cli_errors, printable
+    from kinmo.cli._errors import cli_errors
     from kinmo.prepare import PrepareConfig, prepare_dataset
 
-    console = Console()
+    console = new_console()
     try:
         config = PrepareConfig(
             n_points=n_points,
@@ -76,7 +78,7 @@ def prepare(
     console.print(
         f"{result.n_shapes} shapes in {result.seconds:.1f} s: "
         f"{result.count('ok')} built, {result.count('skipped')} up to date, "
-        f"{result.count('failed')} failed -> {result.out}/manifest.csv",
+        f"{result.count('failed')} failed -> {literal(result.out)}/manifest.csv",
         highlight=False,
         soft_wrap=True,
     )
@@ -85,7 +87,7 @@ def prepare(
         table.add_column("id", no_wrap=True)
         table.add_column("error", overflow="fold")
         for r in result.failures:
-            table.add_row(printable(r.id), printable(r.error))
+            table.add_row(literal(r.id), literal(r.error))
         console.print(table)
     if result.stopped:
         console.print(

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import app
 from kinmo.cli.export import FORMAT_HELP, check_formats
 from kinmo.cli._executor import EXECUTOR
@@ -20,7 +22,7 @@ def pseudo_label_cmd(
     model: Path = typer.Option(..., "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model) or a run folder of `kinmo train gnn`."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis` (its ranker.json, or ../ranker/ranker.json, when present, selects the axes), or a folder holding only a ranker.json [default: the bundle's]."),  # noqa: UP007
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: one PartNet-Mobility folder per kept shape."),
-    threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, help="Minimum refinement score of every joint of a kept shape."),
+    threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, callback=_values.finite, help="Minimum refinement score of every joint of a kept shape."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="A `kinmo prepare` cache of DIR (graphs are built when missing)."),  # noqa: UP007
     refine: RefineOptions = REFINE,
@@ -28,7 +30,7 @@ def pseudo_label_cmd(
     sign: str = typer.Option("tree", "--sign", help="Direction of motion: tree (away from the reference part) or feasibility (the network's)."),
     link: str = typer.Option("hardlink", "--link", help="How meshes get into OUT/<id>/textured_objs/: hardlink (default; a copy across file systems) or copy make self-contained folders; symlink links to the source dataset by absolute path, for a dataset that stays in place (kinmo's own readers refuse such links)."),
     copy: bool = typer.Option(False, "--copy", help="Same as --link copy."),
-    device: str = typer.Option("cpu", "--device", help="Torch device of both networks."),
+    device: str = typer.Option("cpu", "--device", callback=_values.device, help="Torch device of both networks."),
     force: bool = typer.Option(False, "--force", help="Redo shapes already processed with the same inputs."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf (mobility_v2 is always written)."),  # noqa: UP007
@@ -42,7 +44,7 @@ def pseudo_label_cmd(
     scores.json). OUT/summary.csv counts kept and rejected shapes per category,
     OUT/shapes.csv gives every shape's status and reason. Re-running resumes.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
     from rich.table import Table
 
     from kinmo.cli._errors import cli_errors
@@ -55,7 +57,7 @@ def pseudo_label_cmd(
 
     from kinmo.cli._errors import fail
 
-    console = Console()
+    console = new_console()
     check_formats(fmt)
     with cli_errors(2):
         model, axis_model, rc = refine.resolve(model, axis_model)
@@ -79,7 +81,7 @@ def pseudo_label_cmd(
     for s in STATUSES:
         table.add_column(s.replace("_", " "), justify="right")
     for row in summary_rows(res.records):
-        table.add_row(str(row["category"]), str(row["shapes"]), *(str(row[s]) for s in STATUSES),
+        table.add_row(literal(row["category"]), str(row["shapes"]), *(str(row[s]) for s in STATUSES),
                       end_section=row["category"] == "all")
     console.print(table)
     failed = [r for r in res.records if r.status == "failed"]
@@ -88,10 +90,10 @@ def pseudo_label_cmd(
         ft.add_column("id", no_wrap=True)
         ft.add_column("reason", overflow="fold")
         for r in failed:
-            ft.add_row(r.id, r.reason)
+            ft.add_row(literal(r.id), literal(r.reason))
         console.print(ft)
     console.print(
         f"{len(res.records)} shapes in {res.seconds:.1f} s ({res.n_skipped} up to date): "
-        f"{res.count('kept')} kept -> {res.out}/summary.csv, {res.out}/shapes.csv",
+        f"{res.count('kept')} kept -> {literal(res.out)}/summary.csv, {literal(res.out)}/shapes.csv",
         highlight=False, soft_wrap=True,
     )

@@ -22,7 +22,7 @@ def train_ranker_cmd(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Fit the ranker of candidate axes on out-of-fold GNN predictions of the training objects."""
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors, fail
     from kinmo.train.ranker import train_ranker
@@ -33,6 +33,6 @@ def train_ranker_cmd(
     with cli_errors(1):
         _, st = train_ranker(data, out, split, folds=folds, preset=preset, types=ts, seed=seed,
                              threads=threads, progress=not quiet)
-    Console().print(f"wrote {out / 'ranker.json'}: {st['groups']} edges, candidate recall "
+    new_console().print(f"wrote {literal(out / 'ranker.json')}: {st['groups']} edges, candidate recall "
                     f"{st['recall']:.3f}, out-of-fold top-1 {st['oof_top1']:.3f} "
                     f"(angle {st['oof_angle']:.2f}° vs GNN {st['gnn_angle']:.2f}°)")

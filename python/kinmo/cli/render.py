@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import app
 from kinmo.cli._executor import EXECUTOR
 
@@ -26,7 +28,7 @@ def render(
         256, "--size", min=8, max=4096, help="Image width and height (pixels)."
     ),
     fov: float = typer.Option(
-        45.0, "--fov", min=1.0, max=170.0, help="Vertical field of view (degrees)."
+        45.0, "--fov", min=1.0, max=170.0, callback=_values.finite, help="Vertical field of view (degrees)."
     ),
     workers: int = typer.Option(
         0, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."
@@ -41,13 +43,13 @@ def render(
     link labels, NPCS, NAOCS, part poses, joints) and manifest.csv. Re-running resumes:
     up-to-date frames are skipped. Exit code 1 if any object failed.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
     from rich.table import Table
 
     from kinmo.cli._errors import cli_errors
     from kinmo.render.dataset import RenderConfig, render_dataset
 
-    console = Console()
+    console = new_console()
     try:
         config = RenderConfig(width=size, height=size, fov_y=fov, seed=seed)
     except ValueError as e:
@@ -58,7 +60,7 @@ def render(
     console.print(
         f"{len(result.rows)} frames of {result.n_objects} objects in {result.seconds:.1f} s: "
         f"{result.count('ok')} rendered, {result.count('skipped')} skipped (up to date), "
-        f"{result.count('failed')} failed -> {result.out}/manifest.csv",
+        f"{result.count('failed')} failed -> {literal(result.out)}/manifest.csv",
         highlight=False, soft_wrap=True,
     )
     failed = [r for r in result.rows if r.status == "failed"]
@@ -71,6 +73,6 @@ def render(
         for r in failed:
             by_obj.setdefault(r.id, []).append(r)
         for oid, rows in sorted(by_obj.items()):
-            table.add_row(oid, str(len(rows)), rows[0].error)
+            table.add_row(literal(oid), str(len(rows)), literal(rows[0].error))
         console.print(table)
         raise typer.Exit(1)

@@ -24,18 +24,18 @@ def report_cmd(
     pseudo-label summary, prediction counts and a gallery of rendered shapes; it says what
     is missing. Exit code 1 when RUN does not exist.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors
     from kinmo.report import write_report
 
-    console = Console()
+    console = new_console()
     with cli_errors(1):
         res = write_report(run, out=out, max_images=max_images, title=title)
     found = ", ".join(f"{k} {n}" for k, n in res.found.items() if n)
-    console.print(f"found: {found or 'nothing'}")
+    console.print(f"found: {literal(found or 'nothing')}")
     if res.missing:
-        console.print(f"[yellow]missing:[/] {', '.join(res.missing)}")
+        console.print(f"[yellow]missing:[/] {literal(', '.join(res.missing))}")
     for rel, problem in res.problems:
-        console.print(f"[red]problem:[/] {rel}: {problem}")
-    console.print(f"wrote {res.html} and {res.markdown}")
+        console.print(f"[red]problem:[/] {literal(rel)}: {literal(problem)}")
+    console.print(f"wrote {literal(res.html)} and {literal(res.markdown)}")

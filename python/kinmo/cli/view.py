@@ -22,14 +22,14 @@ def view_cmd(
 
     Moving parts are coloured, predicted axes solid, true axes dashed.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console, literal
 
     from kinmo.cli._errors import cli_errors
     from kinmo.view import view_folder
 
     with cli_errors(1):
         page = view_folder(folder, out, source=source, truth=truth)
-    Console().print(f"viewer -> {page}", highlight=False)
+    new_console().print(f"viewer -> {literal(page)}", highlight=False)
     if open_page:
         import webbrowser
 

@@ -32,6 +32,7 @@ import numpy as np
 from kinmo.data.graph import CACHE_VERSION, PartGraph
 from kinmo.data.labels import label_sibling_edges
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES, Link, Shape, ShapeFormat
+from kinmo import limits
 from kinmo.errors import KinmoDataError
 from kinmo.geometry import contact_pairs, fit_obb_batch, load_obj, load_objs, sample_surface_groups
 
@@ -174,13 +175,23 @@ def build_graph(
     for v in range(1, n_nodes):
         depth[v] = depth[parent[v]] + 1
 
+    # Resource limits (kinmo.limits), before any mesh is read or edge allocated.
+    where = shape.mesh_dir.parent
+    limits.check("parts", int(is_leaf.sum()), where)
+    n_children = np.bincount(parent[1:], minlength=n_nodes) if n_nodes > 1 else np.zeros(1, np.int64)
+    limits.check("edges", int((n_children * (n_children - 1)).sum()), where)
+
     # Meshes: every OBJ once, in leaf pre-order.
     names: dict[str, int] = {}
     for n in nodes:
         for o in n.objs:
             names.setdefault(o, len(names))
     paths = [shape.mesh_path(o) for o in names]
+    for p in paths:
+        limits.check_file(p)
     meshes = load_shape_meshes(paths)
+    for p, (_, f) in zip(paths, meshes):
+        limits.check("triangles", len(f), p)
 
     # Mesh indices under every node (post-order accumulation); leaf indices likewise.
     leaf_index = np.cumsum(is_leaf) - 1  # node index -> leaf index (valid for leaves)

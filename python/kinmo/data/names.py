@@ -18,10 +18,14 @@ from __future__ import annotations
 import os
 import unicodedata
 from pathlib import Path
+from typing import Any
 
 from kinmo.errors import KinmoDataError
 
-__all__ = ["MAX_NAME_BYTES", "check_mesh_name", "inside", "name_problem"]
+__all__ = [
+    "MAX_NAME_BYTES", "check_mesh_name", "clean_text", "clean_xml_tree", "inside", "markdown_text",
+    "name_problem",
+]
 
 #: Longest accepted name, in UTF-8 bytes (file names are limited to 255 bytes; ``.obj``
 #: is appended).
@@ -105,3 +109,41 @@ def inside(path: str | Path, folder: str | Path) -> bool:
     p = Path(os.path.realpath(path))
     f = Path(os.path.realpath(folder))
     return p == f or f in p.parents
+
+
+def clean_text(text: object) -> str:
+    """``text`` without the characters XML 1.0 cannot hold and that garble HTML, Markdown or a
+    terminal: every C0/C1 control character (tab and newline included) becomes a space, lone
+    surrogates (shown as ``\\udcxx``). For every name a writer puts
+    into XML (URDF, MJCF, USD), HTML (``kinmo view``, the report) or Markdown.
+
+    Source: issue 21, finding 10 (a part name with ``\\u0001`` made ``mobility.urdf``
+    ill-formed).
+    """
+    s = str(text).encode("utf-8", "backslashreplace").decode("utf-8")
+    return "".join(" " if unicodedata.category(c) == "Cc" or c in "\ufffe\uffff" else c for c in s)
+
+
+def clean_xml_tree(root: Any) -> Any:
+    """Apply :func:`clean_text` to every attribute value, text and tail of an
+    :mod:`xml.etree.ElementTree` tree (in place) and return ``root``, so the serialised file is
+    well-formed whatever names the input carried (escaping of ``<``, ``&``, quotes is
+    ElementTree's)."""
+    for el in root.iter():
+        for k, v in list(el.attrib.items()):
+            el.attrib[k] = clean_text(v)
+        if el.text:
+            el.text = clean_text(el.text)
+        if el.tail:
+            el.tail = clean_text(el.tail)
+    return root
+
+
+def markdown_text(text: object) -> str:
+    """``text`` as literal Markdown inline text: :func:`clean_text`, then Markdown and HTML
+    special characters backslash- or entity-escaped (``<`` ``>`` ``&`` ``|`` ``*`` ``_`` ``[``
+    ``]`` `````` ``#``), so a part name can neither start markup nor break a table."""
+    s = clean_text(text).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    for c in "\\`*_[]|#":
+        s = s.replace(c, "\\" + c)
+    return s

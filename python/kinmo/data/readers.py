@@ -70,6 +70,7 @@ from kinmo.data.model import (
     ShapeFormat,
 )
 from kinmo.data.names import check_mesh_name, inside
+from kinmo import limits
 from kinmo.errors import KinmoDataError
 
 __all__ = [
@@ -117,6 +118,7 @@ def read_json(path: str | Path) -> Any:
         the line and column of the error).
     """
     path = Path(path)
+    limits.check_file(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

@@ -173,15 +173,42 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
     from kinmo.io import output_dir
 
     out_dir = output_dir(out_dir)
-    ctx = ExportContext(shape, links, out_dir, name or shape.id)
+    ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id)
     return {f: EXPORTERS[f].write(ctx) for f in fmts}
+
+
+def self_contained(shape: Shape, out_dir: Path) -> Shape:
+    """``shape`` with its meshes inside ``out_dir``: every leaf mesh hard-linked (or copied)
+    to ``out_dir/textured_objs/<name>.obj`` unless the mesh folder already lies inside
+    ``out_dir``, so every path the formats write is relative inside the object folder and the
+    folder can be moved, zipped or sent (issue 21, finding 11). Mesh names were checked when
+    the hierarchy was read (:mod:`kinmo.data.names`).
+
+    Returns
+    -------
+    Shape
+        A copy whose ``mesh_dir`` is ``out_dir/textured_objs`` (or ``shape`` itself).
+    """
+    import dataclasses
+
+    from kinmo.data.names import inside
+    from kinmo.io import link_or_copy
+
+    if inside(shape.mesh_dir, out_dir):
+        return shape
+    dest = out_dir / "textured_objs"
+    for node in shape.hierarchy.nodes.values():
+        for o in node.objs:
+            link_or_copy(shape.mesh_path(o), dest / f"{o}.obj")
+    return dataclasses.replace(shape, mesh_dir=dest)
 
 
 def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
                   source: str | Path | None = None) -> dict[str, list[Path]]:
     """Export a PartNet-Mobility-format folder (real, generated or predicted) to ``out``.
 
-    Mesh references point back into the mesh folder (relative paths) where a format allows it.
+    The leaf meshes are hard-linked or copied into ``out/textured_objs`` (:func:`self_contained`):
+    every mesh reference is relative inside ``out``.
 
     Parameters
     ----------
@@ -213,8 +240,7 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
         shape = read_shape(source)
         if not (src / "mobility_v2.json").is_file():
             raise KinmoDataError(src / "mobility_v2.json", "file is missing")
-        return export(shape, out, fmts, links=read_links(src / "mobility_v2.json",
-                                                         shape.hierarchy))
+        return _staged(shape, out, fmts, read_links(src / "mobility_v2.json", shape.hierarchy))
     if not any((src / n).is_file() for n in ("result.json", "result_after_merging.json")) \
             and (src / "mobility_v2.json").is_file():
         raise KinmoDataError(src, "links without meshes (a `kinmo predict` output?): give the "
@@ -222,4 +248,16 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
     shape = read_shape(src)
     if not shape.links:
         raise KinmoDataError(src, "not a PartNet-Mobility folder: mobility_v2.json is missing")
-    return export(shape, out, fmts)
+    return _staged(shape, out, fmts, None)
+
+
+def _staged(shape: Shape, out: str | Path, fmts: Iterable[str],
+            links: Sequence[Link] | None) -> dict[str, list[Path]]:
+    """:func:`export` into a temporary sibling of ``out`` that appears at ``out`` whole
+    (:func:`kinmo.io.staged_folder`); the returned paths are those under ``out``."""
+    from kinmo.io import staged_folder
+
+    out = Path(out)
+    with staged_folder(out) as tmp:
+        files = export(shape, tmp, fmts, links=links)
+    return {f: [out / p.relative_to(tmp) for p in ps] for f, ps in files.items()}

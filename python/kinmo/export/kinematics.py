@@ -31,6 +31,7 @@ from kinmo.errors import KinmoDataError
 from kinmo.render.ancsh_gt import link_meshes as leaf_meshes
 
 __all__ = [
+    "SLAB_THICKNESS",
     "JointValue",
     "LinkMesh",
     "axis_rotation",
@@ -38,6 +39,7 @@ __all__ = [
     "link_meshes",
     "link_poses",
     "moving_links",
+    "simulator_safe",
     "write_obj",
 ]
 
@@ -196,12 +198,74 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
             vs.append(v)
             fs.append(f + n)
             n += len(v)
-        out[lid] = LinkMesh(
-            lid,
-            np.concatenate(vs) if vs else np.zeros((0, 3)),
-            np.concatenate(fs).astype(np.int64) if fs else np.zeros((0, 3), dtype=np.int64),
-        )
+        v = np.concatenate(vs) if vs else np.zeros((0, 3))
+        f = np.concatenate(fs).astype(np.int64) if fs else np.zeros((0, 3), dtype=np.int64)
+        if len(f):
+            v, f = simulator_safe(v, f, f"{shape.path}: link {lid}")
+        out[lid] = LinkMesh(lid, v, f)
     return out
+
+
+#: Thickness of the slab substituted for a flat part, relative to its largest extent.
+SLAB_THICKNESS = 1e-3
+
+
+def simulator_safe(vertices: np.ndarray, faces: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """A link mesh every simulator loads (issue 21, finding 9).
+
+    MuJoCo refuses meshes with fewer than 4 vertices or only coplanar ones, and convex
+    decomposition of such a mesh is empty. The rule, the same as ``prepare`` / ``predict``
+    apply to parts (a part without surface cannot be sampled):
+
+    - zero surface area (a point, a segment, degenerate triangles): refused;
+    - fewer than 4 distinct vertices, or all of them on one plane (rank < 3 of the centred
+      vertices, relative tolerance 1e-9): replaced by a thin box (slab) on the part's
+      principal axes, as large as the part in its plane and :data:`SLAB_THICKNESS` times its
+      largest extent thick;
+    - anything else: unchanged.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    where : str
+        Named in the error.
+
+    Returns
+    -------
+    vertices : (V', 3) float64
+    faces : (F', 3) int64
+
+    Raises
+    ------
+    KinmoDataError
+        Zero surface area.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    extent = float(np.ptp(v, axis=0).max()) if len(v) else 0.0
+    if not area > 1e-12 * max(extent, 1e-300) ** 2:
+        raise KinmoDataError(where, "zero surface area (a point, a segment or degenerate "
+                                    "triangles): refused, as prepare and predict refuse such parts")
+    used = v[np.unique(f)]
+    centre = used.mean(0)
+    _, sv, axes = np.linalg.svd(used - centre, full_matrices=False)
+    if len(used) >= 4 and sv[-1] > 1e-9 * sv[0]:
+        return v, f
+    local = (used - centre) @ axes.T
+    lo, hi = local.min(0), local.max(0)
+    half = SLAB_THICKNESS * max(extent, 1e-9) / 2
+    lo, hi = np.minimum(lo, -half), np.maximum(hi, half)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])  # index = 4x + 2y + z
+    box_v = corners @ axes + centre
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    box_f = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))], dtype=np.int64)
+    if np.linalg.det(axes) < 0:  # keep the faces outward
+        box_f = box_f[:, ::-1]
+    return box_v, box_f
 
 
 def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:

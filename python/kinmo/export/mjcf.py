@@ -29,9 +29,10 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from kinmo.data.names import clean_xml_tree
 from kinmo.export import ExportContext, register
 from kinmo.export.kinematics import write_obj
-from kinmo.export.urdf import convex_pieces
+from kinmo.export.urdf import convex_pieces, pieces_bar
 from kinmo.io import atomic_path, write_text
 from kinmo.urdf import link_frame_origins, urdf_joints
 
@@ -96,6 +97,7 @@ def mjcf_string(ctx: ExportContext, meshes: dict[int, str],
                 ET.SubElement(body, "geom", name=f"link_{lid}_collision_{k}", type="mesh",
                               mesh=f"link_{lid}_collision_{k}", pos=_xyz(-frames[lid]),
                               group="3", rgba="0.5 0.5 0.5 0")
+    clean_xml_tree(root)  # names from input files: no control characters (issue 21)
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"
 
@@ -119,17 +121,19 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
     files: list[Path] = []
     names: dict[int, str] = {}
     collision: dict[int, list[str]] = {}
-    for lid, m in ctx.meshes.items():
-        if len(m.faces) == 0:
-            continue
-        p = mdir / f"link_{lid}.obj"
-        with atomic_path(p) as tmp:
-            write_obj(tmp, m.vertices, m.faces)
-        files.append(p)
-        names[lid] = p.name
-        pieces = convex_pieces(m, mdir / f"link_{lid}_collision")
-        files.extend(pieces)
-        collision[lid] = [q.name for q in pieces]
+    with pieces_bar(ctx) as bar:
+        for lid, m in ctx.meshes.items():
+            bar.advance()
+            if len(m.faces) == 0:
+                continue
+            p = mdir / f"link_{lid}.obj"
+            with atomic_path(p) as tmp:
+                write_obj(tmp, m.vertices, m.faces)
+            files.append(p)
+            names[lid] = p.name
+            pieces = convex_pieces(m, mdir / f"link_{lid}_collision")
+            files.extend(pieces)
+            collision[lid] = [q.name for q in pieces]
     path = ctx.out_dir / "mobility.xml"
     write_text(path, mjcf_string(ctx, names, collision))
     return [path] + files

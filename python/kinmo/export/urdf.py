@@ -28,6 +28,7 @@ import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -165,6 +166,20 @@ def convex_pieces(mesh: LinkMesh, dest: Path, resolution: int = VHACD_RESOLUTION
     return files
 
 
+#: Links from which the convex decomposition of an export shows a progress bar.
+PIECES_BAR_MIN_LINKS = 50
+
+
+def pieces_bar(ctx: ExportContext) -> Any:
+    """The progress bar (on stderr) of the convex decomposition of ``ctx``'s links: V-HACD
+    takes seconds per link, so an object of many links shows its progress (issue 21,
+    finding 5); none below :data:`PIECES_BAR_MIN_LINKS` links."""
+    from kinmo.progress import CountingBar
+
+    n = len(ctx.meshes)
+    return CountingBar(n, n >= PIECES_BAR_MIN_LINKS, "V-HACD", ctx.name, counters={})
+
+
 def write_urdf_convex(ctx: ExportContext, path: Path | None = None) -> list[Path]:
     """Write ``mobility.urdf`` with V-HACD collision pieces into ``ctx.out_dir``.
 
@@ -177,11 +192,13 @@ def write_urdf_convex(ctx: ExportContext, path: Path | None = None) -> list[Path
     path = path or ctx.out_dir / "mobility.urdf"
     pieces: dict[int, list[str]] = {}
     files: list[Path] = []
-    for lid, mesh in ctx.meshes.items():
-        ps = convex_pieces(mesh, ctx.out_dir / "collision" / f"link_{lid}")
-        files.extend(ps)
-        if ps:
-            pieces[lid] = [os.path.relpath(p, path.parent) for p in ps]
+    with pieces_bar(ctx) as bar:
+        for lid, mesh in ctx.meshes.items():
+            ps = convex_pieces(mesh, ctx.out_dir / "collision" / f"link_{lid}")
+            files.extend(ps)
+            if ps:
+                pieces[lid] = [os.path.relpath(p, path.parent) for p in ps]
+            bar.advance()
     return [write_urdf(ctx.shape, path, ctx.links, name=ctx.name, collision=pieces)] + files
 
 

@@ -8,6 +8,7 @@ from typing import Any
 from kinmo.pipeline.config import PipelineConfig, TINY
 from kinmo.pipeline.run import run_pipeline
 from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
+from kinmo.progress import console as new_console
 from kinmo.synth import CATEGORIES, SYNTH_VERSION, generate_dataset
 
 __all__ = ["DEMO_CATEGORIES", "TINY_CATEGORIES", "run_demo"]
@@ -60,9 +61,7 @@ def run_demo(
     selector : {"learned", "paper"}
         :attr:`PipelineConfig.selector`.
     """
-    from rich.console import Console
-
-    console = console or Console(stderr=True)
+    console = console or new_console(stderr=True)
     out = Path(out)
     timings: dict[str, StageTiming] = {}
     if data is None:

@@ -71,9 +71,9 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     KinmoError
         ``synth_extra`` with labelled data of which no category can be generated.
     """
-    from rich.console import Console
+    from kinmo.progress import console as new_console
 
-    console = console or Console(stderr=True)
+    console = console or new_console(stderr=True)
     log = console.print
     if not cfg.labeled.is_dir():
         raise KinmoDataError(cfg.labeled, "labelled dataset folder does not exist")

@@ -11,6 +11,7 @@ from typing import Any
 from pydantic import BaseModel, Field
 
 from kinmo.io import write_text
+from kinmo.progress import literal
 
 __all__ = ["PipelineResult", "StageTiming"]
 
@@ -111,11 +112,11 @@ def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Calla
     marker = folder / marker_name
     text = json.dumps(key, sort_keys=True, default=str)
     if marker.is_file() and marker.read_text() == text:
-        log(f"[dim]{name}: up to date ({folder})[/]")
+        log(f"[dim]{name}: up to date ({literal(folder)})[/]")
         if clock is not None:
             clock.skipped(name)
         return False
-    log(f"[bold cyan]{name}[/] -> {folder}")
+    log(f"[bold cyan]{name}[/] -> {literal(folder)}")
     if clock is not None:
         clock.run(name, run)
     else:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import html
 
+from kinmo.data.names import clean_text
 from kinmo.report.document import Document, Figure, Gallery, Heading, Note, Table, Text
 
 __all__ = ["render_markdown"]
@@ -17,7 +18,10 @@ _NOTE_PREFIX = {"missing": "**Missing:**", "problem": "**Problem:**", "info": "*
 
 
 def _cell(s: str) -> str:
-    return s.replace("|", "\\|").replace("\n", " ")
+    """A table cell or caption: no control characters, no raw HTML (``<``, ``>`` as entities:
+    names of shapes and parts come from input files, issue 21 finding 10), ``|`` escaped."""
+    s = clean_text(s).replace("<", "&lt;").replace(">", "&gt;")
+    return s.replace("|", "\\|")
 
 
 def _table(t: Table) -> list[str]:
@@ -38,12 +42,12 @@ def _table(t: Table) -> list[str]:
             cells.append(v)
         lines.append("| " + " | ".join(cells) + " |")
     if t.caption:
-        lines += ["", f"*{t.caption}*"]
+        lines += ["", f"*{_cell(t.caption)}*"]
     return lines + [""]
 
 
 def _img(f: Figure) -> str:
-    alt = f.alt.replace("[", "(").replace("]", ")")
+    alt = _cell(f.alt).replace("[", "(").replace("]", ")")
     return f"![{alt}](img/{f.name})"
 
 
@@ -75,7 +79,7 @@ def render_markdown(doc: Document) -> str:
             elif isinstance(b, Figure):
                 lines += [_img(b), ""]
                 if b.caption:
-                    lines += [f"*{b.caption}*", ""]
+                    lines += [f"*{_cell(b.caption)}*", ""]
             elif isinstance(b, Gallery):
                 # a table of thumbnails, four per row
                 figs = b.figures

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from kinmo.errors import KinmoDataError
+from kinmo.errors import KinmoDataError, KinmoTrainingError
 from kinmo.io import atomic_path, read_checkpoint
 from kinmo.progress import TrainingBar
 import kinmo.train.distributed as distributed
@@ -219,13 +219,23 @@ def optimizer_step(
     sync : bool
         Average the gradients over the ranks (:func:`kinmo.train.distributed.sync_gradients`;
         for models not wrapped in ``DistributedDataParallel``).
+
+    Raises
+    ------
+    KinmoTrainingError
+        The loss or the gradient norm is ``nan`` or ``inf`` (training diverged).
     """
+    if not bool(torch.isfinite(loss.detach()).all()):
+        raise KinmoTrainingError(type(model).__name__, f"training loss is {float(loss.detach().sum())} "
+                                 "(diverged: lower the learning rate); no model saved")
     opt.zero_grad(set_to_none=True)
     (loss * weight).backward()
     if sync:
         distributed.sync_gradients(model)
-    if grad_clip > 0:
-        torch.nn.utils.clip_grad_norm_(model.parameters(), grad_clip)
+    norm = torch.nn.utils.clip_grad_norm_(model.parameters(), grad_clip if grad_clip > 0 else float("inf"))
+    if not bool(torch.isfinite(norm)):
+        raise KinmoTrainingError(type(model).__name__, f"gradient norm is {float(norm)} "
+                                 "(diverged: lower the learning rate); no model saved")
     opt.step()
 
 
@@ -292,8 +302,18 @@ def save_checkpoint(path: str | Path, fmt: str, model: torch.nn.Module, **items:
     Returns
     -------
     Path
+
+    Raises
+    ------
+    KinmoTrainingError
+        A floating-point parameter or buffer is not finite (nothing is written).
     """
     path = Path(path)
+    bad = [k for k, v in model.state_dict().items()
+           if torch.is_floating_point(v) and not bool(torch.isfinite(v).all())]
+    if bad:
+        raise KinmoTrainingError(path, f"parameters {', '.join(bad[:3])} are not finite "
+                                 "(training diverged: lower the learning rate); not saved")
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {"format": fmt, "version": 1,
                "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()}, **items}
