@@ -456,7 +456,7 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     """
     import shutil
 
-    configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="cpu")
+    configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="auto")
                for t in RANKER_TYPES}
     stamp = json.loads(json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}))
     if (folder / "folds.json").is_file() and json.loads((folder / "folds.json").read_text()) != stamp:
