@@ -90,9 +90,9 @@ def flatten_shape(shape: Shape, mode: FlatMode = "link", names: bool = True) -> 
     mode : {"link", "leaf"}
         See :func:`flat_groups`.
     names : bool
-        Keep semantic names (the link's or leaf's name; the root keeps its own); ``False``
-        gives the generic names of :func:`generic_names` (root ``"unknown"``, leaf ``k``
-        ``part_<k>``).
+        Keep semantic names (the link's or leaf's name); ``False`` gives the generic names of
+        :func:`generic_names` (leaf ``k`` ``part_<k>``). The root is ``"unknown"`` either
+        way: a user's root node is named after the file.
 
     Returns
     -------
@@ -108,7 +108,6 @@ def flatten_shape(shape: Shape, mode: FlatMode = "link", names: bool = True) -> 
     """
     h = shape.hierarchy
     groups = flat_groups(shape, mode)
-    root = h.nodes[h.root]
     nodes: dict[int, PartNode] = {}
     leaf_of: dict[int, int] = {}
     for k, (name, g) in enumerate(groups):
@@ -118,7 +117,7 @@ def flatten_shape(shape: Shape, mode: FlatMode = "link", names: bool = True) -> 
         nodes[nid] = PartNode(nid, nm, nm, (), objs, 0)
         for leaf in g:
             leaf_of[leaf] = nid
-    rname = root.name if names else UNKNOWN_NAME
+    rname = UNKNOWN_NAME  # a user's root is named after the file, never a semantic name
     nodes[0] = PartNode(0, rname, rname, tuple(range(1, len(groups) + 1)), (), None)
     hier = PartHierarchy(nodes, 0, [0, *range(1, len(groups) + 1)])
     links = None
