@@ -188,7 +188,8 @@ def flat_variants(
     list of PartGraph
         The originals (in order), then the variants; variants carry ``meta["flattened"]``
         (the mode). A flattened variant without any labelled sibling edge (a shape with one
-        link) is not added.
+        link) is not added, nor is one of a graph without ``meta["source"]`` (built in
+        memory).
 
     Raises
     ------
@@ -210,6 +211,8 @@ def flat_variants(
             if rng.random() >= flatten_prob:
                 continue
             mode: FlatMode = "link" if rng.random() < 0.5 else "leaf"
+            if not g.meta.get("source"):  # built in memory, no shape folder: no variant
+                continue
             shape = read_shape(g.meta["source"])
             m = g.meta
             flat = build_graph(flatten_shape(shape, mode), n_points=int(m.get("n_points", 1024)),
