@@ -32,7 +32,7 @@ import math
 import re
 import shutil
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,11 +40,17 @@ import numpy as np
 
 from kinmo.data.augment import flat_groups
 from kinmo.data.model import JointType, Link, PartHierarchy, Shape
+from kinmo.data.build import load_shape_meshes
 from kinmo.data.readers import find_shapes, read_links, read_shape
+from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.io import atomic_path, write_json, write_text
+from kinmo.predict import predict_dataset
+from kinmo.train.gnn import load_run
+from kinmo.user_input import stage_partnet
 
 __all__ = ["VARIANTS", "TrueJoint", "PredJoint", "UserNodes", "user_nodes", "write_user_glb",
-           "true_joints", "moved_nodes", "match_joints", "score", "evaluate_user_format"]
+           "true_joints", "moved_nodes", "match_joints", "acute_angle", "score", "evaluate_user_format",
+           "results_markdown"]
 
 #: The input variants (module docstring).
 VARIANTS = ("generic", "semantic", "leaf", "partnet")
@@ -131,9 +137,7 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
     KinmoDataError
         A mesh cannot be loaded.
     """
-    import trimesh
-
-    from kinmo.data.build import load_shape_meshes
+    import trimesh  # optional heavy dependency, as in kinmo.user_input
 
     h = shape.hierarchy
     scene = trimesh.Scene()
@@ -279,7 +283,6 @@ def _score_one(sid: str, true: list[TrueJoint], pred: list[PredJoint]) -> dict[s
 @dataclass
 class _Obj:
     shape: Shape
-    nodes: dict[str, UserNodes] = field(default_factory=dict)
 
 
 def evaluate_user_format(
@@ -323,11 +326,6 @@ def evaluate_user_format(
     KinmoDataError
         No object of ``ids`` in ``data``; the run cannot be loaded.
     """
-    from kinmo.errors import KinmoDataError
-    from kinmo.predict import predict_dataset
-    from kinmo.train.gnn import load_run
-    from kinmo.user_input import stage_partnet
-
     for v in variants:
         if v not in VARIANTS:
             raise ValueError(f"variant must be one of {', '.join(VARIANTS)}, got {v!r}")
@@ -397,8 +395,6 @@ def evaluate_user_format(
 
 def _row(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHierarchy,
          node_leaves: Sequence[Sequence[int]]) -> dict[str, Any]:
-    from kinmo.errors import KinmoError
-
     f = pred_folder / "mobility_v2.json"
     try:
         links = read_links(f, hierarchy)
