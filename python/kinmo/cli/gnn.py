@@ -23,7 +23,7 @@ def train_gnn_cmd(
     batch_size: Optional[int] = typer.Option(None, "--batch-size", min=1, help="Shapes per step."),  # noqa: UP007
     lr: Optional[float] = typer.Option(None, "--lr", help="Learning rate."),  # noqa: UP007
     threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: default)."),  # noqa: UP007
-    flatten_prob: Optional[float] = typer.Option(None, "--flatten-prob", min=0.0, max=1.0, help="Share of training shapes also trained flattened (one leaf per link or PartNet leaf) [preset's: quick/paper 0.5, tiny 0]."),  # noqa: UP007
+    flatten_prob: Optional[float] = typer.Option(None, "--flatten-prob", min=0.0, max=1.0, help="Share of training shapes also trained flattened (one leaf per link or PartNet leaf) [preset's: quick/paper 1, tiny 0]."),  # noqa: UP007
     drop_names_prob: Optional[float] = typer.Option(None, "--drop-names-prob", min=0.0, max=1.0, help="Share of training graphs with node names dropped to 'unknown' [preset's]."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:

@@ -129,7 +129,7 @@ def _quick() -> TrainConfig:
         schedule="cosine",
         n_points=256,
         threads=1,
-        flatten_prob=0.5,
+        flatten_prob=1.0,
         drop_names_prob=0.5,
     )
 
@@ -157,7 +157,7 @@ def _paper() -> TrainConfig:
         step_size=20,
         step_gamma=0.7,
         n_points=1024,
-        flatten_prob=0.5,
+        flatten_prob=1.0,
         drop_names_prob=0.5,
     )
 
