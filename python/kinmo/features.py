@@ -34,6 +34,7 @@ share one frame and one tensor layout, which must change together.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -76,11 +77,20 @@ def rotating_fine_mask() -> torch.Tensor:
     return torch.tensor([t in _R for t in FINE_TYPES])
 
 
+#: A trailing number of a node name (``door_2``, ``leg.3``, ``drawer 1``).
+_TRAILING_NUMBER = re.compile(r"[\s_.\-]*\d+$")
+#: Names that mean "unnamed" (index 0 of :class:`SemanticVocab`).
+_UNNAMED = frozenset({"unknown", "part", ""})
+
+
 class SemanticVocab:
     """Map of PartNet semantic node names (``"door"``, ``"drawer_front"``) to embedding indices.
 
-    Index 0 is reserved for names unseen in training. Names are lower-cased. The vocabulary is
-    built from the training graphs and saved in the checkpoint.
+    Index 0 is reserved for names unseen in training, and for unnamed nodes (``"unknown"``,
+    and ``part_<k>`` after the digits go: :mod:`kinmo.data.augment`), which the GNN sees in
+    training when names are dropped. Names are lower-cased and lose a trailing number
+    (``"door_2"`` -> ``"door"``, :meth:`normalise`), so a user's numbered names still count.
+    The vocabulary is built from the training graphs and saved in the checkpoint.
 
     Parameters
     ----------
@@ -89,7 +99,8 @@ class SemanticVocab:
     """
 
     def __init__(self, names: Sequence[str] = ()) -> None:
-        self.names: list[str] = sorted({n.lower() for n in names})
+        self.names: list[str] = sorted({m for n in names if (m := self.normalise(n))
+                                        and m not in _UNNAMED})
         self._index = {n: i + 1 for i, n in enumerate(self.names)}
 
     def __len__(self) -> int:
@@ -97,8 +108,14 @@ class SemanticVocab:
         return len(self.names) + 1
 
     def index(self, name: str) -> int:
-        """Index of ``name`` (0 when unknown)."""
-        return self._index.get(name.lower(), 0)
+        """Index of ``name`` after :meth:`normalise` (0 when unknown)."""
+        return self._index.get(self.normalise(name), 0)
+
+    @staticmethod
+    def normalise(name: str) -> str:
+        """Lower case, a trailing number (with its ``_``, ``-``, ``.`` or space) removed:
+        ``"Door_2"`` -> ``"door"``, ``"part_12"`` -> ``"part"``."""
+        return _TRAILING_NUMBER.sub("", name.strip().lower())
 
     @classmethod
     def from_graphs(cls, graphs: Sequence[PartGraph]) -> SemanticVocab:

@@ -17,6 +17,7 @@ torch.set_num_threads(1)
 
 
 def tiny(**over):
+    over = {"flatten_prob": 0.0, "drop_names_prob": 0.0, **over}
     cfg = preset("quick", batch_size=3, n_points=32, threads=1, lr=5e-3, **over)
     small = cfg.model.model_copy(update=dict(point_widths=[16], geo_dim=16, node_dim=24, edge_dim=24,
                                              semantic_dim=4, gnn_layers=2))
@@ -113,3 +114,13 @@ def test_checkpoints_without_axis_mode_load_as_regression(tmp_path):
     del payload["config"]["model"]["axis_mode"]  # as written before the field existed
     torch.save(payload, tmp_path / "model.pt")
     assert load_run(tmp_path, device="cpu").config.model.axis_mode == "regress"
+
+
+def test_dropped_names_train_and_keep_the_vocabulary(tmp_path):
+    graphs = _graphs(4)
+    res = train_gnn(graphs, tmp_path / "r", tiny(epochs=2, drop_names_prob=1.0), progress=False)
+    run = load_run(res.run_dir, "cpu")
+    # the vocabulary comes from the names before they are dropped; unnamed nodes are index 0
+    assert len(run.vocab) > 1
+    assert all(run.vocab.index(n) > 0 for n in graphs[0].node_names if n.lower() not in ("unknown",))
+    assert run.vocab.index("part_3") == 0

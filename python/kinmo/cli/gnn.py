@@ -25,6 +25,8 @@ def train_gnn_cmd(
     batch_size: Optional[int] = typer.Option(None, "--batch-size", min=1, help="Shapes per step."),  # noqa: UP007
     lr: Optional[float] = typer.Option(None, "--lr", callback=_values.learning_rate, help="Learning rate."),  # noqa: UP007
     threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: default)."),  # noqa: UP007
+    flatten_prob: Optional[float] = typer.Option(None, "--flatten-prob", min=0.0, max=1.0, help="Share of training shapes also trained flattened (one leaf per link or PartNet leaf) [preset's: quick/paper 1, tiny 0]."),  # noqa: UP007
+    drop_names_prob: Optional[float] = typer.Option(None, "--drop-names-prob", min=0.0, max=1.0, help="Share of training graphs with node names dropped to 'unknown' [preset's]."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Train the motion GNN (Liu et al. 2023, Sec. 3.2) and write a run folder.
@@ -43,7 +45,8 @@ def train_gnn_cmd(
         fail(f"--types must be fine or coarse, got {types!r}", 2)
     with cli_errors(2, also=(ValueError,)):
         cfg = make_preset(preset, types=types, epochs=epochs, seed=seed, device=device,
-                          batch_size=batch_size, lr=lr, threads=threads)
+                          batch_size=batch_size, lr=lr, threads=threads,
+                          flatten_prob=flatten_prob, drop_names_prob=drop_names_prob)
     with cli_errors(1):
         res = train_gnn(data, out, cfg, split=split, progress=not quiet)
     last = res.history[-1]

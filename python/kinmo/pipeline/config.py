@@ -73,6 +73,12 @@ class PipelineConfig(BaseModel):
         out-of-fold GNN predictions of the training objects (fold GNNs of this preset);
         Table 1 then also gets the paper selector's rows (``eval/pre-segmented-paper/``).
         ``paper``: the paper's 0.5 feasibility + 0.3 direction + 0.2 position, no ranker.
+    augment_gnn : bool
+        Train the fine motion GNN with the preset's hierarchy and name augmentations
+        (``flatten_prob``, ``drop_names_prob`` of :class:`kinmo.train.config.TrainConfig`;
+        :mod:`kinmo.data.augment`), so that a user's flat, unnamed asset is predicted (issue
+        22). ``False`` sets both to 0 (the demo and ``tiny``, to stay fast). The coarse GNN
+        never gets them (Table 1's coarse column stays the paper's).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -100,6 +106,7 @@ class PipelineConfig(BaseModel):
     synth_as: Literal["labeled", "unlabeled"] = "labeled"
     synth_seed: int | None = Field(None, ge=0, le=99999)
     selector: Literal["learned", "paper"] = "learned"
+    augment_gnn: bool = True
 
     @model_validator(mode="after")
     def _check(self) -> PipelineConfig:
@@ -112,7 +119,7 @@ class PipelineConfig(BaseModel):
 
 #: ``--preset tiny`` of ``kinmo train all`` (and ``kinmo demo --tiny``): the quick preset cut to
 #: seconds per stage, to check that everything runs (tests, a first try); not for results.
-TINY = {"gnn_epochs": 25, "axis_epochs": 2, "ancsh_epochs": 1, "semi_epochs": 1, "ancsh_steps_per_epoch": 2,
+TINY = {"augment_gnn": False, "gnn_epochs": 25, "axis_epochs": 2, "ancsh_epochs": 1, "semi_epochs": 1, "ancsh_steps_per_epoch": 2,
         "frames_per_object": 1}
 
 

@@ -78,7 +78,7 @@ def run_demo(
         data, unlabeled = lab, unl
     cfg = PipelineConfig(
         labeled=data, unlabeled=unlabeled, out=out / "run", preset="quick", seed=seed,
-        **(TINY if tiny else {"gnn_epochs": 25, "axis_epochs": 8, "ancsh_epochs": 16, "semi_epochs": 4,
+        **(TINY if tiny else {"augment_gnn": False, "gnn_epochs": 25, "axis_epochs": 8, "ancsh_epochs": 16, "semi_epochs": 4,
                               "ancsh_steps_per_epoch": 15, "frames_per_object": 3}),
         categories=(["Laptop"] if tiny else None), selector=selector,
     )

@@ -260,7 +260,9 @@ class _Context:
                 gnn_runs[types] = v.reuse[f"gnn_{types}"]
                 continue
             run_dir = out / f"gnn_{types}"
-            gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs)
+            gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
+                              **({} if cfg.augment_gnn and types == "fine"
+                                 else {"flatten_prob": 0.0, "drop_names_prob": 0.0}))
             self.stage(run_dir, {**base, "gnn": gcfg.model_dump()},
                        lambda gcfg=gcfg, run_dir=run_dir: train_gnn(
                            graphs(), run_dir, gcfg, split=split_file, progress=progress),

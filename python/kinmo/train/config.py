@@ -72,6 +72,13 @@ class TrainConfig(BaseModel):
         CPU threads of torch (0: leave torch's default).
     test_fraction : float
         Share of each category's objects held out when the split is made by the run.
+    flatten_prob : float
+        Share of training shapes that also get a flattened variant (a root with one leaf per
+        mobility link or per PartNet leaf, :func:`kinmo.data.augment.flat_variants`): a
+        user's flat segmentation (issue 22).
+    drop_names_prob : float
+        Share of training graphs (originals and variants) whose node names are replaced by
+        ``"unknown"``/``part_<k>`` (semantic index 0), so that names are a bonus, not needed.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -97,6 +104,8 @@ class TrainConfig(BaseModel):
     device: str = "auto"
     threads: int = 0
     test_fraction: float = 0.25
+    flatten_prob: float = Field(0.0, ge=0.0, le=1.0)
+    drop_names_prob: float = Field(0.0, ge=0.0, le=1.0)
 
 
 def _quick() -> TrainConfig:
@@ -120,6 +129,8 @@ def _quick() -> TrainConfig:
         schedule="cosine",
         n_points=256,
         threads=1,
+        flatten_prob=1.0,
+        drop_names_prob=0.5,
     )
 
 
@@ -146,11 +157,14 @@ def _paper() -> TrainConfig:
         step_size=20,
         step_gamma=0.7,
         n_points=1024,
+        flatten_prob=1.0,
+        drop_names_prob=0.5,
     )
 
 
 def _tiny() -> TrainConfig:
-    return _quick().model_copy(update={"preset": "tiny", "epochs": 25})
+    return _quick().model_copy(update={"preset": "tiny", "epochs": 25, "flatten_prob": 0.0,
+                                          "drop_names_prob": 0.0})
 
 
 #: Preset factories by name (``tiny``: ``quick`` for 25 epochs, a check that a run goes

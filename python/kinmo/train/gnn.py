@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from kinmo.data.augment import flat_variants
 from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TO_COARSE
@@ -280,6 +281,8 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
            dist_info: distributed.DistInfo, device: torch.device) -> TrainResult:
     main = dist_info.is_main
     vocab = SemanticVocab.from_graphs(train_g) if config.model.semantic_dim > 0 else SemanticVocab()
+    if config.flatten_prob > 0 or config.drop_names_prob > 0:  # after the vocabulary: names kept
+        train_g = flat_variants(train_g, config.flatten_prob, config.drop_names_prob, config.seed)
     mdata = config.model.model_dump()
     mdata["vocab_size"] = len(vocab)
     config = config.model_copy(update={"model": ModelConfig.model_validate(mdata)})

@@ -1,0 +1,46 @@
+"""``kinmo eval user-format``: a motion GNN on the test split given as users give objects
+(:mod:`kinmo.evaluate.user_format`, issue 22)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from kinmo.cli._apps import eval_app
+from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
+
+
+@eval_app.command("user-format")
+@with_refine_options
+def user_format_cmd(
+    model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn` (as `kinmo predict --model`)."),
+    data: Path = typer.Option(..., "--data", "-d", help="PartNet-Mobility dataset folder."),
+    out: Path = typer.Option(..., "--out", "-o", help="Work and result folder (glb/, pred/, user_format.json, user_format.md)."),
+    split: Optional[Path] = typer.Option(None, "--split", help="Split file whose test ids are evaluated [default: MODEL/split.json]."),  # noqa: UP007
+    variants: str = typer.Option("generic,semantic,leaf,partnet", "--variants", help="Comma-separated: generic (node per link, part_<k>), semantic (link names), leaf (node per PartNet leaf), partnet (PartNet format)."),
+    axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the axes (as `kinmo predict --axis-model`)."),  # noqa: UP007
+    refine: RefineOptions = REFINE,
+    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda ..."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+) -> None:
+    """Convert the test objects to user GLBs (a node per link or PartNet leaf, generic or
+    semantic names), predict each as `kinmo predict FILE` does, and score recall (moved-node
+    IoU >= 0.5) and the mean axis angle beside the PartNet-format result."""
+    from rich.console import Console
+
+    from kinmo.cli._errors import cli_errors
+    from kinmo.evaluate.user_format import evaluate_user_format, results_markdown
+    from kinmo.train.split import Split
+
+    console = Console()
+    vs = [v.strip() for v in variants.split(",") if v.strip()]
+    with cli_errors(2, also=(ValueError,)):
+        sp = Split.load(split if split is not None else model / "split.json")
+        rc = refine.config(axis_model)
+    with cli_errors(1):
+        res = evaluate_user_format(data, model, sp.test, out, vs, axis_model=axis_model,
+                                   refine_config=rc, device=device, progress=not quiet)
+    console.print(results_markdown(res), highlight=False, soft_wrap=True)
+    console.print(f"wrote {out / 'user_format.json'} and {out / 'user_format.md'}", highlight=False)

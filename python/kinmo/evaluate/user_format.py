@@ -1,0 +1,416 @@
+"""Evaluation on labelled objects given as a user would give them (issue 22, part 1).
+
+Each test object of a PartNet-Mobility split is exported as a **user GLB**: a glTF scene in the
+object's own frame (y-up, mesh units) with one node per input part and no hierarchy. Variants:
+
+- ``generic``: a node per mobility link (every leaf of the link merged), named ``part_<k>``;
+- ``semantic``: the same nodes named after their link (``door_3``: unique, the number goes in
+  :class:`kinmo.features.SemanticVocab`);
+- ``leaf``: a node per PartNet leaf (finer than a link, as a part segmenter's output), named
+  ``part_<k>``;
+- ``partnet``: the object in PartNet format (its hierarchy and names), scored on the nodes of
+  ``generic`` (a node per link).
+
+Each GLB goes through what ``kinmo predict FILE`` does (:func:`kinmo.user_input.stage_partnet`
+with category ``"unknown"``, then :func:`kinmo.predict.predict_dataset`), and the written
+``mobility_v2.json`` is scored.
+
+**Metric** (issue 22, "Done when"): a joint *moves* a set of input nodes (its link and every
+link below it; a node counts when most of its PartNet leaves are in those links). A predicted
+moving link (hinge or slider) matches a true moving joint when their moved sets have IoU
+``>= 0.5`` (greedy one-to-one by IoU). **Recall** = matched / true moving joints; **angle** =
+mean over matched joints of the acute angle between the axis directions (degrees); **type
+accuracy** = share of matched joints with the right joint type (hinge / slider).
+
+glTF note: trimesh loads a scene's nodes in reverse order and merges nodes of equal names, so
+every node has a unique name and predictions are mapped back by name, never by order.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinmo.data.augment import flat_groups
+from kinmo.data.model import JointType, Link, PartHierarchy, Shape
+from kinmo.data.build import load_shape_meshes
+from kinmo.data.readers import find_shapes, read_links, read_shape
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.io import atomic_path, write_json, write_text
+from kinmo.predict import predict_dataset
+from kinmo.train.gnn import load_run
+from kinmo.user_input import stage_partnet
+
+__all__ = ["VARIANTS", "TrueJoint", "PredJoint", "UserNodes", "user_nodes", "write_user_glb",
+           "true_joints", "moved_nodes", "match_joints", "acute_angle", "score", "evaluate_user_format",
+           "results_markdown"]
+
+#: The input variants (module docstring).
+VARIANTS = ("generic", "semantic", "leaf", "partnet")
+_MOVING = (JointType.HINGE, JointType.SLIDER)
+
+
+@dataclass
+class UserNodes:
+    """The input nodes of one object in one variant.
+
+    Attributes
+    ----------
+    names : list of str
+        Unique node names (``[A-Za-z0-9_]``), as written into the GLB.
+    leaves : list of list of int
+        PartNet leaf ids of each node.
+    """
+
+    names: list[str]
+    leaves: list[list[int]]
+
+
+@dataclass
+class TrueJoint:
+    """A true moving joint: its link, type, unit axis direction (mesh frame) and moved nodes."""
+
+    link: int
+    type: str
+    direction: np.ndarray
+    moved: frozenset[int]
+
+
+@dataclass
+class PredJoint:
+    """A predicted moving link: id, type, unit axis direction and the input nodes it moves."""
+
+    link: int
+    type: str
+    direction: np.ndarray
+    moved: frozenset[int]
+
+
+def _clean(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_") or "part"
+
+
+def user_nodes(shape: Shape, variant: str) -> UserNodes:
+    """The nodes of ``shape`` as a user's asset of ``variant`` has them (module docstring).
+
+    ``partnet`` uses the nodes of ``generic`` (its scoring nodes).
+
+    Raises
+    ------
+    ValueError
+        Unknown variant, or a shape without links.
+    """
+    if variant not in VARIANTS:
+        raise ValueError(f"variant must be one of {', '.join(VARIANTS)}, got {variant!r}")
+    groups = flat_groups(shape, "leaf" if variant == "leaf" else "link")
+    if variant == "semantic":
+        names = [f"{_clean(n)}_{k}" for k, (n, _) in enumerate(groups)]
+    else:
+        names = [f"part_{k}" for k in range(len(groups))]
+    return UserNodes(names, [list(g) for _, g in groups])
+
+
+def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
+    """Write the user GLB of ``shape``: one scene node per entry of ``nodes``, mesh frame.
+
+    Parameters
+    ----------
+    shape : Shape
+    nodes : UserNodes
+        From :func:`user_nodes`.
+    path : str or Path
+        The ``.glb`` file (written atomically).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    KinmoDataError
+        A mesh cannot be loaded.
+    """
+    import trimesh  # optional heavy dependency, as in kinmo.user_input
+
+    h = shape.hierarchy
+    scene = trimesh.Scene()
+    for name, leaves in zip(nodes.names, nodes.leaves):
+        objs = list(dict.fromkeys(o for leaf in leaves for o in h.nodes[leaf].objs))
+        meshes = load_shape_meshes([shape.mesh_path(o) for o in objs])
+        vs, fs, n = [], [], 0
+        for v, f in meshes:
+            vs.append(np.asarray(v, dtype=np.float64))
+            fs.append(np.asarray(f, dtype=np.int64) + n)
+            n += len(v)
+        mesh = trimesh.Trimesh(np.concatenate(vs), np.concatenate(fs), process=False)
+        scene.add_geometry(mesh, node_name=name, geom_name=name)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_bytes(scene.export(file_type="glb"))
+    return path
+
+
+def _subtree_leaves(links: Sequence[Link], hierarchy: PartHierarchy, link: int) -> set[int]:
+    kids: dict[int, list[int]] = {}
+    for lk in links:
+        kids.setdefault(lk.parent, []).append(lk.id)
+    by_id = {lk.id: lk for lk in links}
+    out: set[int] = set()
+    stack = [link]
+    seen: set[int] = set()
+    while stack:
+        i = stack.pop()
+        if i in seen:
+            continue
+        seen.add(i)
+        out.update(leaf for part in by_id[i].parts for leaf in hierarchy.leaves(part))
+        stack.extend(kids.get(i, []))
+    return out
+
+
+def moved_nodes(node_leaves: Sequence[Sequence[int]], moved_leaves: set[int]) -> frozenset[int]:
+    """Input nodes moved by a joint: those with more than half of their leaves moved.
+
+    Parameters
+    ----------
+    node_leaves : sequence of sequence of int
+        Leaf ids of each input node.
+    moved_leaves : set of int
+        Leaf ids moved by the joint.
+
+    Returns
+    -------
+    frozenset of int
+        Node indices.
+    """
+    return frozenset(k for k, ls in enumerate(node_leaves)
+                     if ls and 2 * sum(1 for x in ls if x in moved_leaves) > len(ls))
+
+
+def true_joints(shape: Shape, nodes: UserNodes) -> list[TrueJoint]:
+    """The true moving joints (hinge, slider) of a labelled shape, with the nodes they move."""
+    assert shape.links is not None
+    out = []
+    for lk in shape.links:
+        if lk.joint.type not in _MOVING or lk.joint.direction is None:
+            continue
+        moved = moved_nodes(nodes.leaves, _subtree_leaves(shape.links, shape.hierarchy, lk.id))
+        out.append(TrueJoint(lk.id, lk.joint.type.value, np.asarray(lk.joint.direction, float), moved))
+    return out
+
+
+def _pred_joints(links: Sequence[Link], hierarchy: PartHierarchy,
+                 node_leaves: Sequence[Sequence[int]]) -> list[PredJoint]:
+    out = []
+    for lk in links:
+        if lk.joint.type not in _MOVING or lk.joint.direction is None:
+            continue
+        moved = moved_nodes(node_leaves, _subtree_leaves(links, hierarchy, lk.id))
+        out.append(PredJoint(lk.id, lk.joint.type.value, np.asarray(lk.joint.direction, float), moved))
+    return out
+
+
+def _iou(a: frozenset[int], b: frozenset[int]) -> float:
+    u = len(a | b)
+    return len(a & b) / u if u else 0.0
+
+
+def match_joints(true: Sequence[TrueJoint], pred: Sequence[PredJoint],
+                 min_iou: float = 0.5) -> list[tuple[int, int, float]]:
+    """Greedy one-to-one matching of true and predicted joints by moved-node IoU.
+
+    Returns
+    -------
+    list of (true index, predicted index, IoU)
+        Pairs with IoU ``>= min_iou``, highest IoU first (ties: lower indices first).
+    """
+    cand = sorted(((-_iou(t.moved, p.moved), i, j) for i, t in enumerate(true)
+                   for j, p in enumerate(pred)))
+    used_t: set[int] = set()
+    used_p: set[int] = set()
+    out = []
+    for neg, i, j in cand:
+        if -neg < min_iou:
+            break
+        if i in used_t or j in used_p:
+            continue
+        used_t.add(i)
+        used_p.add(j)
+        out.append((i, j, -neg))
+    return out
+
+
+def acute_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Acute angle between two axis directions, degrees in ``[0, 90]``."""
+    c = abs(float(np.dot(a, b)) / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return math.degrees(math.acos(min(1.0, c)))
+
+
+def score(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Recall, mean angle and type accuracy pooled over per-object rows (:func:`_score_one`)."""
+    n_true = sum(r["n_true"] for r in rows)
+    angles = [a for r in rows for a in r["angles"]]
+    types = [t for r in rows for t in r["type_ok"]]
+    return {
+        "objects": len(rows),
+        "failed": sum(1 for r in rows if r.get("error")),
+        "true_joints": n_true,
+        "matched": len(angles),
+        "predicted_moving": sum(r["n_pred"] for r in rows),
+        "recall": len(angles) / n_true if n_true else float("nan"),
+        "mean_angle": float(np.mean(angles)) if angles else float("nan"),
+        "median_angle": float(np.median(angles)) if angles else float("nan"),
+        "within_5deg": float(np.mean(np.asarray(angles) <= 5.0)) if angles else float("nan"),
+        "flips_over_45deg": int(np.sum(np.asarray(angles) > 45.0)) if angles else 0,
+        "type_accuracy": float(np.mean(types)) if types else float("nan"),
+    }
+
+
+def _score_one(sid: str, true: list[TrueJoint], pred: list[PredJoint]) -> dict[str, Any]:
+    m = match_joints(true, pred)
+    return {"id": sid, "n_true": len(true), "n_pred": len(pred),
+            "angles": [acute_angle(true[i].direction, pred[j].direction) for i, j, _ in m],
+            "type_ok": [true[i].type == pred[j].type for i, j, _ in m], "error": ""}
+
+
+@dataclass
+class _Obj:
+    shape: Shape
+
+
+def evaluate_user_format(
+    data: str | Path,
+    run: str | Path,
+    ids: Sequence[str],
+    out: str | Path,
+    variants: Sequence[str] = VARIANTS,
+    axis_model: str | Path | None = None,
+    refine_config: Any = None,
+    device: str = "auto",
+    progress: bool = True,
+) -> dict[str, dict[str, Any]]:
+    """Score a motion GNN on the objects ``ids`` of ``data`` in the user formats (module docs).
+
+    Parameters
+    ----------
+    data : str or Path
+        PartNet-Mobility dataset folder.
+    run : str or Path
+        Run folder of ``kinmo train gnn`` (``kinmo predict --model``).
+    ids : sequence of str
+        Object ids to evaluate (the test split); ids not in ``data`` are skipped.
+    out : str or Path
+        Work and result folder: ``glb/<variant>/<id>.glb``, ``pred/<variant>/<id>/``,
+        ``user_format.json`` (scores and per-object rows), ``user_format.md``.
+    variants : sequence of str
+        Of :data:`VARIANTS`.
+    axis_model, refine_config, device, progress
+        Passed to :func:`kinmo.predict.predict_dataset` (``--axis-model``, the selector).
+
+    Returns
+    -------
+    dict of str to dict
+        Per variant: :func:`score`'s fields.
+
+    Raises
+    ------
+    ValueError
+        An unknown variant.
+    KinmoDataError
+        No object of ``ids`` in ``data``; the run cannot be loaded.
+    """
+    for v in variants:
+        if v not in VARIANTS:
+            raise ValueError(f"variant must be one of {', '.join(VARIANTS)}, got {v!r}")
+    data, out = Path(data), Path(out)
+    want = set(ids)
+    objs: dict[str, _Obj] = {}
+    for folder in find_shapes(data):
+        if folder.name in want:
+            s = read_shape(folder)
+            if s.links is not None:
+                objs[s.id] = _Obj(s)
+    if not objs:
+        raise KinmoDataError(data, "none of the objects to evaluate is a labelled object here")
+    r = load_run(run, device)
+    kw = dict(axis_model=axis_model, refine_config=refine_config, progress=progress,
+              formats=["mobility_v2"])
+    results: dict[str, dict[str, Any]] = {}
+    all_rows: dict[str, list[dict[str, Any]]] = {}
+    for variant in variants:
+        rows: list[dict[str, Any]] = []
+        pred_dir = out / "pred" / variant
+        if pred_dir.exists():
+            shutil.rmtree(pred_dir)
+        if variant == "partnet":
+            stage = out / "stage" / variant
+            if stage.exists():
+                shutil.rmtree(stage)
+            stage.mkdir(parents=True)
+            for sid, o in objs.items():
+                (stage / sid).symlink_to(o.shape.path.resolve(), target_is_directory=True)
+            predict_dataset(stage, r, pred_dir, **kw)
+            for sid, o in sorted(objs.items()):
+                nodes = user_nodes(o.shape, "generic")
+                rows.append(_row(sid, true_joints(o.shape, nodes), pred_dir / sid, o.shape.hierarchy,
+                                 nodes.leaves))
+        else:
+            stage = out / "stage" / variant
+            if stage.exists():
+                shutil.rmtree(stage)
+            stage.mkdir(parents=True)
+            node_sets: dict[str, UserNodes] = {}
+            for sid, o in sorted(objs.items()):
+                nodes = user_nodes(o.shape, variant)
+                node_sets[sid] = nodes
+                glb = write_user_glb(o.shape, nodes, out / "glb" / variant / f"{sid}.glb")
+                stage_partnet(glb, stage / sid, category="unknown")
+            predict_dataset(stage, r, pred_dir, **kw)
+            for sid, o in sorted(objs.items()):
+                nodes = node_sets[sid]
+                staged = read_shape(stage / sid)
+                # staged leaf id -> input node index, by name (never by order)
+                index = {n: k for k, n in enumerate(nodes.names)}
+                sh = staged.hierarchy
+                node_leaves = [[] for _ in nodes.names]
+                for nid in sh.order:
+                    nd = sh.nodes[nid]
+                    if nd.is_leaf and nd.name in index:
+                        node_leaves[index[nd.name]].append(nid)
+                rows.append(_row(sid, true_joints(o.shape, nodes), pred_dir / sid, sh, node_leaves))
+        results[variant] = score(rows)
+        all_rows[variant] = rows
+    write_json(out / "user_format.json", {"run": str(run), "axis_model": None if axis_model is None
+                                          else str(axis_model), "scores": results, "rows": all_rows})
+    write_text(out / "user_format.md", results_markdown(results))
+    return results
+
+
+def _row(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHierarchy,
+         node_leaves: Sequence[Sequence[int]]) -> dict[str, Any]:
+    f = pred_folder / "mobility_v2.json"
+    try:
+        links = read_links(f, hierarchy)
+    except KinmoError as e:
+        row = _score_one(sid, true, [])
+        row["error"] = " ".join(str(e).split())
+        return row
+    return _score_one(sid, true, _pred_joints(links, hierarchy, node_leaves))
+
+
+def results_markdown(results: dict[str, dict[str, Any]]) -> str:
+    """A Markdown table of :func:`evaluate_user_format`'s scores."""
+    lines = ["| input | objects | true joints | recall | mean angle (deg) | median | within 5 deg "
+             "| > 45 deg | type acc. |", "|---|---|---|---|---|---|---|---|---|"]
+    for v, s in results.items():
+        lines.append(f"| {v} | {s['objects']} | {s['true_joints']} | {s['recall']:.2f} | "
+                     f"{s['mean_angle']:.1f} | {s['median_angle']:.1f} | {s['within_5deg']:.2f} | "
+                     f"{s['flips_over_45deg']} | {s['type_accuracy']:.2f} |")
+    return "\n".join(lines) + "\n"

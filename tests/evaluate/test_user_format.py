@@ -1,0 +1,109 @@
+"""User-format evaluation (kinmo.evaluate.user_format, issue 22): conversion of real objects to
+user GLBs and back through `kinmo predict FILE`'s staging, moved-node sets and IoU matching."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinmo.data.model import JointType
+from kinmo.data.readers import find_shapes, read_shape
+from kinmo.evaluate.user_format import (
+    PredJoint,
+    TrueJoint,
+    acute_angle,
+    match_joints,
+    moved_nodes,
+    score,
+    true_joints,
+    user_nodes,
+    write_user_glb,
+)
+from kinmo.user_input import read_parts, stage_partnet
+
+
+@pytest.fixture(scope="module")
+def objects(mobility_root):
+    """Three small labelled objects with a moving joint and more PartNet leaves than links."""
+    out = []
+    for folder in find_shapes(mobility_root):
+        s = read_shape(folder)
+        leaves = [n for n in s.hierarchy.order if s.hierarchy.nodes[n].is_leaf]
+        moving = [lk for lk in s.links if lk.joint.type in (JointType.HINGE, JointType.SLIDER)]
+        if moving and len([lk for lk in s.links if lk.parts]) < len(leaves) <= 12:
+            out.append(s)
+        if len(out) == 3:
+            break
+    assert len(out) == 3
+    return out
+
+
+@pytest.mark.parametrize("variant", ["generic", "semantic", "leaf"])
+def test_conversion_round_trips_through_the_user_reader(objects, variant, tmp_path):
+    from kinmo.data.build import load_shape_meshes
+
+    for s in objects:
+        nodes = user_nodes(s, variant)
+        assert len(set(nodes.names)) == len(nodes.names)  # unique: trimesh merges equal names
+        n_leaves = sum(s.hierarchy.nodes[n].is_leaf for n in s.hierarchy.order)
+        if variant == "leaf":
+            assert len(nodes.names) == n_leaves
+        else:
+            assert len(nodes.names) == len([lk for lk in s.links if lk.parts]) < n_leaves
+        glb = write_user_glb(s, nodes, tmp_path / variant / f"{s.id}.glb")
+        parts = {name: (v, f) for name, v, f in read_parts(glb)}
+        assert set(parts) == set(nodes.names)
+        for name, leaves in zip(nodes.names, nodes.leaves):
+            objs = list(dict.fromkeys(o for leaf in leaves for o in s.hierarchy.nodes[leaf].objs))
+            meshes = load_shape_meshes([s.mesh_path(o) for o in objs])
+            v, f = parts[name]
+            assert len(f) == sum(len(m[1]) for m in meshes)
+            # the object's own frame: same vertices (float32 in glTF)
+            want = np.concatenate([m[0] for m in meshes])
+            np.testing.assert_allclose(np.sort(v, axis=0), np.sort(want, axis=0), atol=1e-5)
+        staged = read_shape(stage_partnet(glb, tmp_path / "stage" / variant / s.id))
+        names = sorted(staged.hierarchy.nodes[n].name for n in staged.hierarchy.order
+                       if staged.hierarchy.nodes[n].is_leaf)
+        assert names == sorted(nodes.names)
+
+
+def test_true_joints_move_their_link_and_the_links_below(objects):
+    for s in objects:
+        nodes = user_nodes(s, "generic")
+        joints = true_joints(s, nodes)
+        moving = [lk for lk in s.links if lk.joint.type in (JointType.HINGE, JointType.SLIDER)]
+        assert [j.link for j in joints] == [lk.id for lk in moving]
+        for j, lk in zip(joints, moving):
+            own = {k for k, ls in enumerate(nodes.leaves)
+                   if set(ls) <= {x for p in lk.parts for x in s.hierarchy.leaves(p)}}
+            assert own and own <= j.moved
+            root = [lk2 for lk2 in s.links if lk2.parent < 0]
+            for r in root:  # the base never moves with a joint
+                base = {k for k, ls in enumerate(nodes.leaves)
+                        if set(ls) <= {x for p in r.parts for x in s.hierarchy.leaves(p)}}
+                assert not (base & j.moved)
+            np.testing.assert_allclose(np.linalg.norm(j.direction), 1.0)
+
+
+def test_moved_nodes_count_a_node_by_most_of_its_leaves():
+    assert moved_nodes([[1, 2, 3], [4], [5, 6]], {1, 2, 5}) == frozenset({0})
+    assert moved_nodes([[1, 2], [3]], {1, 2, 3}) == frozenset({0, 1})
+    assert moved_nodes([[]], {1}) == frozenset()
+
+
+def test_matching_is_one_to_one_at_iou_half():
+    d = np.array([0.0, 1.0, 0.0])
+    true = [TrueJoint(1, "hinge", d, frozenset({0})), TrueJoint(2, "slider", d, frozenset({1, 2}))]
+    pred = [PredJoint(7, "hinge", d, frozenset({1})),          # IoU 0.5 with joint 2
+            PredJoint(8, "hinge", -d, frozenset({0})),          # IoU 1 with joint 1
+            PredJoint(9, "slider", d, frozenset({1, 2, 3}))]    # IoU 2/3 with joint 2: wins
+    m = match_joints(true, pred)
+    assert [(i, j) for i, j, _ in m] == [(0, 1), (1, 2)]
+    assert m[1][2] == pytest.approx(2 / 3)
+    assert match_joints(true, [PredJoint(7, "hinge", d, frozenset({1, 2, 3, 4, 5}))]) == []  # IoU 0.4
+    assert acute_angle(d, -d) == pytest.approx(0.0)
+    assert acute_angle(d, np.array([1.0, 1.0, 0.0])) == pytest.approx(45.0)
+    s = score([{"n_true": 2, "n_pred": 3, "angles": [0.0, 10.0], "type_ok": [True, False],
+                "error": ""}, {"n_true": 2, "n_pred": 0, "angles": [], "type_ok": [], "error": "x"}])
+    assert s["recall"] == 0.5 and s["mean_angle"] == 5.0 and s["type_accuracy"] == 0.5
+    assert s["failed"] == 1 and s["true_joints"] == 4
