@@ -11,6 +11,8 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
+
+from kinmo import limits
 from kinmo.errors import KinmoDataError, KinmoError, KinmoUsageError
 
 
@@ -254,8 +256,6 @@ def parse_xml(path: str | Path) -> Any:
     """
     import xml.etree.ElementTree as ET
 
-    from kinmo import limits
-    from kinmo.errors import KinmoDataError
 
     path = Path(path)
     limits.check_file(path)

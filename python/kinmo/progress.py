@@ -22,6 +22,8 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
+from kinmo.errors import KinmoError
+
 __all__ = [
     "LOG_ENV", "CountingBar", "TrainingBar", "console", "literal", "log_level", "plain", "setup_logging",
     "stderr_console",
@@ -112,7 +114,6 @@ def log_level(verbosity: int = 0, environ: Mapping[str, str] | None = None) -> i
         return int(value)
     level = logging.getLevelName(value.upper())
     if not isinstance(level, int):
-        from kinmo.errors import KinmoError
 
         raise KinmoError(f"{LOG_ENV}={value!r}: expected debug, info, warning, error or a number")
     return level

@@ -27,8 +27,10 @@ from typing import Literal
 
 import numpy as np
 
+from kinmo.data.build import build_graph
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import Link, PartHierarchy, PartNode, Shape
+from kinmo.data.readers import read_shape
 
 __all__ = ["FlatMode", "UNKNOWN_NAME", "flat_groups", "flatten_shape", "generic_names",
            "drop_names", "flat_variants"]
@@ -198,8 +200,6 @@ def flat_variants(
     KinmoDataError
         A source shape cannot be read or built.
     """
-    from kinmo.data.build import build_graph
-    from kinmo.data.readers import read_shape
 
     for name, p in (("flatten_prob", flatten_prob), ("drop_names_prob", drop_names_prob)):
         if not 0.0 <= p <= 1.0:

@@ -43,9 +43,9 @@ from kinmo.data.model import JointType, Link, PartHierarchy, Shape
 from kinmo.data.build import load_shape_meshes
 from kinmo.data.readers import find_shapes, read_links, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.inference.predictor import Predictor
 from kinmo.io import atomic_path, write_json, write_text
 from kinmo.predict import predict_dataset
-from kinmo.train.gnn import load_run
 from kinmo.user_input import stage_partnet
 
 __all__ = ["VARIANTS", "TrueJoint", "PredJoint", "UserNodes", "user_nodes", "write_user_glb",
@@ -339,9 +339,8 @@ def evaluate_user_format(
                 objs[s.id] = _Obj(s)
     if not objs:
         raise KinmoDataError(data, "none of the objects to evaluate is a labelled object here")
-    r = load_run(run, device)
-    kw = dict(axis_model=axis_model, refine_config=refine_config, progress=progress,
-              formats=["mobility_v2"])
+    r = Predictor.from_parts(run, axis_model, refine_config, device=device)  # loaded once
+    kw = dict(progress=progress, formats=["mobility_v2"])
     results: dict[str, dict[str, Any]] = {}
     all_rows: dict[str, list[dict[str, Any]]] = {}
     for variant in variants:

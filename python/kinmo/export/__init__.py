@@ -36,7 +36,11 @@ from functools import cached_property
 from pathlib import Path
 
 from kinmo.data.model import Link, Shape
+from kinmo.data.names import inside
+from kinmo.data.readers import read_links, read_shape
 from kinmo.errors import KinmoDataError
+from kinmo.export.kinematics import link_meshes
+from kinmo.io import check_outputs_apart, link_or_copy, output_dir, staged_folder
 
 __all__ = [
     "DEFAULT_FORMATS",
@@ -74,7 +78,6 @@ class ExportContext:
     @cached_property
     def meshes(self):
         """Per-link merged meshes (:func:`kinmo.export.kinematics.link_meshes`), loaded once."""
-        from kinmo.export.kinematics import link_meshes
 
         return link_meshes(self.shape, self.links)
 
@@ -170,7 +173,6 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
     if not links:
         raise KinmoDataError(shape.path, "no kinematic links to export (mobility_v2.json or "
                                          "predicted motion needed)")
-    from kinmo.io import output_dir
 
     out_dir = output_dir(out_dir)
     ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id)
@@ -191,8 +193,6 @@ def self_contained(shape: Shape, out_dir: Path) -> Shape:
     """
     import dataclasses
 
-    from kinmo.data.names import inside
-    from kinmo.io import link_or_copy
 
     if inside(shape.mesh_dir, out_dir):
         return shape
@@ -229,8 +229,6 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
         ``out`` is, lies inside or holds ``src`` or ``source`` (outputs never overwrite
         inputs).
     """
-    from kinmo.data.readers import read_links, read_shape
-    from kinmo.io import check_outputs_apart
 
     src = Path(src)
     if source is None and (src / "source.txt").is_file():
@@ -255,7 +253,6 @@ def _staged(shape: Shape, out: str | Path, fmts: Iterable[str],
             links: Sequence[Link] | None) -> dict[str, list[Path]]:
     """:func:`export` into a temporary sibling of ``out`` that appears at ``out`` whole
     (:func:`kinmo.io.staged_folder`); the returned paths are those under ``out``."""
-    from kinmo.io import staged_folder
 
     out = Path(out)
     with staged_folder(out) as tmp:

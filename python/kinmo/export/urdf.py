@@ -37,6 +37,7 @@ from kinmo.errors import KinmoDataError
 from kinmo.export import ExportContext, register
 from kinmo.export.kinematics import LinkMesh, write_obj
 from kinmo.io import atomic_path, write_text
+from kinmo.progress import CountingBar
 from kinmo.urdf import BASE_LINK, write_urdf
 
 __all__ = ["UrdfLink", "convex_pieces", "read_urdf", "read_urdf_tree", "write_urdf_convex"]
@@ -174,7 +175,6 @@ def pieces_bar(ctx: ExportContext) -> Any:
     """The progress bar (on stderr) of the convex decomposition of ``ctx``'s links: V-HACD
     takes seconds per link, so an object of many links shows its progress (issue 21,
     finding 5); none below :data:`PIECES_BAR_MIN_LINKS` links."""
-    from kinmo.progress import CountingBar
 
     n = len(ctx.meshes)
     return CountingBar(n, n >= PIECES_BAR_MIN_LINKS, "V-HACD", ctx.name, counters={})

@@ -14,6 +14,7 @@ from typing import Any
 from kinmo.ancsh.config import preset as ancsh_preset
 from kinmo.ancsh.evaluate import evaluate_category
 from kinmo.ancsh.structure import structure_slug
+from kinmo.ancsh.train import train_ancsh
 from kinmo.data.cache import load_cache
 from kinmo.data.readers import find_shapes
 from kinmo.errors import KinmoDataError
@@ -22,15 +23,17 @@ from kinmo.inference.bundle import write_bundle
 from kinmo.io import write_json
 from kinmo.pipeline.config import PipelineConfig
 from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
-from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
-from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
-from kinmo.prepare import PrepareConfig, prepare_dataset
+from kinmo.pipeline.plan import ancsh_plan, ANCSH_PLAN_FILE, structure_split
+from kinmo.pipeline.stages import _Clock, _stage, PipelineResult, StageTiming
+from kinmo.prepare import prepare_dataset, PrepareConfig
+from kinmo.progress import console as new_console
+from kinmo.pseudo_label import pseudo_label_dataset, PseudoLabelConfig
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.train import preset_config as axis_preset, train_axis_model
 from kinmo.report import write_report
 from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
 from kinmo.stages import file_fingerprint
-from kinmo.synth import SYNTH_VERSION, generate_dataset
+from kinmo.synth import generate_dataset, SYNTH_VERSION
 from kinmo.train.config import preset as gnn_preset
 from kinmo.train.gnn import train_gnn
 from kinmo.train.ranker import train_ranker
@@ -71,7 +74,6 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     KinmoError
         ``synth_extra`` with labelled data of which no category can be generated.
     """
-    from kinmo.progress import console as new_console
 
     console = console or new_console(stderr=True)
     log = console.print
@@ -315,7 +317,6 @@ class _Context:
         # 7. pseudo-labels on the unlabelled shapes (Sec. 3.3)
         pseudo = out / "pseudo"
         if v.unlabeled is not None:
-            from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
 
             pcfg = PseudoLabelConfig(threshold=cfg.threshold, refine=refine)
             self.stage(pseudo, {**base, "pseudo": pcfg.model_dump()},
@@ -327,7 +328,6 @@ class _Context:
         # 8. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
         if cfg.skip_ancsh:
             return
-        from kinmo.ancsh.train import train_ancsh
 
         if not v.prefix:
             plan, res.skipped_categories = ancsh_plan(cfg.labeled, split_file, cfg.categories)
@@ -431,7 +431,6 @@ class _Context:
             self.prepare(merged, ucache, prep, "synth-extra: prepare unlabelled")
             reuse = {"gnn_fine": cfg.out / "gnn_fine", "gnn_coarse": cfg.out / "gnn_coarse", "axis": cfg.out / "axis",
                      "ranker": cfg.out / "ranker"}
-            from kinmo.ancsh.structure import structure_slug
 
             for c, gs in self.plan.items():
                 subs = [structure_slug(g.structure) + "/" for g in gs] if len(gs) > 1 else [""]
