@@ -94,6 +94,25 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     ok, total = images_loaded(dom.stdout)
     assert total >= 4 * len(test) and ok == total, f"{ok} of {total} images decoded"
 
+    # the release bundle (`kinmo train all --release`): the recipe again on every labelled
+    # object and the kept pseudo-labels; the baseline's stages are not run again
+    from kinmo.pipeline import PipelineConfig, run_pipeline
+
+    cfg = PipelineConfig.model_validate_json((run / "pipeline.json").read_text())
+    res3 = run_pipeline(cfg.model_copy(update={"release": True}), progress=False)
+    assert {k for k, t in res3.timings.items() if t.ran} == {
+        "release: prepare pseudo-labels", "release: train gnn (fine)", "release: train axis",
+        "release: model bundle", "report"}
+    rb = json.loads((run / "release/model/bundle.json").read_text())
+    pseudo_ids = {p.parent.name for p in (run / "pseudo").glob("*/mobility_v2.json")}
+    assert pseudo_ids and set(rb["trained_on"]) == set(split["train"]) | set(split["test"]) | pseudo_ids
+    assert (rb["selector"], rb["axis"]) == ("ranker", "axis")
+    assert json.loads((run / "release/gnn_fine/split.json").read_text())["test"] == []
+    # eval leaves a bundle's training objects out: here all of them, so it refuses in one line
+    ev = runner.invoke(app, ["eval", "pre-segmented", "--model", str(run / "release/model"), "--data",
+                             str(run / "cache/labeled"), "--out", str(tmp_path / "ev"), "--quiet"])
+    assert ev.exit_code == 1 and "the model bundle was trained on" in ev.output, ev.output
+
     # a second run resumes: every stage but the report is up to date
     res2 = runner.invoke(app, ["demo", "--out", str(out), "--n", "12", "--tiny"])
     assert res2.exit_code == 0, res2.output
@@ -113,3 +132,4 @@ def test_demo_passes_the_selector_to_the_pipeline(tmp_path, monkeypatch):
     seen.clear()
     demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False)
     assert seen["cfg"].selector == "learned"
+

@@ -3,6 +3,7 @@ scene, an OBJ with groups, a folder of part meshes and a URDF; and the unsegment
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -133,3 +134,103 @@ def test_unsegmented_mesh_gets_a_clear_error(inputs, tmp_path):
                                  "--out", str(tmp_path / "o"), "--quiet"])
     assert r.exit_code == 1
     assert "unsegmented" in r.output and "one 'o'/'g' group per part" in " ".join(r.output.split())
+
+
+def _write_obj_groups(path: Path, leaves) -> Path:
+    lines, n = [], 0
+    for name, v, f in leaves:
+        lines.append(f"o {name}")
+        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in v.tolist()]
+        lines += [f"f {a + 1 + n} {b + 1 + n} {c + 1 + n}" for a, b, c in f.tolist()]
+        n += len(v)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+# y-up (x, y, z) -> z-up (x, -z, y): the inverse of kinmo.data.frames' z-up -> y-up turn
+_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+def test_a_z_up_asset_in_centimetres_gets_the_joints_of_the_y_up_one_in_its_own_frame(inputs, tmp_path):
+    """Issue 22 part 4: the same object turned z-up, in centimetres and moved off the origin,
+    predicted with --up z, gets the y-up prediction's joints mapped into its own frame."""
+    (tmp_path / "y").mkdir()
+    (tmp_path / "z").mkdir()
+    y_obj = _write_obj_groups(tmp_path / "y" / "dishwasher.obj", inputs["leaves"])
+    offset = np.array([50.0, -20.0, 300.0])
+    z_leaves = [(n, 100.0 * v @ _TO_Z_UP.T + offset, f) for n, v, f in inputs["leaves"]]
+    z_obj = _write_obj_groups(tmp_path / "z" / "dishwasher.obj", z_leaves)
+    outs = {}
+    for key, src, extra in (("y", y_obj, []), ("z", z_obj, ["--up", "z"])):
+        outs[key] = tmp_path / f"out_{key}"
+        r = CliRunner().invoke(app, ["predict", str(src), "--model", str(inputs["run"]), "--out",
+                                     str(outs[key]), "--device", "cpu", "--quiet", *extra])
+        assert r.exit_code == 0, r.output
+    sy, sz = read_shape(outs["y"] / "dishwasher"), read_shape(outs["z"] / "dishwasher")
+    # the meshes are written as given: in centimetres, z-up, off the origin
+    written = np.concatenate([load_obj(sz.mesh_path(f"part_{k}"))[0] for k in range(len(z_leaves))])
+    given = np.concatenate([v for _, v, _ in z_leaves])
+    assert len(written) == len(given)
+    np.testing.assert_allclose(written.min(0), given.min(0), atol=1e-4)
+    np.testing.assert_allclose(written.max(0), given.max(0), atol=1e-4)
+    frame = json.loads((outs["z"] / "dishwasher" / "frame.json").read_text())
+    assert frame["up"] == "z" and frame["scale"] == pytest.approx(sy_scale(inputs) / 100.0, rel=1e-6)
+    moving_y = [l for l in sy.links if l.joint.direction is not None]
+    moving_z = {l.id: l for l in sz.links if l.joint.direction is not None}
+    assert moving_y and len(moving_y) == len(moving_z)
+    for ly in moving_y:
+        lz = moving_z[ly.id]
+        assert lz.joint.type == ly.joint.type
+        dy = _TO_Z_UP @ (ly.joint.direction / np.linalg.norm(ly.joint.direction))
+        dz = lz.joint.direction / np.linalg.norm(lz.joint.direction)
+        assert abs(float(dy @ dz)) > 0.999
+        # the axis lines coincide (in centimetres)
+        oy = 100.0 * _TO_Z_UP @ ly.joint.origin + offset
+        d = np.cross(oy - lz.joint.origin, dz)
+        assert np.linalg.norm(d) < 0.5, (oy, lz.joint.origin)
+        if ly.joint.type.name == "SLIDER" and ly.joint.limit is not None:
+            assert lz.joint.limit[1] == pytest.approx(100.0 * ly.joint.limit[1], rel=1e-3)
+    assert (outs["z"] / "dishwasher" / "view.html").is_file()
+
+
+def sy_scale(inputs) -> float:
+    """kinmo's scale of the y-up asset: 2 / its bounding-box diagonal."""
+    allv = np.concatenate([v for _, v, _ in inputs["leaves"]])
+    return 2.0 / float(np.linalg.norm(allv.max(0) - allv.min(0)))
+
+
+def test_up_axis_defaults_follow_the_format(inputs, tmp_path):
+    from kinmo.user_input import asset_up
+
+    assert asset_up(inputs["glb"]) == "y" and asset_up(inputs["obj"]) == "y"
+    assert asset_up(inputs["folder"]) == "y"
+    assert asset_up(inputs["urdf"]) == "y"  # written by kinmo: <mobility_v2> joints, y-up
+    ros = tmp_path / "robot.urdf"
+    ros.write_text('<robot name="r"><link name="a"/><link name="b"/>'
+                   '<joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint></robot>')
+    assert asset_up(ros) == "z"
+
+
+def test_up_is_refused_for_a_dataset_folder_and_for_other_axes(inputs, mobility_root, tmp_path):
+    r = CliRunner().invoke(app, ["predict", str(mobility_root / OBJECT), "--model", str(inputs["run"]),
+                                 "--out", str(tmp_path / "o"), "--up", "z", "--quiet"])
+    assert r.exit_code == 2 and "--up is for your own asset" in r.output
+    r = CliRunner().invoke(app, ["predict", str(inputs["glb"]), "--model", str(inputs["run"]),
+                                 "--out", str(tmp_path / "o2"), "--up", "x", "--quiet"])
+    assert r.exit_code == 2 and "must be y or z" in r.output
+
+
+def test_an_asset_that_stands_on_another_axis_is_warned_about(inputs, mobility_root, tmp_path, caplog):
+    from kinmo.inference.predictor import Predictor
+    from kinmo.user_input import predict_user_input
+
+    laptop = _leaf_meshes(read_shape(mobility_root / "11248"))  # lies on its base
+    turned = _write_obj_groups(tmp_path / "laptop.obj", [(n, v @ _TO_Z_UP.T, f) for n, v, f in laptop])
+    predictor = Predictor.from_parts(inputs["run"], device="cpu")
+    with caplog.at_level("WARNING", logger="kinmo.user_input"):
+        predict_user_input(turned, predictor, tmp_path / "o", formats=["mobility_v2"], progress=False)
+    assert any("read as y-up" in r.getMessage() and "--up z" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="kinmo.user_input"):
+        predict_user_input(turned, predictor, tmp_path / "o2", formats=["mobility_v2"], progress=False, up="z")
+    assert not any("read as" in r.getMessage() for r in caplog.records)

@@ -25,18 +25,25 @@ input order (scene nodes, sorted file names, URDF link order), named after the n
 sanitised to ``[A-Za-z0-9_]``). PartNet's own hierarchies are deeper; a flat one is what a
 user's segmentation tells, and the GNN's sibling edges then relate every pair of parts.
 
-Frames: coordinates are kept as given and read as kinmo's mesh frame (y-up, like glTF and
-PartNet; a z-up asset should be rotated first), in the file's units.
+Frames and units (issue 22; :mod:`kinmo.data.frames`): the asset's up axis is ``--up``, by
+default its format's (:func:`asset_up`: glTF and OBJ y-up, URDF z-up by ROS convention, a
+URDF kinmo wrote y-up); a warning is logged when its support faces suggest the other axis.
+The parts are staged in kinmo's frame (y-up, centred, bounding-box diagonal 2, whatever the
+units), and every output is mapped back: ``textured_objs/`` holds the meshes as given,
+``mobility_v2.json`` and the exports carry the joints in the asset's frame and units, and
+``frame.json`` records the map (``edges.json`` stays in kinmo's frame).
 
 Output (:func:`predict_user_input`): ``OUT/<stem>/`` becomes a complete PartNet-Mobility
 folder: ``result.json``, ``meta.json``, ``textured_objs/part_<k>.obj``, ``mobility_v2.json``,
-``edges.json`` and the chosen export formats (:mod:`kinmo.export`), the staged PartNet folder
+``edges.json``, ``frame.json``, ``view.html`` (:func:`kinmo.view.view_folder`) and the chosen
+export formats (:mod:`kinmo.export`), the staged PartNet folder
 (``OUT/.staging/<stem>``) is removed afterwards. An unsegmented input (fewer than two parts)
 raises :class:`~kinmo.errors.KinmoDataError` saying what kinmo needs.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 import shutil
@@ -47,18 +54,23 @@ from pathlib import Path
 import numpy as np
 
 from kinmo import limits
+from kinmo.data.frames import AssetFrame, UpAxis, default_up, guess_up
 from kinmo.data.names import inside, name_problem
 from kinmo.data.readers import find_shapes, read_shape
+from kinmo.data.writers import write_mobility_v2
 from kinmo.errors import KinmoDataError
 from kinmo.export import DEFAULT_FORMATS, export
 from kinmo.export.kinematics import write_obj
 from kinmo.gltf_check import check_gltf
 from kinmo.io import check_outputs_apart, parse_xml, write_json
 from kinmo.predict import predict_dataset
+from kinmo.progress import plain
+from kinmo.view import view_folder
 
 __all__ = [
     "MESH_SUFFIXES",
     "Part",
+    "asset_up",
     "is_user_input",
     "predict_user_input",
     "read_parts",
@@ -72,6 +84,8 @@ _NEEDS = ("kinmo needs the object split into its parts (at least 2): a GLB/glTF 
           "file per part, or a URDF with one link per part")
 
 Part = tuple[str, np.ndarray, np.ndarray]
+
+logger = logging.getLogger(__name__)
 """A part: ``(name, vertices (V, 3) float64, faces (F, 3) int64)`` in the mesh frame."""
 
 
@@ -248,7 +262,23 @@ def read_parts(path: str | Path) -> list[Part]:
     return parts
 
 
-def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown") -> Path:
+def asset_up(path: str | Path) -> UpAxis:
+    """The up axis ``path`` declares by its format (:func:`kinmo.data.frames.default_up`:
+    glTF y-up by its specification, URDF z-up by ROS REP 103), except a URDF that kinmo
+    wrote (its joints carry ``<mobility_v2>`` elements): kinmo's URDFs are y-up
+    (:mod:`kinmo.urdf`)."""
+    path = Path(path)
+    if path.suffix.lower() == ".urdf" and path.is_file():
+        try:
+            if parse_xml(path).getroot().find("joint/mobility_v2") is not None:
+                return "y"
+        except KinmoDataError:
+            pass  # read_parts names the problem
+    return default_up("" if path.is_dir() else path.suffix)
+
+
+def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown",
+                  parts: Sequence[Part] | None = None, frame: AssetFrame | None = None) -> Path:
     """Write the parts of ``path`` as a PartNet shape folder (module docs: hierarchy rule).
 
     Parameters
@@ -259,6 +289,11 @@ def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown
         The shape folder to create (replaced if present).
     category : str
         ``model_cat`` written to ``meta.json`` (used only as the GNN's semantic context).
+    parts : sequence of Part, optional
+        The parts when the caller has read them (else :func:`read_parts` of ``path``).
+    frame : AssetFrame, optional
+        Map the parts into kinmo's frame (y-up, diagonal 2) before writing them
+        (:meth:`kinmo.data.frames.AssetFrame.to_kinmo`); default: written as given.
 
     Returns
     -------
@@ -272,13 +307,13 @@ def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown
     """
 
     path, folder = Path(path), Path(folder)
-    parts = read_parts(path)
+    parts = read_parts(path) if parts is None else parts
     if folder.exists():
         shutil.rmtree(folder)
     (folder / "objs").mkdir(parents=True)
     leaves = []
     for k, (name, v, f) in enumerate(parts):
-        write_obj(folder / "objs" / f"part_{k}.obj", v, f)
+        write_obj(folder / "objs" / f"part_{k}.obj", v if frame is None else frame.to_kinmo(v), f)
         pname = _clean(name, k)
         leaves.append({"id": k + 1, "name": pname, "text": name or pname, "objs": [f"part_{k}"]})
     stem = _clean(path.stem, 0)
@@ -290,7 +325,7 @@ def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown
 
 
 def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence[str] | None = None,
-                       category: str = "unknown", **predict_kw):
+                       category: str = "unknown", up: str | None = None, **predict_kw):
     """Predict the motion of a user's asset; write ``OUT/<stem>/`` (module docs).
 
     Parameters
@@ -306,6 +341,9 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
         always written.
     category : str
         Category name given to the GNN.
+    up : {"y", "z"}, optional
+        The asset's up axis (default :func:`asset_up`: by its format). A warning is logged
+        when the geometry suggests the other one (:func:`kinmo.data.frames.guess_up`).
     **predict_kw
         Passed to :func:`kinmo.predict.predict_dataset` (``axis_model``, ``options``,
         ``device``, ``progress`` ...).
@@ -327,7 +365,14 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
     stem = _clean(path.stem, 0)
     check_outputs_apart(out, [path], written=[stem, ".staging", "predictions.csv"])
     staging = out / ".staging"
-    shape_dir = stage_partnet(path, staging / stem, category)
+    parts = read_parts(path)
+    up = up if up is not None else asset_up(path)
+    suggested = guess_up([(v, f) for _, v, f in parts], up)
+    if suggested is not None:
+        logger.warning("%s: read as %s-up, but it stands on faces that say %s-up (give --up %s if so)",
+                       plain(path), up, suggested, suggested)
+    frame = AssetFrame.fit([v for _, v, _ in parts], up)
+    shape_dir = stage_partnet(path, staging / stem, category, parts=parts, frame=frame)
     fmts = list(dict.fromkeys(["mobility_v2", *(DEFAULT_FORMATS if formats is None else formats)]))
     try:
         rows = predict_dataset(staging, run, out, formats=["mobility_v2"], **predict_kw)
@@ -335,15 +380,25 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
         for row in rows:
             if row.status != "ok":
                 continue
+            # the outputs in the asset's own frame and units: its meshes as given, the
+            # predicted joints mapped back (edges.json stays in kinmo's frame)
             tex = final / "textured_objs"
             if tex.exists():
                 shutil.rmtree(tex)
-            shutil.move(str(shape_dir / "objs"), str(tex))
+            tex.mkdir()
+            for k, (_, v, f) in enumerate(parts):
+                write_obj(tex / f"part_{k}.obj", v, f)
             for name in ("result.json", "meta.json"):
                 shutil.copyfile(shape_dir / name, final / name)
+            predicted = read_shape(final)
+            if predicted.links is not None and not frame.is_identity:
+                write_mobility_v2(frame.links_to_asset(predicted.links), final / "mobility_v2.json",
+                                  predicted.hierarchy)
+            write_json(final / "frame.json", frame.to_json())
             shape = read_shape(final)
             files = export(shape, final, fmts, name=stem)
             row.outputs.update({f: written[0] for f, written in files.items()})
+            row.outputs["view"] = view_folder(final)  # view.html: a slider per joint
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return rows

@@ -93,3 +93,13 @@ def ranker_file(ctx: typer.Context, param: Any, value: Any) -> Any:
 
         _fail(param, value, error_line(e).replace(str(value) + ": ", "", 1))
     return value
+
+
+def up_axis(ctx: typer.Context, param: Any, value: str | None) -> str | None:
+    """``--up``: ``y`` or ``z`` (:data:`kinmo.data.frames.UP_AXES`), any case."""
+    if value is None:
+        return None
+    v = value.strip().lower()
+    if v not in ("y", "z"):
+        _fail(param, value, "must be y or z")
+    return v

@@ -50,11 +50,14 @@ def pre_segmented_cmd(
             f"models of `kinmo train all`: {literal(', '.join(map(str, model + ([axis_model] if axis_model else []))))}",
             highlight=False, soft_wrap=True)
     with cli_errors(1):
+        from kinmo.inference.bundle import resolve_bundle
+
+        trained_on = {i for m in model for i in resolve_bundle(m).trained_on}
         resolved = [refine.resolve(m, axis_model) for m in model]
         model = [r[0] for r in resolved]
         axis_model, rc = resolved[0][1], resolved[0][2]
         report, paths = run_evaluation(model, data, out=out, split=split, all_shapes=all_shapes,
                                        render=render, device=device, progress=not quiet,
                                        console=console, axis_model=axis_model,
-                                       refine_config=rc)
+                                       refine_config=rc, exclude=trained_on)
     console.print(f"wrote {literal(paths['csv'])} and {literal(paths['markdown'])}")

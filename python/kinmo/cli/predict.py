@@ -18,7 +18,7 @@ from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 @with_refine_options
 def predict_cmd(
     data: Path = typer.Argument(..., metavar="DIR|FILE", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder; or your own part-segmented asset: a GLB/glTF scene (a node per part), an OBJ with o/g groups, a folder of part meshes, or a URDF (a link per part)."),
-    model: Path = typer.Option(..., "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model: GNN, axis network, ranker; the learned selector by default) or a run folder of `kinmo train gnn`."),
+    model: Optional[Path] = typer.Option(None, "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model: GNN, axis network, ranker; the learned selector by default) or a run folder of `kinmo train gnn` [default: the pretrained model, `kinmo models`]."),  # noqa: UP007
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
     device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda ..."),
@@ -28,6 +28,7 @@ def predict_cmd(
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the predicted axes (paper Sec. 3.3)."),  # noqa: UP007
     refine: RefineOptions = REFINE,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    up: Optional[str] = typer.Option(None, "--up", callback=_values.up_axis, help="Up axis of FILE, y or z. Default: by its format (glTF, OBJ, a mesh folder: y; URDF: z, as ROS; a URDF kinmo wrote: y). Outputs stay in FILE's frame and units."),  # noqa: UP007
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
 ) -> None:
     """Predict the motion of every shape under DIR (or of FILE); write PartNet-Mobility files and URDFs.
@@ -54,13 +55,22 @@ def predict_cmd(
             from kinmo.io import output_dir
 
             output_dir(out)
+        if model is None:  # the packaged bundle; its terms said once
+            from kinmo.pretrained import default_model, license_notice
+
+            model = default_model()
+            err.print(license_notice(model), markup=False, highlight=False, soft_wrap=True)
         model, axis_model, rc = refine.resolve(model, axis_model)
         options = TreeOptions((0.0, hinge_max), slider_fraction)
         predictor = Predictor.from_parts(model, axis_model, rc, options, device)
         err.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)
         kw = dict(device=device, options=options, progress=not quiet, render=render)
+        if up is not None and not is_user_input(data):
+            from kinmo.cli._errors import fail
+
+            fail("--up is for your own asset (FILE); PartNet and PartNet-Mobility folders are y-up", 2)
         if is_user_input(data):
-            rows = predict_user_input(data, predictor, out, formats=fmt or None, **kw)
+            rows = predict_user_input(data, predictor, out, formats=fmt or None, up=up, **kw)
         else:
             rows = predict_dataset(data, predictor, out, cache=cache, formats=fmt or None, **kw)
     ok = [r for r in rows if r.status == "ok"]

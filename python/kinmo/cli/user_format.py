@@ -15,10 +15,10 @@ from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 @eval_app.command("user-format")
 @with_refine_options
 def user_format_cmd(
-    model: Path = typer.Option(..., "--model", "-m", help="Run folder of `kinmo train gnn` (as `kinmo predict --model`)."),
+    model: Path = typer.Option(..., "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model; the learned selector by default) or a run folder of `kinmo train gnn` (as `kinmo predict --model`)."),
     data: Path = typer.Option(..., "--data", "-d", help="PartNet-Mobility dataset folder."),
     out: Path = typer.Option(..., "--out", "-o", help="Work and result folder (glb/, pred/, user_format.json, user_format.md)."),
-    split: Optional[Path] = typer.Option(None, "--split", help="Split file whose test ids are evaluated [default: MODEL/split.json]."),  # noqa: UP007
+    split: Optional[Path] = typer.Option(None, "--split", help="Split file whose test ids are evaluated [default: the GNN run's split.json]."),  # noqa: UP007
     variants: str = typer.Option("generic,semantic,leaf,partnet", "--variants", help="Comma-separated: generic (node per link, part_<k>), semantic (link names), leaf (node per PartNet leaf), partnet (PartNet format)."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the axes (as `kinmo predict --axis-model`)."),  # noqa: UP007
     refine: RefineOptions = REFINE,
@@ -32,15 +32,25 @@ def user_format_cmd(
 
     from kinmo.cli._errors import cli_errors
     from kinmo.evaluate.user_format import evaluate_user_format, results_markdown
+    from kinmo.inference.bundle import resolve_bundle
+    from kinmo.inference.predictor import Predictor
     from kinmo.train.split import Split
 
     console = Console()
     vs = [v.strip() for v in variants.split(",") if v.strip()]
     with cli_errors(2, also=(ValueError,)):
-        sp = Split.load(split if split is not None else model / "split.json")
-        rc = refine.config(axis_model)
+        trained_on = set(resolve_bundle(model).trained_on)
+        gnn, axis_model, rc = refine.resolve(model, axis_model)
+        sp = Split.load(split if split is not None else gnn / "split.json")
+        ids = [i for i in sp.test if i not in trained_on]  # never score a bundle on its training objects
+        if len(ids) < len(sp.test):
+            console.print(f"left out {len(sp.test) - len(ids)} test object(s) the model bundle was trained on",
+                          highlight=False)
+        if not ids:
+            raise ValueError("every test object of the split is one the model bundle was trained on")
     with cli_errors(1):
-        res = evaluate_user_format(data, model, sp.test, out, vs, axis_model=axis_model,
-                                   refine_config=rc, device=device, progress=not quiet)
+        predictor = Predictor.from_parts(gnn, axis_model, rc, device=device)
+        console.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)
+        res = evaluate_user_format(data, predictor, ids, out, vs, progress=not quiet)
     console.print(results_markdown(res), highlight=False, soft_wrap=True)
     console.print(f"wrote {out / 'user_format.json'} and {out / 'user_format.md'}", highlight=False)

@@ -9,7 +9,7 @@ of both modules are re-exported here.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 
 from kinmo.data.build import build_graph
@@ -96,6 +96,7 @@ def run_evaluation(
     console=None,
     axis_model: str | Path | None = None,
     refine_config=None,
+    exclude: Collection[str] = (),
 ) -> tuple[EvalReport, dict[str, Path]]:
     """Evaluate trained motion GNNs on the test shapes of ``data`` (``kinmo eval pre-segmented``).
 
@@ -113,7 +114,8 @@ def run_evaluation(
         own data and every new shape on another folder (as ``kinmo eval --category C --data
         DIR``).
     all_shapes : bool
-        Evaluate every labelled graph of ``data``, training shapes included.
+        Evaluate every labelled graph of ``data``, training shapes of the split included
+        (never those of ``exclude``).
     render : bool
         Write ``out/renders/<model>/<id>.png`` per shape, and the predicted links as
         ``out/viewers/<model>/<id>/`` (:func:`kinmo.view.write_view_links`) for the
@@ -135,6 +137,12 @@ def run_evaluation(
     (EvalReport, dict of str to Path)
         The report and the written files (:func:`write_report`).
 
+    exclude : collection of str
+        Ids always left out, ``--all`` or not: a model bundle's ``trained_on``
+        (:attr:`kinmo.inference.bundle.ModelBundle.trained_on`), so that no bundle is scored
+        on its own training objects. Without ``split``, a run whose ``split.json`` is
+        missing is then evaluated on every other labelled shape.
+
     Raises
     ------
     KinmoDataError
@@ -146,8 +154,18 @@ def run_evaluation(
     runs = [load_run(m, device) for m in models]
     data = Path(data)
     graphs = [g for g in _load_graphs(data, progress) if g.has_labels and g.meta.get("links")]
-    if not all_shapes:  # every shape the models did not train on (on their data: the test split)
-        sp = Path(split) if split is not None else runs[0].path / "split.json"
+    if exclude:
+        n_all, excluded = len(graphs), set(exclude)
+        graphs = [g for g in graphs if g.shape_id not in excluded]
+        if not graphs:
+            raise KinmoDataError(data, f"all {n_all} labelled shapes here are ones the model bundle was "
+                                       "trained on: evaluate it on other objects")
+        if console is not None and n_all > len(graphs):
+            console.print(f"left out {n_all - len(graphs)} shape(s) the model bundle was trained on",
+                          markup=False, highlight=False)
+    sp = Path(split) if split is not None else runs[0].path / "split.json"
+    if not all_shapes and (split is not None or sp.is_file() or not exclude):
+        # every shape the models did not train on (on their data: the test split)
         train = set(Split.load(sp).train)
         refused = sorted(g.shape_id for g in graphs if g.shape_id in train)
         graphs = [g for g in graphs if g.shape_id not in train]

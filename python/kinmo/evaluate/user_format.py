@@ -287,7 +287,7 @@ class _Obj:
 
 def evaluate_user_format(
     data: str | Path,
-    run: str | Path,
+    run: str | Path | Predictor,
     ids: Sequence[str],
     out: str | Path,
     variants: Sequence[str] = VARIANTS,
@@ -302,8 +302,10 @@ def evaluate_user_format(
     ----------
     data : str or Path
         PartNet-Mobility dataset folder.
-    run : str or Path
-        Run folder of ``kinmo train gnn`` (``kinmo predict --model``).
+    run : str, Path or Predictor
+        A loaded :class:`~kinmo.inference.predictor.Predictor` (then ``axis_model``,
+        ``refine_config`` and ``device`` are ignored), or a run folder of ``kinmo train gnn``
+        refined as those say (:meth:`~kinmo.inference.predictor.Predictor.from_parts`).
     ids : sequence of str
         Object ids to evaluate (the test split); ids not in ``data`` are skipped.
     out : str or Path
@@ -311,8 +313,9 @@ def evaluate_user_format(
         ``user_format.json`` (scores and per-object rows), ``user_format.md``.
     variants : sequence of str
         Of :data:`VARIANTS`.
-    axis_model, refine_config, device, progress
-        Passed to :func:`kinmo.predict.predict_dataset` (``--axis-model``, the selector).
+    axis_model, refine_config, device
+        With a run folder: :meth:`~kinmo.inference.predictor.Predictor.from_parts`.
+    progress : bool
 
     Returns
     -------
@@ -339,7 +342,7 @@ def evaluate_user_format(
                 objs[s.id] = _Obj(s)
     if not objs:
         raise KinmoDataError(data, "none of the objects to evaluate is a labelled object here")
-    r = Predictor.from_parts(run, axis_model, refine_config, device=device)  # loaded once
+    r = run if isinstance(run, Predictor) else Predictor.from_parts(run, axis_model, refine_config, device=device)
     kw = dict(progress=progress, formats=["mobility_v2"])
     results: dict[str, dict[str, Any]] = {}
     all_rows: dict[str, list[dict[str, Any]]] = {}

@@ -79,6 +79,11 @@ class PipelineConfig(BaseModel):
         :mod:`kinmo.data.augment`), so that a user's flat, unnamed asset is predicted (issue
         22). ``False`` sets both to 0 (the demo and ``tiny``, to stay fast). The coarse GNN
         never gets them (Table 1's coarse column stays the paper's).
+    release : bool
+        After the baseline, train the release bundle (``out/release/model/``): the fine GNN
+        and the axis network again on every labelled object and the kept pseudo-labels,
+        with the baseline's ranker (:meth:`kinmo.pipeline.run._Context.release`; the
+        pretrained model of ``kinmo.pretrained`` is made so, issue 22).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -107,6 +112,7 @@ class PipelineConfig(BaseModel):
     synth_seed: int | None = Field(None, ge=0, le=99999)
     selector: Literal["learned", "paper"] = "learned"
     augment_gnn: bool = True
+    release: bool = False
 
     @model_validator(mode="after")
     def _check(self) -> PipelineConfig:

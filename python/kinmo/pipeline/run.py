@@ -23,17 +23,17 @@ from kinmo.inference.bundle import write_bundle
 from kinmo.io import write_json
 from kinmo.pipeline.config import PipelineConfig
 from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
-from kinmo.pipeline.plan import ancsh_plan, ANCSH_PLAN_FILE, structure_split
-from kinmo.pipeline.stages import _Clock, _stage, PipelineResult, StageTiming
-from kinmo.prepare import prepare_dataset, PrepareConfig
+from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
+from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
+from kinmo.prepare import PrepareConfig, prepare_dataset
 from kinmo.progress import console as new_console
-from kinmo.pseudo_label import pseudo_label_dataset, PseudoLabelConfig
+from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.train import preset_config as axis_preset, train_axis_model
 from kinmo.report import write_report
 from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
 from kinmo.stages import file_fingerprint
-from kinmo.synth import generate_dataset, SYNTH_VERSION
+from kinmo.synth import SYNTH_VERSION, generate_dataset
 from kinmo.train.config import preset as gnn_preset
 from kinmo.train.gnn import train_gnn
 from kinmo.train.ranker import train_ranker
@@ -106,6 +106,11 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
         unlabeled_cache=cache_u if cfg.unlabeled is not None else None, key={"split": split_digest}, prefix="")
     ctx.models_and_tables(baseline, cache_l)
 
+    # 8b. the release bundle: the same recipe on every labelled object and the kept
+    # pseudo-labels (issue 22; the baseline's test numbers measure the recipe)
+    if cfg.release:
+        ctx.release(cache_l, prep)
+
     # 9. the same with generated shapes added (the paper's DSG-Net study, Sec. 4.3)
     if cfg.synth_extra > 0:
         ctx.synth_extra(baseline, cache_l, prep, synth_cats)
@@ -119,8 +124,6 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
     tot = res.total()
     log(f"[bold]total[/]: {tot.wall_s:.1f} s wall, {tot.cpu_s:.1f} s CPU")
     return res
-
-
 
 
 @dataclasses.dataclass
@@ -392,6 +395,64 @@ class _Context:
                            seed=cfg.seed, progress=progress, console=console),
                        f"{v.prefix}eval {cat} (Table 2)")
             res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
+
+    def release(self, cache_l: Path, prep: Any) -> Path:
+        """The release bundle (``kinmo train all --release``, issue 22) in ``out/release/model/``.
+
+        The fine motion GNN (with the preset's augmentations) and the axis network are
+        trained again, by the baseline's recipe, on every labelled object plus the
+        pseudo-labels the baseline kept (``out/pseudo/``, prepared into
+        ``out/release/cache/pseudo``); nothing is held out. The learned selector is the
+        baseline's ranker (fit on out-of-fold predictions of the training split). The
+        bundle's ``trained_on`` lists every id used, so ``kinmo eval`` leaves them out.
+
+        Returns
+        -------
+        Path
+            The bundle folder.
+
+        Raises
+        ------
+        KinmoDataError
+            A pseudo-labelled id is also a labelled one.
+        """
+        import hashlib
+
+        cfg, progress = self.cfg, self.progress
+        vout = cfg.out / "release"
+        caches = [cache_l]
+        pseudo = cfg.out / "pseudo"
+        if cfg.unlabeled is not None and pseudo.is_dir() and any(True for _ in find_shapes(pseudo)):
+            pcache = vout / "cache" / "pseudo"
+            self.prepare(pseudo, pcache, prep, "release: prepare pseudo-labels")
+            caches.append(pcache)
+        graphs = functools.cache(functools.partial(_graphs, caches))
+        cats: dict[str, str] = {}
+        for g in graphs():
+            if g.shape_id in cats:
+                raise KinmoDataError(pseudo, f"shape id {g.shape_id!r} is both labelled and pseudo-labelled")
+            cats[g.shape_id] = g.category
+        vout.mkdir(parents=True, exist_ok=True)
+        split_file = vout / "split.json"
+        Split(sorted(cats), [], cats, cfg.seed, 0.0).save(split_file)
+        base = {"seed": cfg.seed, "preset": cfg.preset,
+                "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]}
+        gcfg = gnn_preset(cfg.preset, types="fine", seed=cfg.seed, epochs=cfg.gnn_epochs,
+                          **({} if cfg.augment_gnn else {"flatten_prob": 0.0, "drop_names_prob": 0.0}))
+        gnn_dir = vout / "gnn_fine"
+        self.stage(gnn_dir, {**base, "gnn": gcfg.model_dump()}, lambda: train_gnn(
+            graphs(), gnn_dir, gcfg, split=split_file, progress=progress), "release: train gnn (fine)")
+        axis_dir = None
+        if cfg.refine:
+            axis_dir = vout / "axis"
+            acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
+                               seed=cfg.seed)
+            self.stage(axis_dir, {**base, "axis": acfg.model_dump()}, lambda: train_axis_model(
+                graphs(), axis_dir, acfg, split=split_file, progress=progress), "release: train axis")
+        ranker = cfg.out / "ranker" / "ranker.json"
+        v = _Variant(out=vout, graphs=caches, split=split_file, labeled=cfg.labeled, unlabeled=None,
+                     unlabeled_cache=None, key={}, prefix="release: ")
+        return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, split_file)
 
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
