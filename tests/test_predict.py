@@ -233,3 +233,35 @@ def test_outputs_never_overwrite_the_inputs(real, tmp_path):
                             str(tmp_path / "pred"), "--quiet", "--device", "cpu"])
     assert r.exit_code == 0, r.output
     assert {p: p.read_bytes() for p in data.rglob("*") if p.is_file()} == before
+
+
+def test_edges_json_is_streamed_with_the_same_document(tmp_path):
+    """Issue 21 finding 4: edges.json is written row by row (a flat 500-part asset has
+    249,500 sibling edges), and reads back as the document of edges_json."""
+    from kinmo.data.model import FINE_TYPES as names
+    from kinmo.predict import edges_json, write_edges_json
+    from motion_cabinet import cabinet_graph
+
+    g = cabinet_graph(n_points=8)
+    edges = oracle_prediction(g)
+    pred = ShapePrediction(g, edges, build_mobility_tree(g, edges), tuple(names))
+    path = write_edges_json(pred, tmp_path / "edges.json")
+    doc = json.loads(path.read_text())
+    assert doc == json.loads(json.dumps(edges_json(pred)))
+    assert len(doc["edges"]) == len(g.sibling_edges) > 2
+    assert [p.name for p in tmp_path.iterdir()] == ["edges.json"]  # no temporary left
+
+
+def test_a_prediction_that_fails_while_written_leaves_no_half_object(real, tmp_path, monkeypatch):
+    """Issue 21 finding 12: each object is written into a temporary sibling and renamed into
+    place whole; a failure half-way leaves nothing of it."""
+    import kinmo.predict as predict
+    from kinmo.errors import KinmoDataError
+
+    def fail(pred, path):
+        raise KinmoDataError(path, "disk full")
+
+    monkeypatch.setattr(predict, "write_edges_json", fail)  # after mobility_v2.json and the URDF
+    rows = predict_dataset(real["data"] / "100028", real["run"], tmp_path / "o", device="cpu", progress=False)
+    assert rows[0].status == "failed" and "disk full" in rows[0].error
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["predictions.csv"]

@@ -26,8 +26,9 @@ Frames: every output coordinate is in the mesh frame of the input OBJ files (y-u
 from __future__ import annotations
 
 import csv
+import json
 import io
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,15 +42,17 @@ from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.export import DEFAULT_FORMATS, export
 from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
 from kinmo.inference.predictor import Predictor
-from kinmo.io import check_outputs_apart, output_dir, write_json, write_text
+from kinmo.io import atomic_path, check_outputs_apart, output_dir, staged_folder, write_json, write_text
 from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
 from kinmo.train.gnn import Run, load_run
+from kinmo.viz import render_prediction
 
 __all__ = [
     "PredictRow",
     "consistent_fine",
     "ShapePrediction",
     "edges_json",
+    "write_edges_json",
     "hierarchy_from_graph",
     "infer_edges",
     "infer_edges_with_priors",
@@ -78,6 +81,27 @@ def hierarchy_from_graph(graph: PartGraph) -> PartHierarchy:
     return PartHierarchy(nodes, roots[0] if roots else ids[0], ids)
 
 
+def _edge_rows(pred: ShapePrediction) -> Iterator[dict]:
+    """The ``edges`` rows of :func:`edges_json`, one at a time."""
+    g = pred.graph
+    e = np.asarray(g.sibling_edges, dtype=np.int64).reshape(-1, 2)
+    names = pred.type_names
+    for k, (i, j) in enumerate(e):
+        p = pred.edges.probs[k]
+        t = int(np.argmax(p))
+        yield {
+            "moving": int(g.node_ids[i]),
+            "reference": int(g.node_ids[j]),
+            "type": names[t],
+            "confidence": round(float(p[t]), 6),
+            "probs": {n: round(float(x), 6) for n, x in zip(names, p)},
+            "axis": {
+                "origin": [round(float(x), 6) for x in pred.edges.origin[k]],
+                "direction": [round(float(x), 6) for x in pred.edges.direction[k]],
+            },
+        }
+
+
 def edges_json(pred: ShapePrediction) -> dict:
     """The ``edges.json`` document of a prediction.
 
@@ -89,24 +113,22 @@ def edges_json(pred: ShapePrediction) -> dict:
         {"origin", "direction"}}]}``. ``confidence`` is the probability of the arg-max type.
     """
     g = pred.graph
-    e = np.asarray(g.sibling_edges, dtype=np.int64).reshape(-1, 2)
-    names = pred.type_names
-    rows = []
-    for k, (i, j) in enumerate(e):
-        p = pred.edges.probs[k]
-        t = int(np.argmax(p))
-        rows.append({
-            "moving": int(g.node_ids[i]),
-            "reference": int(g.node_ids[j]),
-            "type": names[t],
-            "confidence": round(float(p[t]), 6),
-            "probs": {n: round(float(x), 6) for n, x in zip(names, p)},
-            "axis": {
-                "origin": [round(float(x), 6) for x in pred.edges.origin[k]],
-                "direction": [round(float(x), 6) for x in pred.edges.direction[k]],
-            },
-        })
-    return {"shape_id": g.shape_id, "frame": "mesh (y-up)", "types": list(names), "edges": rows}
+    return {"shape_id": g.shape_id, "frame": "mesh (y-up)", "types": list(pred.type_names),
+            "edges": list(_edge_rows(pred))}
+
+
+def write_edges_json(pred: ShapePrediction, path: str | Path) -> Path:
+    """Write :func:`edges_json` to ``path`` atomically, one edge row per line, streamed: a flat
+    500-part asset has 249,500 sibling edges, whose rows never sit in memory at once
+    (issue 21, finding 4)."""
+    path = Path(path)
+    head = {"shape_id": pred.graph.shape_id, "frame": "mesh (y-up)", "types": list(pred.type_names)}
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        f.write(json.dumps(head)[:-1] + ', "edges": [')
+        for k, row in enumerate(_edge_rows(pred)):
+            f.write(("\n" if k == 0 else ",\n") + json.dumps(row))
+        f.write("\n]}\n")
+    return path
 
 
 def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | None = None,
@@ -142,7 +164,7 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
                       hierarchy_from_graph(pred.graph))
     files = export(shape, out_dir, fmts, links=pred.tree.links, name=shape.id)
     paths = {f: written[0] for f, written in files.items()}
-    write_json(out_dir / "edges.json", edges_json(pred))
+    write_edges_json(pred, out_dir / "edges.json")
     paths["edges"] = out_dir / "edges.json"
     return paths
 
@@ -248,11 +270,13 @@ def predict_dataset(
                 sid = shape.id
                 graph = _graph_for(folder, data, shape, cache, cache_rows if cache is not None else None)
                 pred = predictor.predict(graph)
-                paths = write_prediction(pred, out / sid, shape, formats)
-                if render:
-                    from kinmo.viz import render_prediction
-
-                    paths["png"] = render_prediction(pred, out / sid / "prediction.png")
+                # written into a temporary sibling, renamed into place whole (issue 21,
+                # finding 12: a reader never sees half an object)
+                with staged_folder(out / sid) as tmp:
+                    paths = write_prediction(pred, tmp, shape, formats)
+                    if render:
+                        paths["png"] = render_prediction(pred, tmp / "prediction.png")
+                paths = {k: out / sid / Path(v).relative_to(tmp) for k, v in paths.items()}
                 rows.append(PredictRow(sid, "ok", len(pred.tree.links),
                                        len(pred.tree.moving_links), "", paths))
             except KinmoError as e:

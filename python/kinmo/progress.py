@@ -25,7 +25,7 @@ from typing import Any
 from kinmo.errors import KinmoError
 
 __all__ = [
-    "LOG_ENV", "CountingBar", "TrainingBar", "console", "literal", "log_level", "plain", "setup_logging",
+    "LOG_ENV", "LOG_WIDTH", "CountingBar", "TrainingBar", "console", "literal", "log_level", "plain", "setup_logging",
     "stderr_console",
 ]
 
@@ -33,6 +33,8 @@ __all__ = [
 LOG_ENV = "KINMO_LOG"
 
 _CONSOLE: Any = None
+#: Width of the stderr console when it writes to a file or pipe, not a terminal.
+LOG_WIDTH = 200
 
 
 def stderr_console() -> Any:
@@ -45,6 +47,9 @@ def stderr_console() -> Any:
         from rich.console import Console
 
         _CONSOLE = Console(stderr=True, emoji=False, highlight=False)
+        if not _CONSOLE.is_terminal and "COLUMNS" not in os.environ:
+            # a log file (a cluster job): bars and their metrics never cut to 80 columns
+            _CONSOLE = Console(stderr=True, emoji=False, highlight=False, width=LOG_WIDTH)
     return _CONSOLE
 
 

@@ -62,7 +62,7 @@ from kinmo.errors import KinmoDataError
 from kinmo.export import DEFAULT_FORMATS, export
 from kinmo.export.kinematics import write_obj
 from kinmo.gltf_check import check_gltf
-from kinmo.io import check_outputs_apart, parse_xml, write_json
+from kinmo.io import check_outputs_apart, parse_xml, staged_folder, write_json, write_text
 from kinmo.predict import predict_dataset
 from kinmo.progress import plain
 from kinmo.view import view_folder
@@ -372,33 +372,39 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
         logger.warning("%s: read as %s-up, but it stands on faces that say %s-up (give --up %s if so)",
                        plain(path), up, suggested, suggested)
     frame = AssetFrame.fit([v for _, v, _ in parts], up)
-    shape_dir = stage_partnet(path, staging / stem, category, parts=parts, frame=frame)
+    shutil.rmtree(staging, ignore_errors=True)  # a killed run's leftovers
+    shape_dir = stage_partnet(path, staging / "shapes" / stem, category, parts=parts, frame=frame)
     fmts = list(dict.fromkeys(["mobility_v2", *(DEFAULT_FORMATS if formats is None else formats)]))
     try:
-        rows = predict_dataset(staging, run, out, formats=["mobility_v2"], **predict_kw)
-        final = out / stem
+        pred_out = staging / "pred"
+        rows = predict_dataset(staging / "shapes", run, pred_out, formats=["mobility_v2"], **predict_kw)
         for row in rows:
             if row.status != "ok":
                 continue
-            # the outputs in the asset's own frame and units: its meshes as given, the
+            # OUT/<stem> is built in a temporary sibling and renamed into place whole (issue
+            # 21, finding 12), in the asset's own frame and units: its meshes as given, the
             # predicted joints mapped back (edges.json stays in kinmo's frame)
-            tex = final / "textured_objs"
-            if tex.exists():
-                shutil.rmtree(tex)
-            tex.mkdir()
-            for k, (_, v, f) in enumerate(parts):
-                write_obj(tex / f"part_{k}.obj", v, f)
-            for name in ("result.json", "meta.json"):
-                shutil.copyfile(shape_dir / name, final / name)
-            predicted = read_shape(final)
-            if predicted.links is not None and not frame.is_identity:
-                write_mobility_v2(frame.links_to_asset(predicted.links), final / "mobility_v2.json",
-                                  predicted.hierarchy)
-            write_json(final / "frame.json", frame.to_json())
-            shape = read_shape(final)
-            files = export(shape, final, fmts, name=stem)
-            row.outputs.update({f: written[0] for f, written in files.items()})
-            row.outputs["view"] = view_folder(final)  # view.html: a slider per joint
+            with staged_folder(out / stem) as final:
+                for entry in (pred_out / stem).iterdir():
+                    shutil.move(str(entry), str(final / entry.name))
+                tex = final / "textured_objs"  # kinmo-frame copies of the staged meshes: replaced
+                shutil.rmtree(tex, ignore_errors=True)
+                tex.mkdir()
+                for k, (_, v, f) in enumerate(parts):
+                    write_obj(tex / f"part_{k}.obj", v, f)
+                for name in ("result.json", "meta.json"):
+                    shutil.copyfile(shape_dir / name, final / name)
+                predicted = read_shape(final)
+                if predicted.links is not None and not frame.is_identity:
+                    write_mobility_v2(frame.links_to_asset(predicted.links), final / "mobility_v2.json",
+                                      predicted.hierarchy)
+                write_json(final / "frame.json", frame.to_json())
+                files = export(read_shape(final), final, fmts, name=stem)
+                written = {f: w[0] for f, w in files.items()}
+                written["view"] = view_folder(final)  # view.html: a slider per joint
+                written.update({k: v for k, v in row.outputs.items() if k not in written})
+            row.outputs = {k: out / stem / Path(v).name for k, v in written.items()}
+        write_text(out / "predictions.csv", (pred_out / "predictions.csv").read_text())
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return rows

@@ -131,6 +131,31 @@ def test_candidate_head_selects_one_of_the_candidates():
     assert gnn.cand_head[0].weight.grad is not None
 
 
+@pytest.mark.parametrize("mode", ["candidates", "regress"])
+def test_edge_heads_in_chunks_at_inference_equal_the_whole_graph(monkeypatch, mode):
+    """Issue 21 finding 4: without autograd the heads run on chunks of edges (bounded memory
+    on a flat 500-part asset), with the same outputs."""
+    import kinmo.models.edge_gnn as edge_gnn
+
+    b, x, _ = _cabinet_inputs()
+    gnn = EdgeGNN(16, EDGE_DIM, 12, layers=2, n_types=10, axis_mode=mode).eval()
+    args = (x, b.edges, b.edge_feat, b.obb_center, b.obb_axes, b.obb_size)
+    whole = gnn(*args)  # autograd on: one pass over every edge
+    assert b.n_edges > 3
+    monkeypatch.setattr(edge_gnn, "EDGE_CHUNK", 3)
+    seen = []
+    heads = gnn._heads
+    monkeypatch.setattr(gnn, "_heads", lambda *a: seen.append(a[2].shape[0]) or heads(*a))
+    with torch.no_grad():
+        chunked = gnn(*args)
+    assert max(seen) == 3 and sum(seen) == b.n_edges  # it did run in chunks
+    for name in ("logits", "direction", "origin", "direction_free", "axis_logits", "axis_candidates"):
+        w, c = getattr(whole, name), getattr(chunked, name)
+        assert (w is None) == (c is None), name
+        if w is not None:
+            torch.testing.assert_close(c, w.detach(), rtol=1e-5, atol=1e-6)
+
+
 @pytest.mark.parametrize(
     "types,encoder,frame,mode",
     [("fine", "pointnet", "obb", "candidates"), ("coarse", "dgcnn", "shape", "regress")],

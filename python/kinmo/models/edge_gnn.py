@@ -33,6 +33,7 @@ Heads on ``z_ij = [h_i, h_j, e_ij]`` (edge ``(i, j)``: part ``i`` moves relative
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import torch
@@ -48,6 +49,9 @@ __all__ = ["N_CANDIDATES", "OFFSET_FLOOR", "EdgeGNN", "EdgeHeads", "axis_candida
 OFFSET_FLOOR = 0.02
 #: Candidate axis directions of ``axis_mode="candidates"``, the regressed one included.
 N_CANDIDATES = 10
+#: Edges per chunk of the heads at inference (no autograd): the candidate head's input is
+#: ``(chunk, 10, 2H + D + 10)`` float32, about 130 MB at 8192 edges and H = D = 128.
+EDGE_CHUNK = 8192
 
 
 def axis_candidates(axes_i: torch.Tensor, axes_j: torch.Tensor, free: torch.Tensor) -> torch.Tensor:
@@ -168,6 +172,20 @@ class EdgeGNN(nn.Module):
             out_m = scatter_mean(m, i, v)
             in_m = scatter_mean(m, j, v)
             h = h + upd(torch.cat([h, out_m, in_m], dim=1))
+        n_e = i.shape[0]
+        if torch.is_grad_enabled() or n_e <= EDGE_CHUNK:
+            return self._heads(h, e, i, j, obb_center, obb_axes, obb_size)
+        # inference on a graph with many sibling edges (a flat 500-part asset has 249,500):
+        # the heads one chunk of edges at a time, the same numbers in bounded memory
+        parts = [self._heads(h, e[k:k + EDGE_CHUNK], i[k:k + EDGE_CHUNK], j[k:k + EDGE_CHUNK],
+                             obb_center, obb_axes, obb_size) for k in range(0, n_e, EDGE_CHUNK)]
+        return EdgeHeads(*(None if getattr(parts[0], f.name) is None
+                           else torch.cat([getattr(p, f.name) for p in parts])
+                           for f in dataclasses.fields(EdgeHeads)))
+
+    def _heads(self, h: torch.Tensor, e: torch.Tensor, i: torch.Tensor, j: torch.Tensor,
+               obb_center: torch.Tensor, obb_axes: torch.Tensor, obb_size: torch.Tensor) -> EdgeHeads:
+        """The per-edge heads of edges ``(i, j)`` with hidden features ``e`` (``forward``)."""
         z = torch.cat([h[i], h[j], e], dim=1)
         logits = self.type_head(z)
         raw = self.axis_head(z)

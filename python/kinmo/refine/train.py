@@ -332,8 +332,10 @@ def _fit(
                "val_select_coverage": vc, "lr": float(opt.param_groups[0]["lr"]),
                "seconds": time.perf_counter() - t0}
         rows.append(row)
-        bar.log(f"{label} epoch {epoch}: loss {tl:.3f} acc {ta:.3f} | val loss {vl:.3f} "
-                f"acc {va:.3f} select {vs:.3f} (chance {vch:.3f}, coverage {vc:.3f})")
+        # only what this epoch computed: validation every val_every epochs and at the last
+        bar.log(f"{label} epoch {epoch}: loss {tl:.3f} acc {ta:.3f}" + (
+            f" | val loss {vl:.3f} acc {va:.3f} select {vs:.3f} (chance {vch:.3f}, coverage {vc:.3f})"
+            if validate else ""))
         key = (float(epoch), 0.0) if not va_edges else (vs, -vl)
         better = (validate or not va_edges) and (best_key is None or key > best_key)
         if better:

@@ -1,0 +1,23 @@
+"""Progress bars captured in a log (no terminal, as on a cluster) stay readable."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+SCRIPT = """
+from kinmo.progress import TrainingBar
+with TrainingBar(True, "train gnn") as bar:
+    t = bar.task("epochs", 3)
+    bar.advance(t, 3, info="loss 0.133 acc 0.955 | test acc 0.979 moving recall 0.913 angle 9.1 deg pos 0.042")
+    bar.log("axis net epoch 3: loss 0.544 acc 0.689")
+"""
+
+
+def test_a_bar_written_to_a_log_is_not_cut_to_80_columns():
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "FORCE_COLOR", "TERM")}
+    r = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "angle 9.1 deg pos 0.042" in r.stderr and "…" not in r.stderr
+    assert r.stderr.count("train gnn") == 1  # the bar is printed once, not repeated
