@@ -72,3 +72,18 @@ def test_defaults_accept_the_shared_data_flattened(mobility_root, partnet_root, 
             limits.check("edges", n * (n - 1), folder)
             worst = max(worst, n * (n - 1))
     assert worst > 10_000  # the data holds a big flattened shape: the check is not vacuous
+
+
+def test_the_rust_obj_reader_takes_the_file_limit(tmp_path, monkeypatch):
+    """One file limit: the Rust OBJ reader is given ``file_bytes`` (no second, fixed cap)."""
+    from kinmo.geometry import load_obj, load_objs
+
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    n = obj.stat().st_size
+    monkeypatch.setenv("KINMO_MAX_FILE_BYTES", str(n))
+    assert load_obj(obj)[1].shape == (1, 3)
+    monkeypatch.setenv("KINMO_MAX_FILE_BYTES", str(n - 1))
+    for read in (lambda: load_obj(obj), lambda: load_objs([obj])):
+        with pytest.raises(OSError, match=rf"tri.obj.*too large.*{n - 1}"):
+            read()

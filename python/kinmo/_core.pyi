@@ -26,18 +26,18 @@ Mesh = tuple[F64, I64]
 
 # --- mesh (rust/kinmo-py/src/mesh.rs) ---------------------------------------------------
 
-def load_obj(path: str) -> Mesh:
+def load_obj(path: str, max_bytes: int = 1 << 32) -> Mesh:
     """Read one OBJ file: ``(vertices (V, 3) float64, faces (F, 3) int64)``.
 
     Triangulated, all objects/groups merged, materials ignored; a UTF-8 byte order mark is
     skipped. ``OSError`` naming the file when it is missing, unreadable, not a regular file
-    (directory, ``/dev/zero``, FIFO) or larger than 4 GiB; ``ValueError`` naming it when it
-    is malformed, binary, a text file without vertices whose lines are no OBJ statements,
+    (directory, ``/dev/zero``, FIFO) or larger than ``max_bytes`` (kinmo's ``file_bytes``
+    limit); ``ValueError`` naming it when it is malformed, binary, a text file without vertices whose lines are no OBJ statements,
     has non-finite vertices or vertices beyond the float32 range (``|x| > 3.4e38``), or
     out-of-range face indices. An empty or comment-only file is an empty mesh.
     """
 
-def load_objs(paths: Sequence[str]) -> list[Mesh]:
+def load_objs(paths: Sequence[str], max_bytes: int = 1 << 32) -> list[Mesh]:
     """Read many OBJ files in parallel (input order); the first failing file raises."""
 
 # --- sampling (rust/kinmo-py/src/sampling.rs) -------------------------------------------

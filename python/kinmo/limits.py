@@ -14,7 +14,7 @@ name                  default        what
                                      parts: ``n (n - 1)`` for ``n`` flat parts)
 ``triangles``         2,000,000      triangles of one mesh file (OBJ, GLB, glTF accessor counts)
 ``file_bytes``        4 GiB          bytes of one input file (OBJ, GLB, JSON, URDF); the Rust
-                                     OBJ reader's ``MAX_OBJ_BYTES`` (4 GiB) stays its hard cap
+                                     OBJ reader gets it (``load_obj_bounded``: one limit)
 ``nodes``             100,000        nodes of one glTF scene graph
 ====================  =============  ==========================================================
 

@@ -7,7 +7,7 @@ from os import PathLike
 
 import numpy as np
 
-from kinmo import _core
+from kinmo import _core, limits
 
 Mesh = tuple[np.ndarray, np.ndarray]
 """A triangle mesh: vertices ``(V, 3) float64`` and faces ``(F, 3) int64``."""
@@ -34,12 +34,13 @@ def load_obj(path: str | PathLike[str]) -> Mesh:
     Raises
     ------
     OSError
-        The file is missing or unreadable (message names the file).
+        The file is missing, unreadable or larger than the ``file_bytes`` limit
+        (:mod:`kinmo.limits`, ``kinmo --limit file_bytes=N``; message names the file).
     ValueError
         The file does not parse, has non-finite vertices or out-of-range face indices
         (message names the file and the problem).
     """
-    return _core.load_obj(str(path))
+    return _core.load_obj(str(path), limits.limit("file_bytes"))
 
 
 def load_objs(paths: Sequence[str | PathLike[str]]) -> list[Mesh]:
@@ -47,4 +48,4 @@ def load_objs(paths: Sequence[str | PathLike[str]]) -> list[Mesh]:
 
     The first failing file raises, naming that file.
     """
-    return _core.load_objs([str(p) for p in paths])
+    return _core.load_objs([str(p) for p in paths], limits.limit("file_bytes"))

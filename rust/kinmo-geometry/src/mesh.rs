@@ -169,11 +169,22 @@ pub fn check_finite(points: &[Point3<f64>], what: &str) -> Result<()> {
 /// # Errors
 /// [`GeometryError::Io`] naming the file when it is missing, unreadable, not a regular
 /// file (a directory, a device such as `/dev/zero`, a FIFO) or larger than
-/// [`MAX_OBJ_BYTES`]; [`GeometryError::Parse`] naming the file when it does not parse, is
+/// [`MAX_OBJ_BYTES`] (see [`load_obj_bounded`] for another limit); [`GeometryError::Parse`]
+/// naming the file when it does not parse, is
 /// a text file without any vertex whose lines are no OBJ statements, has a non-finite
 /// vertex or one beyond the float32 range, or a face index out of range. A leading UTF-8
 /// byte order mark is skipped; an empty or comment-only file is an empty mesh.
 pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
+    load_obj_bounded(path, MAX_OBJ_BYTES)
+}
+
+/// [`load_obj`] with `max_bytes` as the largest file read (kinmo's configurable
+/// `file_bytes` limit, `kinmo --limit file_bytes=N`); larger files are refused before
+/// reading.
+///
+/// # Errors
+/// As [`load_obj`], the size limit being `max_bytes`.
+pub fn load_obj_bounded(path: impl AsRef<Path>, max_bytes: u64) -> Result<TriMesh> {
     let path = path.as_ref();
     let name = path.display().to_string();
     let io = |message: String| GeometryError::Io {
@@ -190,7 +201,7 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let bytes = read_bounded(path, MAX_OBJ_BYTES).map_err(io)?;
+    let bytes = read_bounded(path, max_bytes).map_err(io)?;
     if bytes.contains(&0) {
         return Err(parse(
             "binary data (NUL bytes): not a text OBJ file".to_string(),
@@ -266,7 +277,9 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriMesh> {
     })
 }
 
-/// Largest OBJ file [`load_obj`] reads (4 GiB); larger files are refused before reading.
+/// Default of the largest OBJ file [`load_obj`] reads (4 GiB, the default of kinmo's
+/// `file_bytes` limit, which Python passes to [`load_obj_bounded`]); larger files are
+/// refused before reading.
 pub const MAX_OBJ_BYTES: u64 = 1 << 32;
 
 /// Statement keywords of the OBJ format (Wavefront, *Object Files*, Appendix B1 of the
@@ -365,9 +378,23 @@ fn read_bounded(path: &Path, limit: u64) -> std::result::Result<Vec<u8>, String>
 /// # Errors
 /// The error of the first failing file in `paths` order.
 pub fn load_objs<P: AsRef<Path> + Sync>(paths: &[P]) -> Result<Vec<TriMesh>> {
+    load_objs_bounded(paths, MAX_OBJ_BYTES)
+}
+
+/// [`load_objs`] with `max_bytes` as the largest file read ([`load_obj_bounded`]).
+///
+/// # Errors
+/// As [`load_objs`].
+pub fn load_objs_bounded<P: AsRef<Path> + Sync>(
+    paths: &[P],
+    max_bytes: u64,
+) -> Result<Vec<TriMesh>> {
     // Collect every result first, so the reported error is the first in input order,
     // whatever the thread scheduling.
-    let results: Vec<Result<TriMesh>> = paths.par_iter().map(load_obj).collect();
+    let results: Vec<Result<TriMesh>> = paths
+        .par_iter()
+        .map(|p| load_obj_bounded(p, max_bytes))
+        .collect();
     results.into_iter().collect()
 }
 
@@ -444,6 +471,30 @@ mod tests {
         assert_eq!(
             (lo, hi),
             (Point3::new(0.0, 0.0, 0.0), Point3::new(2.0, 2.0, 2.0))
+        );
+    }
+
+    #[test]
+    fn the_size_limit_is_the_callers() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let path = obj_file("bounded.obj", text);
+        let n = text.len() as u64;
+        assert_eq!(
+            load_obj_bounded(&path, n).expect("at the limit").n_faces(),
+            1
+        );
+        match load_obj_bounded(&path, n - 1) {
+            Err(GeometryError::Io { path: p, message }) => {
+                assert!(p.ends_with("bounded.obj"));
+                assert!(message.contains("too large") && message.contains(&format!("{}", n - 1)));
+            }
+            other => panic!("expected an Io error, got {other:?}"),
+        }
+        let all = load_objs_bounded(&[&path, &path], n - 1);
+        assert!(matches!(all, Err(GeometryError::Io { .. })));
+        assert_eq!(
+            load_objs_bounded(&[&path, &path], n).expect("both").len(),
+            2
         );
     }
 

@@ -22,10 +22,11 @@ fn mesh_to_arrays(py: Python<'_>, m: TriMesh) -> MeshArrays<'_> {
 ///
 /// Triangulated, all objects/groups merged, materials ignored.
 /// Returns `(vertices (V, 3) float64, faces (F, 3) int64)`; `OSError` naming the file
-/// when it is missing, unreadable or malformed.
+/// when it is missing, unreadable, larger than `max_bytes` or malformed.
 #[pyfunction]
-fn load_obj(py: Python<'_>, path: std::path::PathBuf) -> PyResult<MeshArrays<'_>> {
-    let m = detach(py, "load_obj", || mesh::load_obj(&path))?;
+#[pyo3(signature = (path, max_bytes = mesh::MAX_OBJ_BYTES))]
+fn load_obj(py: Python<'_>, path: std::path::PathBuf, max_bytes: u64) -> PyResult<MeshArrays<'_>> {
+    let m = detach(py, "load_obj", || mesh::load_obj_bounded(&path, max_bytes))?;
     Ok(mesh_to_arrays(py, m))
 }
 
@@ -33,8 +34,15 @@ fn load_obj(py: Python<'_>, path: std::path::PathBuf) -> PyResult<MeshArrays<'_>
 ///
 /// The first failing file (in input order) raises `OSError` naming it.
 #[pyfunction]
-fn load_objs(py: Python<'_>, paths: Vec<std::path::PathBuf>) -> PyResult<Bound<'_, PyList>> {
-    let meshes = detach(py, "load_objs", || mesh::load_objs(&paths))?;
+#[pyo3(signature = (paths, max_bytes = mesh::MAX_OBJ_BYTES))]
+fn load_objs(
+    py: Python<'_>,
+    paths: Vec<std::path::PathBuf>,
+    max_bytes: u64,
+) -> PyResult<Bound<'_, PyList>> {
+    let meshes = detach(py, "load_objs", || {
+        mesh::load_objs_bounded(&paths, max_bytes)
+    })?;
     let items: Vec<MeshArrays<'_>> = meshes.into_iter().map(|m| mesh_to_arrays(py, m)).collect();
     PyList::new(py, items)
 }
