@@ -359,3 +359,14 @@ def test_export_of_many_links_shows_vhacd_progress(tmp_path, monkeypatch):
     res = runner.invoke(app, ["export", str(src), "-f", "urdf", "-o", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
     assert "V-HACD" in res.output and "5/5" in res.output
+
+
+def test_predict_quiet_shows_no_vhacd_bar(tmp_path, monkeypatch, tiny_gnn):
+    import kinmo.export.urdf as export_urdf
+
+    monkeypatch.setattr(export_urdf, "PIECES_BAR_MIN_LINKS", 1)
+    src = write_cabinet(tmp_path / "src" / "cab")
+    res = runner.invoke(app, ["predict", str(src), "-m", str(tiny_gnn["run"]), "-o", str(tmp_path / "out"),
+                              "-q", "--device", "cpu"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "out" / "cab" / "mobility.urdf").is_file() and "V-HACD" not in res.output

@@ -132,7 +132,7 @@ def write_edges_json(pred: ShapePrediction, path: str | Path) -> Path:
 
 
 def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | None = None,
-                     formats: Sequence[str] | None = None) -> dict[str, Path]:
+                     formats: Sequence[str] | None = None, progress: bool = True) -> dict[str, Path]:
     """Write one shape's outputs (module docstring) into ``out_dir``.
 
     Parameters
@@ -147,6 +147,8 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
     formats : sequence of str, optional
         Export formats (:mod:`kinmo.export`); default
         :data:`kinmo.export.DEFAULT_FORMATS` (``mobility_v2``, ``semantics``, ``urdf``).
+    progress : bool
+        Show the exporters' progress bars (V-HACD of objects with many links).
 
     Returns
     -------
@@ -162,7 +164,7 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
         fmts = [f for f in fmts if f in ("mobility_v2", "semantics")]
         shape = Shape(pred.shape_id, "unknown", ShapeFormat.PARTNET, out_dir, out_dir,
                       hierarchy_from_graph(pred.graph))
-    files = export(shape, out_dir, fmts, links=pred.tree.links, name=shape.id)
+    files = export(shape, out_dir, fmts, links=pred.tree.links, name=shape.id, progress=progress)
     paths = {f: written[0] for f, written in files.items()}
     write_edges_json(pred, out_dir / "edges.json")
     paths["edges"] = out_dir / "edges.json"
@@ -273,7 +275,7 @@ def predict_dataset(
                 # written into a temporary sibling, renamed into place whole (issue 21,
                 # finding 12: a reader never sees half an object)
                 with staged_folder(out / sid) as tmp:
-                    paths = write_prediction(pred, tmp, shape, formats)
+                    paths = write_prediction(pred, tmp, shape, formats, progress)
                     if render:
                         paths["png"] = render_prediction(pred, tmp / "prediction.png")
                 paths = {k: out / sid / Path(v).relative_to(tmp) for k, v in paths.items()}

@@ -297,7 +297,8 @@ def _write_folder(
     export(shape, stage, ["mobility_v2"], links=links, name=shape.id)
     # the folder as kinmo reads it (validates the round trip)
     out_shape = read_shape(stage, external_links=config.link == "symlink")
-    export(out_shape, stage, [f for f in config.formats if f != "mobility_v2"], name=shape.id)
+    export(out_shape, stage, [f for f in config.formats if f != "mobility_v2"], name=shape.id,
+           progress=False)  # one bar: the dataset's
     write_json(stage / "scores.json", {
         "shape_id": shape.id,
         "category": shape.category,

@@ -399,7 +399,8 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
                     write_mobility_v2(frame.links_to_asset(predicted.links), final / "mobility_v2.json",
                                       predicted.hierarchy)
                 write_json(final / "frame.json", frame.to_json())
-                files = export(read_shape(final), final, fmts, name=stem)
+                files = export(read_shape(final), final, fmts, name=stem,
+                               progress=predict_kw.get("progress", True))
                 written = {f: w[0] for f, w in files.items()}
                 written["view"] = view_folder(final)  # view.html: a slider per joint
                 written.update({k: v for k, v in row.outputs.items() if k not in written})

@@ -68,12 +68,16 @@ class ExportContext:
         Output folder (created).
     name : str
         Object / robot name written into the files.
+    progress : bool
+        Exporters may show a progress bar (V-HACD on objects of many links); False under
+        ``-q``.
     """
 
     shape: Shape
     links: list[Link]
     out_dir: Path
     name: str
+    progress: bool = True
 
     @cached_property
     def meshes(self):
@@ -136,7 +140,8 @@ def formats() -> list[str]:
 
 
 def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORMATS,
-           links: Sequence[Link] | None = None, name: str | None = None) -> dict[str, list[Path]]:
+           links: Sequence[Link] | None = None, name: str | None = None,
+           progress: bool = True) -> dict[str, list[Path]]:
     """Write ``shape`` moving as ``links`` in each of ``fmts`` into ``out_dir``.
 
     Parameters
@@ -151,6 +156,8 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
         Default ``shape.links``.
     name : str, optional
         Object name in the files; default the shape id.
+    progress : bool
+        Show the exporters' progress bars (:attr:`ExportContext.progress`).
 
     Returns
     -------
@@ -175,7 +182,7 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
                                          "predicted motion needed)")
 
     out_dir = output_dir(out_dir)
-    ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id)
+    ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id, progress)
     return {f: EXPORTERS[f].write(ctx) for f in fmts}
 
 

@@ -174,10 +174,10 @@ PIECES_BAR_MIN_LINKS = 50
 def pieces_bar(ctx: ExportContext) -> Any:
     """The progress bar (on stderr) of the convex decomposition of ``ctx``'s links: V-HACD
     takes seconds per link, so an object of many links shows its progress (issue 21,
-    finding 5); none below :data:`PIECES_BAR_MIN_LINKS` links."""
+    finding 5); none below :data:`PIECES_BAR_MIN_LINKS` links, nor without ``ctx.progress``."""
 
     n = len(ctx.meshes)
-    return CountingBar(n, n >= PIECES_BAR_MIN_LINKS, "V-HACD", ctx.name, counters={})
+    return CountingBar(n, ctx.progress and n >= PIECES_BAR_MIN_LINKS, "V-HACD", ctx.name, counters={})
 
 
 def write_urdf_convex(ctx: ExportContext, path: Path | None = None) -> list[Path]:
