@@ -178,3 +178,24 @@ def tiny_gnn(tmp_path_factory) -> dict[str, Path]:
         point_widths=[8], geo_dim=8, node_dim=8, edge_dim=8, semantic_dim=2, gnn_layers=1))})
     train_gnn(root / "cache", root / "run", cfg, split=Split(ids, []), progress=False)
     return {"root": root, "data": root / "data", "cache": root / "cache", "run": root / "run"}
+
+
+def write_untrained_models(root: Path, gnn: str = "gnn") -> tuple[Path, Path]:
+    """An untrained motion-GNN run (``root/<gnn>/model.pt``, the quick preset) and a small
+    axis-network run (``root/axis/model.pt``), saved by the project's own savers (seeded)."""
+    import torch
+
+    from kinmo.features import SemanticVocab
+    from kinmo.models.motion_gnn import MotionGNN
+    from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
+    from kinmo.refine.train import save_axis_model
+    from kinmo.train.config import preset
+    from kinmo.train.gnn import save_checkpoint
+
+    torch.manual_seed(0)
+    cfg = preset("quick")
+    save_checkpoint(root / gnn / "model.pt", MotionGNN(cfg.model), cfg, SemanticVocab(), None, 0)
+    net = AxisSelectionNet(AxisNetConfig(n_points=64, k=8, widths=[8, 8, 16], emb_dim=16,
+                                         head=[16], dropout=0.0))
+    save_axis_model(root / "axis" / "model.pt", net)
+    return root / gnn, root / "axis"

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from conftest import write_untrained_models
 
 from kinmo.data.model import FINE_INDEX, JointType, ShapeFormat
 from kinmo.data.readers import read_shape
@@ -23,22 +24,8 @@ SHAPES = ("100664", "7304", "12249")
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory) -> tuple[Path, Path]:
-    """An (untrained) motion-GNN run and axis-network run, saved by the projects' own savers."""
-    from kinmo.features import SemanticVocab
-    from kinmo.models.motion_gnn import MotionGNN
-    from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
-    from kinmo.refine.train import save_axis_model
-    from kinmo.train.config import preset
-    from kinmo.train.gnn import save_checkpoint
-
-    root = tmp_path_factory.mktemp("runs")
-    torch.manual_seed(0)
-    cfg = preset("quick")
-    save_checkpoint(root / "gnn" / "model.pt", MotionGNN(cfg.model), cfg, SemanticVocab(), None, 0)
-    net = AxisSelectionNet(AxisNetConfig(n_points=64, k=8, widths=[8, 8, 16], emb_dim=16,
-                                         head=[16], dropout=0.0))
-    save_axis_model(root / "axis" / "model.pt", net)
-    return root / "gnn", root / "axis"
+    """An (untrained) motion-GNN run and axis-network run, saved by the project's own savers."""
+    return write_untrained_models(tmp_path_factory.mktemp("runs"))
 
 
 @pytest.fixture(scope="module")

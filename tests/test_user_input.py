@@ -56,14 +56,7 @@ def inputs(mobility_root: Path, tmp_path_factory):
         scene.add_geometry(trimesh.Trimesh(v, f, process=False), node_name=name, geom_name=name)
     glb = root / "dishwasher.glb"
     glb.write_bytes(scene.export(file_type="glb"))
-    obj = root / "dishwasher.obj"
-    lines, n = [], 0
-    for name, v, f in leaves:
-        lines.append(f"o {name}")
-        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in v.tolist()]
-        lines += [f"f {a + 1 + n} {b + 1 + n} {c + 1 + n}" for a, b, c in f.tolist()]
-        n += len(v)
-    obj.write_text("\n".join(lines) + "\n")
+    obj = _write_obj_groups(root / "dishwasher.obj", leaves)
     folder = root / "parts"
     folder.mkdir()
     for name, v, f in leaves:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from conftest import write_cabinet
+from conftest import write_cabinet, write_untrained_models
 
 from kinmo.data.build import build_graph
 from kinmo.data.readers import read_shape
@@ -26,20 +26,8 @@ from kinmo.refine.ranker import Ranker
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory) -> Path:
     """``runs/all``-like folder: gnn_fine/, axis/, ranker/ranker.json (untrained networks)."""
-    from kinmo.features import SemanticVocab
-    from kinmo.models.motion_gnn import MotionGNN
-    from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
-    from kinmo.refine.train import save_axis_model
-    from kinmo.train.config import preset
-    from kinmo.train.gnn import save_checkpoint
-
     root = tmp_path_factory.mktemp("all")
-    torch.manual_seed(0)
-    cfg = preset("quick")
-    save_checkpoint(root / "gnn_fine" / "model.pt", MotionGNN(cfg.model), cfg, SemanticVocab(), None, 0)
-    net = AxisSelectionNet(AxisNetConfig(n_points=64, k=8, widths=[8, 8, 16], emb_dim=16,
-                                         head=[16], dropout=0.0))
-    save_axis_model(root / "axis" / "model.pt", net)
+    write_untrained_models(root, "gnn_fine")
     n = len(FEATURES)
     (root / "ranker").mkdir()
     Ranker(FEATURES, np.linspace(-1, 1, n), np.zeros(n), np.ones(n)).save(root / "ranker" / "ranker.json")
