@@ -4,7 +4,7 @@
 - ``GNN_coarse`` / ``GNN_fine``: the motion GNN trained on coarse (5) or fine (10) types,
   axes as regressed;
 - ``OBB_coarse`` / ``OBB_fine``: the same predictions with every moving edge's axis refined
-  (:func:`kinmo.refine.refine.refine_shape_prediction`).
+  (:meth:`kinmo.inference.predictor.Predictor.refine_prediction`).
 
 All four are evaluated on the same labelled test graphs by
 :func:`kinmo.evaluate.pre_segmented.evaluate_graphs` (edge-level type accuracy, angle error
@@ -21,8 +21,9 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TYPES
 from kinmo.evaluate.pre_segmented import evaluate_graphs
 from kinmo.inference.gnn import predict_graphs
+from kinmo.inference.predictor import Predictor
 from kinmo.metrics.axis import axis_angle_deg, line_distance
-from kinmo.refine.refine import RefineConfig, refine_shape_prediction
+from kinmo.refine.refine import RefineConfig
 
 __all__ = ["FAILURE_KINDS", "PAPER_MEANS", "failure_kind", "failure_table", "four_settings"]
 
@@ -60,13 +61,12 @@ def four_settings(
     """
 
     preds: dict[str, list] = {}
-    for kind, run in (("coarse", coarse_run), ("fine", fine_run)):
-        if run is not None:
-            preds[f"GNN_{kind}"] = predict_graphs(run, graphs)
-    for kind in ("coarse", "fine"):
-        if f"GNN_{kind}" in preds:
-            preds[f"OBB_{kind}"] = [refine_shape_prediction(p, axis_model, config)[0]
-                                    for p in preds[f"GNN_{kind}"]]
+    predictors = {kind: Predictor(run, axis_model, config or RefineConfig())  # one path: issue 22
+                  for kind, run in (("coarse", coarse_run), ("fine", fine_run)) if run is not None}
+    for kind, pr in predictors.items():
+        preds[f"GNN_{kind}"] = predict_graphs(pr.run, graphs)
+    for kind, pr in predictors.items():
+        preds[f"OBB_{kind}"] = [pr.refine_prediction(p) for p in preds[f"GNN_{kind}"]]
     order = [m for m in ("GNN_coarse", "GNN_fine", "OBB_coarse", "OBB_fine") if m in preds]
     return evaluate_graphs(list(graphs), {m: preds[m] for m in order})
 

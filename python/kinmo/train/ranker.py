@@ -3,7 +3,7 @@ learned candidate selector fit on their predictions (kinmo extension, issue 11).
 
 Moved here from :mod:`kinmo.refine.fit_selector` (issue 22) so that ``refine/`` stays below
 :mod:`kinmo.inference`: the fold GNNs are trained (:func:`kinmo.train.gnn.train_gnn`) and
-predict through :func:`kinmo.inference.gnn.predict_graphs`; the groups and the fit are
+predict through :class:`kinmo.inference.predictor.Predictor` (no selector); the groups and the fit are
 :mod:`kinmo.refine.fit_selector`'s (see its docstring for the method).
 
 Outputs (``OUT/``): ``ranker.json``, ``cv.json``, ``oof_groups.npz``, ``folds/<types>_<f>/``.
@@ -19,7 +19,7 @@ import numpy as np
 from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
 from kinmo.errors import KinmoDataError
-from kinmo.inference.gnn import predict_graphs
+from kinmo.inference.predictor import Predictor
 from kinmo.io import write_json
 from kinmo.refine.fit_selector import (
     DEFAULT_FEATURES,
@@ -79,8 +79,10 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
                               epochs=epochs)
             split = Split(rest, held, {i: by_id[i].category for i in ids}, seed, 1.0 / k)
             train_gnn([by_id[i] for i in ids], run_dir, cfg, split, progress=progress)
-        run = load_run(run_dir, "cpu")
-        for p in predict_graphs(run, [by_id[i] for i in held]):
+        # the fold GNN alone (no selector: the ranker is what this fits), through the one
+        # prediction path every command uses
+        fold = Predictor(load_run(run_dir, "cpu"))
+        for p in fold.predict_many([by_id[i] for i in held]):
             preds[p.shape_id] = p
     return preds
 
