@@ -21,3 +21,12 @@ def test_a_bar_written_to_a_log_is_not_cut_to_80_columns():
     assert r.returncode == 0, r.stderr
     assert "angle 9.1 deg pos 0.042" in r.stderr and "…" not in r.stderr
     assert r.stderr.count("train gnn") == 1  # the bar is printed once, not repeated
+
+
+def test_help_written_to_a_log_is_not_cut_to_80_columns():
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("COLUMNS", "FORCE_COLOR", "TERM", "TERMINAL_WIDTH")}
+    r = subprocess.run([sys.executable, "-m", "kinmo", "eval", "user-format", "--help"],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "[default: generic,semantic,leaf,partnet]" in r.stdout and "…" not in r.stdout

@@ -2,7 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 import typer
+
+from kinmo.progress import LOG_WIDTH
+
+if not sys.stdout.isatty() and "COLUMNS" not in os.environ and "TERMINAL_WIDTH" not in os.environ:
+    # help captured in a file or pipe (a log, a cluster job): defaults and option texts are
+    # wrapped at LOG_WIDTH columns, never cut at 80 with an ellipsis (typer reads the variable
+    # when it renders help; set here, not imported, so startup stays light)
+    os.environ["TERMINAL_WIDTH"] = str(LOG_WIDTH)
 
 app = typer.Typer(
     name="kinmo",
