@@ -107,3 +107,25 @@ def test_matching_is_one_to_one_at_iou_half():
                 "error": ""}, {"n_true": 2, "n_pred": 0, "angles": [], "type_ok": [], "error": "x"}])
     assert s["recall"] == 0.5 and s["mean_angle"] == 5.0 and s["type_accuracy"] == 0.5
     assert s["failed"] == 1 and s["true_joints"] == 4
+
+
+def test_the_command_scores_one_object_and_names_its_outputs_on_one_line(objects, tmp_path):
+    """`kinmo eval user-format` end to end on one real object (an untrained GNN: the
+    command's plumbing, not the network, is under test); its report is not wrapped at 80
+    columns in a log."""
+    from typer.testing import CliRunner
+
+    from kinmo.cli import app
+    from kinmo.train.split import Split
+    from conftest import write_untrained_models
+
+    gnn, _ = write_untrained_models(tmp_path / "models")
+    oid = objects[0].id
+    Split([], [oid]).save(tmp_path / "split.json")
+    out = tmp_path / ("a_long_output_folder_name_" * 3) / "uf"
+    r = CliRunner().invoke(app, ["eval", "user-format", "-m", str(gnn), "-d", str(objects[0].path.parent),
+                                 "-o", str(out), "--split", str(tmp_path / "split.json"),
+                                 "--variants", "generic", "-q"])
+    assert r.exit_code == 0, r.output
+    assert f"wrote {out / 'user_format.json'} and {out / 'user_format.md'}" in r.output
+    assert (out / "user_format.md").is_file() and "| generic | 1 |" in r.output

@@ -28,15 +28,15 @@ def user_format_cmd(
     """Convert the test objects to user GLBs (a node per link or PartNet leaf, generic or
     semantic names), predict each as `kinmo predict FILE` does, and score recall (moved-node
     IoU >= 0.5) and the mean axis angle beside the PartNet-format result."""
-    from rich.console import Console
-
     from kinmo.cli._errors import cli_errors
     from kinmo.evaluate.user_format import evaluate_user_format, results_markdown
     from kinmo.inference.bundle import resolve_bundle
     from kinmo.inference.predictor import Predictor
+    from kinmo.progress import console as new_console
+    from kinmo.progress import literal
     from kinmo.train.split import Split
 
-    console = Console()
+    console = new_console()
     vs = [v.strip() for v in variants.split(",") if v.strip()]
     with cli_errors(2, also=(ValueError,)):
         trained_on = set(resolve_bundle(model).trained_on)
@@ -44,13 +44,12 @@ def user_format_cmd(
         sp = Split.load(split if split is not None else gnn / "split.json")
         ids = [i for i in sp.test if i not in trained_on]  # never score a bundle on its training objects
         if len(ids) < len(sp.test):
-            console.print(f"left out {len(sp.test) - len(ids)} test object(s) the model bundle was trained on",
-                          highlight=False)
+            console.print(f"left out {len(sp.test) - len(ids)} test object(s) the model bundle was trained on")
         if not ids:
             raise ValueError("every test object of the split is one the model bundle was trained on")
     with cli_errors(1):
         predictor = Predictor.from_parts(gnn, axis_model, rc, device=device)
-        console.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)
+        console.print(predictor.describe(), markup=False)
         res = evaluate_user_format(data, predictor, ids, out, vs, progress=not quiet)
-    console.print(results_markdown(res), highlight=False, soft_wrap=True)
-    console.print(f"wrote {out / 'user_format.json'} and {out / 'user_format.md'}", highlight=False)
+    console.print(results_markdown(res), markup=False)
+    console.print(f"wrote {literal(out / 'user_format.json')} and {literal(out / 'user_format.md')}")
