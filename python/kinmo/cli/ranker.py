@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from kinmo.cli._apps import train_app
+from kinmo.cli._executor import EXECUTOR
 
 
 @train_app.command("ranker")
@@ -18,7 +19,9 @@ def train_ranker_cmd(
     preset: str = typer.Option("quick", "--preset", help="Preset of the fold GNNs."),
     types: str = typer.Option("fine,coarse", "--types", help="Comma-separated type sets of the fold GNNs (their edges are pooled)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (folds, GNNs, ranker)."),
-    threads: int = typer.Option(1, "--threads", min=0, help="CPU threads for torch."),
+    threads: int = typer.Option(1, "--threads", min=0, help="CPU threads for torch (per fold GNN)."),
+    workers: int = typer.Option(1, "--workers", "-j", min=0, help="Fold GNNs trained at once (0: one per CPU)."),
+    executor: str = EXECUTOR,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Fit the ranker of candidate axes on out-of-fold GNN predictions of the training objects."""
@@ -32,7 +35,7 @@ def train_ranker_cmd(
         fail(f"--types: expected fine and/or coarse, got {types!r}", 2)
     with cli_errors(1):
         _, st = train_ranker(data, out, split, folds=folds, preset=preset, types=ts, seed=seed,
-                             threads=threads, progress=not quiet)
+                             threads=threads, progress=not quiet, workers=workers, executor=executor)
     new_console().print(f"wrote {literal(out / 'ranker.json')}: {st['groups']} edges, candidate recall "
                     f"{st['recall']:.3f}, out-of-fold top-1 {st['oof_top1']:.3f} "
                     f"(angle {st['oof_angle']:.2f}° vs GNN {st['gnn_angle']:.2f}°)")

@@ -526,4 +526,5 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     folder.mkdir(parents=True, exist_ok=True)
     write_json(folder / "folds.json", stamp)
     train_ranker(v.graphs, folder, v.split, folds=RANKER_FOLDS, preset=cfg.preset, types=RANKER_TYPES,
-                 seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs)
+                 seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs,
+                 workers=cfg.workers)

@@ -18,9 +18,12 @@ import numpy as np
 
 from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
-from kinmo.errors import KinmoDataError
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.executor import map_unordered
 from kinmo.inference.predictor import Predictor
 from kinmo.io import write_json
+from kinmo.parallel import resolve_workers
+from kinmo.progress import CountingBar
 from kinmo.refine.fit_selector import (
     DEFAULT_FEATURES,
     EdgeGroups,
@@ -34,7 +37,75 @@ from kinmo.train.config import preset as make_preset
 from kinmo.train.gnn import load_run, train_gnn
 from kinmo.train.split import Split
 
-__all__ = ["oof_predictions", "train_ranker"]
+__all__ = ["oof_predictions", "train_folds", "train_ranker"]
+
+
+def _fold_job(job: tuple) -> str:
+    """Train one fold GNN (a worker of :func:`train_folds`); returns its run folder."""
+    graphs, run_dir, cfg, split, progress = job
+    train_gnn(graphs, run_dir, cfg, split, progress=progress)
+    return str(run_dir)
+
+
+def _fold_failed(job: tuple, exc: Exception) -> str:
+    raise KinmoError(f"fold GNN {job[1]}: {exc}") from exc
+
+
+def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
+                k: int = 3, preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
+                threads: int = 1, epochs: int | None = None, workers: int = 1,
+                executor: str = "local", progress: bool = False) -> int:
+    """Train the fold GNNs of :func:`oof_predictions` for every type set, ``workers`` at a
+    time on the project's executor (:func:`kinmo.executor.map_unordered`: the local process
+    pool or Ray); each is one item, trained single-threaded (``threads``) as a sequential
+    run would train it, so the models do not depend on ``workers``.
+
+    Parameters
+    ----------
+    graphs, train_ids, out, k, preset, seed, threads, epochs
+        As :func:`oof_predictions`.
+    types : sequence of {"fine", "coarse"}
+    workers : int
+        Fold GNNs trained at once (1: one after the other, in this process; 0: one per CPU).
+    executor : str
+        ``"local"``, ``"ray"``, ``"ray:auto"`` or ``"ray:ADDRESS"``.
+    progress : bool
+        With one worker, each fold's epoch bar; with more, a bar counting finished folds.
+
+    Returns
+    -------
+    int
+        Fold GNNs trained (those whose ``model.pt`` existed are skipped: a rerun resumes).
+
+    Raises
+    ------
+    KinmoError
+        A fold's training failed (the message names its folder).
+    """
+    by_id = {g.shape_id: g for g in graphs}
+    ids = [i for i in sorted(train_ids) if i in by_id]
+    cats = [by_id[i].category for i in ids]
+    folds = fold_ids(ids, cats, k, seed)
+    jobs = []
+    for t in types:
+        for f in range(k):
+            run_dir = out / "folds" / f"{t}_{f}"
+            if (run_dir / "model.pt").is_file():
+                continue
+            held = [i for i, ff in zip(ids, folds) if ff == f]
+            rest = [i for i, ff in zip(ids, folds) if ff != f]
+            # "auto": CUDA where there is one (the paper preset's fold GNNs take hours on
+            # a CPU), the CPU elsewhere, as every other GNN training of kinmo
+            cfg = make_preset(preset, types=t, seed=seed, threads=threads, device="auto", epochs=epochs)
+            split = Split(rest, held, {i: by_id[i].category for i in ids}, seed, 1.0 / k)
+            jobs.append(([by_id[i] for i in ids], run_dir, cfg, split))
+    if not jobs:
+        return 0
+    workers = resolve_workers(workers, len(jobs))
+    jobs = [(*j, progress and workers == 1) for j in jobs]
+    with CountingBar(len(jobs), progress and workers > 1, "train ranker", "fold GNNs", counters={}) as bar:
+        map_unordered(_fold_job, jobs, workers, lambda job, r: bar.advance(), _fold_failed, executor=executor)
+    return len(jobs)
 
 
 def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
@@ -73,12 +144,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         rest = [i for i, ff in zip(ids, folds) if ff != f]
         run_dir = out / "folds" / f"{types}_{f}"
         if not (run_dir / "model.pt").is_file():
-            # "auto": CUDA where there is one (the paper preset's fold GNNs take hours on
-            # a CPU), the CPU elsewhere, as every other GNN training of kinmo
-            cfg = make_preset(preset, types=types, seed=seed, threads=threads, device="auto",
-                              epochs=epochs)
-            split = Split(rest, held, {i: by_id[i].category for i in ids}, seed, 1.0 / k)
-            train_gnn([by_id[i] for i in ids], run_dir, cfg, split, progress=progress)
+            train_folds(graphs, train_ids, out, k=k, preset=preset, types=(types,), seed=seed,
+                        threads=threads, epochs=epochs, progress=progress)
         # the fold GNN alone (no selector: the ranker is what this fits), through the one
         # prediction path every command uses
         fold = Predictor(load_run(run_dir, "cpu"))
@@ -89,8 +156,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
 
 def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds: int = 3,
                  preset: str = "quick", types: Sequence[str] = ("fine", "coarse"), seed: int = 0,
-                 threads: int = 1, progress: bool = True, epochs: int | None = None
-                 ) -> tuple[Ranker, dict]:
+                 threads: int = 1, progress: bool = True, epochs: int | None = None,
+                 workers: int = 1, executor: str = "local") -> tuple[Ranker, dict]:
     """``kinmo train ranker``: OOF GNNs on the split's training objects, then the ranker.
 
     Parameters
@@ -108,6 +175,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     types : sequence of {"fine", "coarse"}
         Fold GNNs of these type sets; their groups are pooled (one ranker serves both).
     progress : bool
+    workers, executor
+        Fold GNNs trained at once, and where (:func:`train_folds`).
 
     Returns
     -------
@@ -126,6 +195,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     if not graphs:
         raise KinmoDataError(data, "no labelled graph of the split's training ids")
     semantic = SemanticPrior.from_graphs(graphs)
+    train_folds(graphs, sorted(train), out, k=folds, preset=preset, types=types, seed=seed,
+                threads=threads, epochs=epochs, workers=workers, executor=executor, progress=progress)
     parts = []
     for t in types:
         preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,

@@ -1,0 +1,45 @@
+"""The ranker's fold GNNs trained in parallel (issue 24: `train all`'s ranker stage): the same
+models as one after the other, folds already trained are skipped, a failure names its fold."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from kinmo.errors import KinmoError
+from kinmo.train import ranker
+from motion_cabinet import cabinet_graph
+
+
+def _graphs(n=6):
+    return [cabinet_graph(n_points=32, seed=s, jitter=0.15, shape_id=f"cab{s}") for s in range(n)]
+
+
+def _weights(run):
+    state = torch.load(run / "model.pt", map_location="cpu", weights_only=False)
+    return state["state_dict"]
+
+
+def test_two_workers_train_the_models_one_worker_trains(tmp_path):
+    graphs = _graphs()
+    ids = [g.shape_id for g in graphs]
+    kw = dict(k=3, preset="tiny", types=("fine", "coarse"), epochs=1, seed=0)
+    assert ranker.train_folds(graphs, ids, tmp_path / "par", workers=2, **kw) == 6
+    assert ranker.train_folds(graphs, ids, tmp_path / "seq", workers=1, **kw) == 6
+    for t in ("fine", "coarse"):
+        for f in range(3):
+            a = _weights(tmp_path / "par" / "folds" / f"{t}_{f}")
+            b = _weights(tmp_path / "seq" / "folds" / f"{t}_{f}")
+            assert a.keys() == b.keys()
+            assert all(torch.equal(a[n], b[n]) for n in a), f"{t}_{f} differs"
+    # a rerun finds every fold trained
+    assert ranker.train_folds(graphs, ids, tmp_path / "par", workers=2, **kw) == 0
+
+
+def test_a_failed_fold_is_named(tmp_path):
+    graphs = _graphs()
+    for g in graphs:  # a fold whose graphs cannot be trained on: no points at all
+        g.points = g.points[:, :0]
+    with pytest.raises(KinmoError, match="fold GNN .*fine_"):
+        ranker.train_folds(graphs, [g.shape_id for g in graphs], tmp_path, k=3, preset="tiny",
+                           types=("fine",), epochs=1, workers=2)
