@@ -292,6 +292,12 @@ def test_export_refuses_an_out_another_run_is_writing(tmp_path):
     assert not (out / "mobility.xml").exists()
 
 
+def test_export_of_a_missing_source_creates_no_output_folder(tmp_path):
+    res = runner.invoke(app, ["export", str(tmp_path / "missing"), "-f", "mjcf", "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2 and "does not exist" in res.output
+    assert not (tmp_path / "out").exists()  # no OUT with a stray .lock
+
+
 def test_staged_folder_appears_whole_or_not_at_all(tmp_path):
     from kinmo.io import staged_folder
 

@@ -43,10 +43,10 @@ def _locked(out: Path, inputs: list[Path], command: str = "kinmo export") -> Ite
 
 @app.command("export")
 def export_cmd(
-    src: Path = typer.Argument(..., metavar="SRC", help="A PartNet-Mobility-format folder (real, generated or predicted), or a folder of them."),
+    src: Path = typer.Argument(..., metavar="SRC", exists=True, file_okay=False, help="A PartNet-Mobility-format folder (real, generated or predicted), or a folder of them."),
     fmt: list[str] = typer.Option(..., "--format", "-f", help=FORMAT_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (OUT/<id>/ per object when SRC holds several)."),
-    source: Optional[Path] = typer.Option(None, "--source", "-s", help="For a `kinmo predict` output SRC (mobility_v2.json only): the shape folder it was predicted for (meshes)."),  # noqa: UP007
+    source: Optional[Path] = typer.Option(None, "--source", "-s", exists=True, file_okay=False, help="For a `kinmo predict` output SRC (mobility_v2.json only): the shape folder it was predicted for (meshes)."),  # noqa: UP007
 ) -> None:
     """Write the articulated object(s) in SRC in each --format, loadable by its simulator.
 
