@@ -362,9 +362,11 @@ def test_export_of_many_links_shows_vhacd_progress(tmp_path, monkeypatch):
 
     monkeypatch.setattr(export_urdf, "PIECES_BAR_MIN_LINKS", 2)
     src = write_cabinet(tmp_path / "src" / "cab")
-    res = runner.invoke(app, ["export", str(src), "-f", "urdf", "-o", str(tmp_path / "out")])
+    monkeypatch.setenv("KINMO_VHACD_CACHE", str(tmp_path / "cache"))
+    res = runner.invoke(app, ["export", str(src), "-f", "urdf", "-o", str(tmp_path / "out"),
+                              "--collision", "vhacd"])
     assert res.exit_code == 0, res.output
-    assert "V-HACD" in res.output and "5/5" in res.output
+    assert "collision (vhacd)" in res.output and "5/5" in res.output
 
 
 def test_predict_quiet_shows_no_vhacd_bar(tmp_path, monkeypatch, tiny_gnn):
@@ -375,4 +377,4 @@ def test_predict_quiet_shows_no_vhacd_bar(tmp_path, monkeypatch, tiny_gnn):
     res = runner.invoke(app, ["predict", str(src), "-m", str(tiny_gnn["run"]), "-o", str(tmp_path / "out"),
                               "-q", "--device", "cpu"])
     assert res.exit_code == 0, res.output
-    assert (tmp_path / "out" / "cab" / "mobility.urdf").is_file() and "V-HACD" not in res.output
+    assert (tmp_path / "out" / "cab" / "mobility.urdf").is_file() and "collision (" not in res.output

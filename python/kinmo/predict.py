@@ -40,6 +40,7 @@ from kinmo.data.model import PartHierarchy, PartNode, Shape, ShapeFormat
 from kinmo.data.readers import find_shapes, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.export import DEFAULT_FORMATS, export
+from kinmo.export.collision import DEFAULT_COLLISION
 from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
 from kinmo.inference.predictor import Predictor
 from kinmo.io import atomic_path, check_outputs_apart, output_dir, staged_folder, write_json, write_text
@@ -132,7 +133,8 @@ def write_edges_json(pred: ShapePrediction, path: str | Path) -> Path:
 
 
 def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | None = None,
-                     formats: Sequence[str] | None = None, progress: bool = True) -> dict[str, Path]:
+                     formats: Sequence[str] | None = None, progress: bool = True,
+                     collision: str = DEFAULT_COLLISION) -> dict[str, Path]:
     """Write one shape's outputs (module docstring) into ``out_dir``.
 
     Parameters
@@ -148,7 +150,9 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
         Export formats (:mod:`kinmo.export`); default
         :data:`kinmo.export.DEFAULT_FORMATS` (``mobility_v2``, ``semantics``, ``urdf``).
     progress : bool
-        Show the exporters' progress bars (V-HACD of objects with many links).
+        Show the exporters' progress bars (convex decomposition of objects with many links).
+    collision : str
+        Collision geometry of URDF / MJCF (:mod:`kinmo.export.collision`).
 
     Returns
     -------
@@ -164,7 +168,8 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
         fmts = [f for f in fmts if f in ("mobility_v2", "semantics")]
         shape = Shape(pred.shape_id, "unknown", ShapeFormat.PARTNET, out_dir, out_dir,
                       hierarchy_from_graph(pred.graph))
-    files = export(shape, out_dir, fmts, links=pred.tree.links, name=shape.id, progress=progress)
+    files = export(shape, out_dir, fmts, links=pred.tree.links, name=shape.id, progress=progress,
+                   collision=collision)
     paths = {f: written[0] for f, written in files.items()}
     write_edges_json(pred, out_dir / "edges.json")
     paths["edges"] = out_dir / "edges.json"
@@ -204,6 +209,7 @@ def predict_dataset(
     axis_model: str | Path | None = None,
     refine_config=None,
     formats: Sequence[str] | None = None,
+    collision: str = DEFAULT_COLLISION,
 ) -> list[PredictRow]:
     """Predict every shape folder below ``data`` and write ``out/<id>/`` (module docstring).
 
@@ -233,6 +239,8 @@ def predict_dataset(
         Options of that refinement (default: the paper's scoring).
     formats : sequence of str, optional
         Export formats per shape (:func:`write_prediction`).
+    collision : str
+        Collision geometry of URDF / MJCF (:mod:`kinmo.export.collision`).
 
     Returns
     -------
@@ -275,7 +283,7 @@ def predict_dataset(
                 # written into a temporary sibling, renamed into place whole (issue 21,
                 # finding 12: a reader never sees half an object)
                 with staged_folder(out / sid) as tmp:
-                    paths = write_prediction(pred, tmp, shape, formats, progress)
+                    paths = write_prediction(pred, tmp, shape, formats, progress, collision)
                     if render:
                         paths["png"] = render_prediction(pred, tmp / "prediction.png")
                 paths = {k: out / sid / Path(v).relative_to(tmp) for k, v in paths.items()}

@@ -70,7 +70,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from kinmo import stages
 from kinmo.data.build import build_graph
@@ -79,6 +79,7 @@ from kinmo.data.readers import HIERARCHY_FILES, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.executor import parse_executor
 from kinmo.export import export
+from kinmo.export.collision import COLLISION_METHODS, DEFAULT_COLLISION
 from kinmo.inference.gnn import predict_graphs
 from kinmo.inference.predictor import Predictor
 from kinmo.io import check_outputs_apart, write_json, write_text
@@ -145,6 +146,8 @@ class PseudoLabelConfig(BaseModel):
     formats : tuple of str
         Export formats of a kept shape (:mod:`kinmo.export`); ``mobility_v2.json`` is always
         written (it makes the folder a PartNet-Mobility object).
+    collision : str
+        Collision geometry of URDF / MJCF (:mod:`kinmo.export.collision`; default ``hull``).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -158,6 +161,14 @@ class PseudoLabelConfig(BaseModel):
     link: Literal["hardlink", "copy", "symlink"] = "hardlink"
     device: str = "cpu"
     formats: tuple[str, ...] = ("mobility_v2", "semantics", "urdf")
+    collision: str = DEFAULT_COLLISION
+
+    @field_validator("collision")
+    @classmethod
+    def _known_collision(cls, v: str) -> str:
+        if v not in COLLISION_METHODS:
+            raise ValueError(f"unknown collision method {v!r}; known: {', '.join(COLLISION_METHODS)}")
+        return v
 
 
 @dataclass
@@ -298,7 +309,7 @@ def _write_folder(
     # the folder as kinmo reads it (validates the round trip)
     out_shape = read_shape(stage, external_links=config.link == "symlink")
     export(out_shape, stage, [f for f in config.formats if f != "mobility_v2"], name=shape.id,
-           progress=False)  # one bar: the dataset's
+           progress=False, collision=config.collision)  # one bar: the dataset's
     write_json(stage / "scores.json", {
         "shape_id": shape.id,
         "category": shape.category,

@@ -60,6 +60,7 @@ from kinmo.data.readers import find_shapes, read_shape
 from kinmo.data.writers import write_mobility_v2
 from kinmo.errors import KinmoDataError
 from kinmo.export import DEFAULT_FORMATS, export
+from kinmo.export.collision import DEFAULT_COLLISION
 from kinmo.export.kinematics import write_obj
 from kinmo.gltf_check import check_gltf
 from kinmo.io import check_outputs_apart, parse_xml, staged_folder, write_json, write_text
@@ -400,7 +401,8 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
                                       predicted.hierarchy)
                 write_json(final / "frame.json", frame.to_json())
                 files = export(read_shape(final), final, fmts, name=stem,
-                               progress=predict_kw.get("progress", True))
+                               progress=predict_kw.get("progress", True),
+                               collision=predict_kw.get("collision", DEFAULT_COLLISION))
                 written = {f: w[0] for f, w in files.items()}
                 written["view"] = view_folder(final)  # view.html: a slider per joint
                 written.update({k: v for k, v in row.outputs.items() if k not in written})

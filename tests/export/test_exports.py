@@ -96,7 +96,7 @@ def test_urdf_loads_in_pybullet_with_convex_collision_and_moves_links(exported):
             # a single-parent tree: every kinmo link is one URDF link (+ a helper per PR joint)
             n_pr = sum(l.joint.rotates for l in moving_links(links))
             assert len(info) == len(links) + n_pr
-            # collision: convex pieces (V-HACD) for every link with geometry
+            # collision: convex pieces (a hull per leaf mesh) for every link with geometry
             for l in links:
                 shapes = p.getCollisionShapeData(body, info[f"link_{l.id}"], physicsClientId=cid)
                 assert shapes, f"{case}: link {l.id} has no collision shape"

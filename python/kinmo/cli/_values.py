@@ -7,7 +7,8 @@ prints one line ``error: --option VALUE: problem`` on stderr and exits with code
 - :func:`device`: ``auto``, ``cpu``, ``cuda``, ``cuda:N`` (a GPU that exists), ``mps``;
 - :func:`learning_rate`: a finite number in (0, 1];
 - :func:`finite` / :func:`angle_deg`: finite numbers (``nan``, ``inf`` refused);
-- :func:`ranker_file`: a file :func:`kinmo.refine.ranker.load_ranker` reads.
+- :func:`ranker_file`: a file :func:`kinmo.refine.ranker.load_ranker` reads;
+- :func:`collision`: a collision geometry method (:mod:`kinmo.export.collision`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any
 
 import typer
 
-__all__ = ["angle_deg", "device", "finite", "learning_rate", "ranker_file"]
+__all__ = ["angle_deg", "collision", "device", "finite", "learning_rate", "ranker_file", "up_axis"]
 
 #: Largest learning rate accepted on the command line (every preset uses <= 1e-2).
 MAX_LR = 1.0
@@ -92,6 +93,21 @@ def ranker_file(ctx: typer.Context, param: Any, value: Any) -> Any:
         from kinmo.cli._errors import error_line
 
         _fail(param, value, error_line(e).replace(str(value) + ": ", "", 1))
+    return value
+
+
+def collision(ctx: typer.Context, param: Any, value: str | None) -> str | None:
+    """``--collision``: a method of :mod:`kinmo.export.collision` (``coacd`` only with its
+    package installed)."""
+    if value is None or ctx.resilient_parsing:
+        return value
+    from kinmo.errors import KinmoUsageError
+    from kinmo.export.collision import check_collision_method
+
+    try:
+        check_collision_method(value)
+    except KinmoUsageError as e:
+        _fail(param, value, e.problem)
     return value
 
 

@@ -10,11 +10,18 @@ from contextlib import contextmanager
 
 import typer
 
+import kinmo.cli._values as _values
+
 from kinmo.cli._apps import app
 
 #: Help of the repeatable ``--format`` option (shared by predict and pseudo-label).
 FORMAT_HELP = ("Output format, repeatable: mobility_v2, semantics, urdf, mjcf, usd, gltf "
                "(see kinmo.export).")
+
+#: Help of ``--collision`` (export, predict, pseudo-label).
+COLLISION_HELP = ("Collision geometry of URDF/MJCF: hull (convex hull of each part mesh; "
+                  "milliseconds), vhacd (V-HACD per link; seconds), coacd (CoACD per link; needs "
+                  "`pip install coacd`). See docs/results/collision.md.")
 
 
 def check_formats(fmt: list[str] | None) -> None:
@@ -47,6 +54,8 @@ def export_cmd(
     fmt: list[str] = typer.Option(..., "--format", "-f", help=FORMAT_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (OUT/<id>/ per object when SRC holds several)."),
     source: Optional[Path] = typer.Option(None, "--source", "-s", exists=True, file_okay=False, help="For a `kinmo predict` output SRC (mobility_v2.json only): the shape folder it was predicted for (meshes)."),  # noqa: UP007
+    collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Write the articulated object(s) in SRC in each --format, loadable by its simulator.
 
@@ -64,7 +73,8 @@ def export_cmd(
     with cli_errors(1), _locked(out, [src, *([source] if source is not None else [])]):
         if source is not None or not find_shapes(src):
             if (src / "mobility_v2.json").is_file():  # one predicted folder
-                files = export_folder(src, out, fmt, source=source)
+                files = export_folder(src, out, fmt, source=source, collision=collision,
+                                      progress=not quiet)
                 console.print(f"exported 1 object as {', '.join(dict.fromkeys(fmt))}: "
                               f"{sum(len(v) for v in files.values())} file(s) -> {literal(out)}",
                               highlight=False)
@@ -77,7 +87,8 @@ def export_cmd(
         single = len(folders) == 1 and folders[0].resolve() == src.resolve()
         n = 0
         for folder in folders:
-            files = export_folder(folder, out if single else out / folder.name, fmt)
+            files = export_folder(folder, out if single else out / folder.name, fmt,
+                                  collision=collision, progress=not quiet)
             n += sum(len(v) for v in files.values())
     console.print(f"exported {len(folders)} object(s) as {', '.join(dict.fromkeys(fmt))}: "
                   f"{n} file(s) -> {literal(out)}", highlight=False)

@@ -10,7 +10,7 @@ import typer
 import kinmo.cli._values as _values
 
 from kinmo.cli._apps import app
-from kinmo.cli.export import FORMAT_HELP, _locked, check_formats
+from kinmo.cli.export import COLLISION_HELP, FORMAT_HELP, _locked, check_formats
 from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
 
@@ -30,6 +30,7 @@ def predict_cmd(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     up: Optional[str] = typer.Option(None, "--up", callback=_values.up_axis, help="Up axis of FILE, y or z. Default: by its format (glTF, OBJ, a mesh folder: y; URDF: z, as ROS; a URDF kinmo wrote: y). Outputs stay in FILE's frame and units."),  # noqa: UP007
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
+    collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
 ) -> None:
     """Predict the motion of every shape under DIR (or of FILE); write PartNet-Mobility files and URDFs.
 
@@ -64,7 +65,8 @@ def predict_cmd(
         options = TreeOptions((0.0, hinge_max), slider_fraction)
         predictor = Predictor.from_parts(model, axis_model, rc, options, device)
         err.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)
-        kw = dict(device=device, options=options, progress=not quiet, render=render)
+        kw = dict(device=device, options=options, progress=not quiet, render=render,
+                  collision=collision)
         if up is not None and not is_user_input(data):
             from kinmo.cli._errors import fail
 

@@ -10,7 +10,7 @@ import typer
 import kinmo.cli._values as _values
 
 from kinmo.cli._apps import app
-from kinmo.cli.export import FORMAT_HELP, check_formats
+from kinmo.cli.export import COLLISION_HELP, FORMAT_HELP, check_formats
 from kinmo.cli._executor import EXECUTOR
 from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 
@@ -19,7 +19,7 @@ from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
 @with_refine_options
 def pseudo_label_cmd(
     data_dir: Path = typer.Argument(..., metavar="DIR", help="PartNet dataset folder (or one shape folder)."),
-    model: Path = typer.Option(..., "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model) or a run folder of `kinmo train gnn`."),
+    model: Optional[Path] = typer.Option(None, "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model) or a run folder of `kinmo train gnn` [default: the pretrained model, `kinmo models`]."),  # noqa: UP007
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis` (its ranker.json, or ../ranker/ranker.json, when present, selects the axes), or a folder holding only a ranker.json [default: the bundle's]."),  # noqa: UP007
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: one PartNet-Mobility folder per kept shape."),
     threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, callback=_values.finite, help="Minimum refinement score of every joint of a kept shape."),
@@ -34,6 +34,7 @@ def pseudo_label_cmd(
     force: bool = typer.Option(False, "--force", help="Redo shapes already processed with the same inputs."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf (mobility_v2 is always written)."),  # noqa: UP007
+    collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
     executor: str = EXECUTOR,
 ) -> None:
     """Predict and refine the motions of every shape under DIR; keep the confident ones.
@@ -60,6 +61,13 @@ def pseudo_label_cmd(
     console = new_console()
     check_formats(fmt)
     with cli_errors(2):
+        if model is None:  # the packaged bundle; its terms said once
+            from kinmo.pretrained import default_model, license_notice
+            from kinmo.progress import console as err_console
+
+            model = default_model()
+            err_console(stderr=True).print(license_notice(model), markup=False, highlight=False,
+                                           soft_wrap=True)
         model, axis_model, rc = refine.resolve(model, axis_model)
     if axis_model is None:
         fail("no axis network and no ranker: give a model bundle with them, or --axis-model", 2)
@@ -68,6 +76,7 @@ def pseudo_label_cmd(
             threshold=threshold,
             refine=rc,
             sign=sign, consistent=consistent, link="copy" if copy else link, device=device,
+            collision=collision,
             **({"formats": tuple(fmt)} if fmt else {}),
         )
     with cli_errors(2):

@@ -39,6 +39,7 @@ from kinmo.data.model import Link, Shape
 from kinmo.data.names import inside
 from kinmo.data.readers import read_links, read_shape
 from kinmo.errors import KinmoDataError
+from kinmo.export.collision import DEFAULT_COLLISION, check_collision_method
 from kinmo.export.kinematics import link_meshes
 from kinmo.io import check_outputs_apart, link_or_copy, output_dir, staged_folder
 
@@ -69,8 +70,10 @@ class ExportContext:
     name : str
         Object / robot name written into the files.
     progress : bool
-        Exporters may show a progress bar (V-HACD on objects of many links); False under
-        ``-q``.
+        Exporters may show a progress bar (convex decomposition of objects of many links);
+        False under ``-q``.
+    collision : str
+        How collision geometry is made: a method of :mod:`kinmo.export.collision`.
     """
 
     shape: Shape
@@ -78,6 +81,7 @@ class ExportContext:
     out_dir: Path
     name: str
     progress: bool = True
+    collision: str = DEFAULT_COLLISION
 
     @cached_property
     def meshes(self):
@@ -141,7 +145,7 @@ def formats() -> list[str]:
 
 def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORMATS,
            links: Sequence[Link] | None = None, name: str | None = None,
-           progress: bool = True) -> dict[str, list[Path]]:
+           progress: bool = True, collision: str = DEFAULT_COLLISION) -> dict[str, list[Path]]:
     """Write ``shape`` moving as ``links`` in each of ``fmts`` into ``out_dir``.
 
     Parameters
@@ -158,6 +162,9 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
         Object name in the files; default the shape id.
     progress : bool
         Show the exporters' progress bars (:attr:`ExportContext.progress`).
+    collision : str
+        Collision geometry of URDF and MJCF: a method of :mod:`kinmo.export.collision`
+        (``hull``, ``vhacd``, ``coacd``).
 
     Returns
     -------
@@ -171,6 +178,7 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
         (message names the folder).
     """
     _load_all()
+    check_collision_method(collision)
     fmts = list(dict.fromkeys(fmts))
     bad = [f for f in fmts if f not in EXPORTERS]
     if bad:
@@ -182,7 +190,8 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
                                          "predicted motion needed)")
 
     out_dir = output_dir(out_dir)
-    ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id, progress)
+    ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id, progress,
+                        collision)
     return {f: EXPORTERS[f].write(ctx) for f in fmts}
 
 
@@ -211,7 +220,8 @@ def self_contained(shape: Shape, out_dir: Path) -> Shape:
 
 
 def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
-                  source: str | Path | None = None) -> dict[str, list[Path]]:
+                  source: str | Path | None = None, collision: str = DEFAULT_COLLISION,
+                  progress: bool = True) -> dict[str, list[Path]]:
     """Export a PartNet-Mobility-format folder (real, generated or predicted) to ``out``.
 
     The leaf meshes are hard-linked or copied into ``out/textured_objs`` (:func:`self_contained`):
@@ -226,6 +236,10 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
     out : str or Path
     fmts : iterable of str
     source : str or Path, optional
+    collision : str
+        Collision geometry method (:mod:`kinmo.export.collision`).
+    progress : bool
+        Show the exporters' progress bars.
 
     Raises
     ------
@@ -245,7 +259,8 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
         shape = read_shape(source)
         if not (src / "mobility_v2.json").is_file():
             raise KinmoDataError(src / "mobility_v2.json", "file is missing")
-        return _staged(shape, out, fmts, read_links(src / "mobility_v2.json", shape.hierarchy))
+        return _staged(shape, out, fmts, read_links(src / "mobility_v2.json", shape.hierarchy),
+                       collision, progress)
     if not any((src / n).is_file() for n in ("result.json", "result_after_merging.json")) \
             and (src / "mobility_v2.json").is_file():
         raise KinmoDataError(src, "links without meshes (a `kinmo predict` output?): give the "
@@ -253,15 +268,15 @@ def export_folder(src: str | Path, out: str | Path, fmts: Iterable[str],
     shape = read_shape(src)
     if not shape.links:
         raise KinmoDataError(src, "not a PartNet-Mobility folder: mobility_v2.json is missing")
-    return _staged(shape, out, fmts, None)
+    return _staged(shape, out, fmts, None, collision, progress)
 
 
-def _staged(shape: Shape, out: str | Path, fmts: Iterable[str],
-            links: Sequence[Link] | None) -> dict[str, list[Path]]:
+def _staged(shape: Shape, out: str | Path, fmts: Iterable[str], links: Sequence[Link] | None,
+            collision: str = DEFAULT_COLLISION, progress: bool = True) -> dict[str, list[Path]]:
     """:func:`export` into a temporary sibling of ``out`` that appears at ``out`` whole
     (:func:`kinmo.io.staged_folder`); the returned paths are those under ``out``."""
 
     out = Path(out)
     with staged_folder(out) as tmp:
-        files = export(shape, tmp, fmts, links=links)
+        files = export(shape, tmp, fmts, links=links, progress=progress, collision=collision)
     return {f: [out / p.relative_to(tmp) for p in ps] for f, ps in files.items()}

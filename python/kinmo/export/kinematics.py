@@ -156,11 +156,15 @@ class LinkMesh:
     vertices : (V, 3) float64
         Mesh frame (y-up), mesh units.
     faces : (F, 3) int64
+    leaf_faces : tuple of int
+        Faces of each leaf mesh (``textured_objs/*.obj``), in order: ``faces`` is their
+        concatenation. Empty when the link is one piece (a flat link replaced by its slab).
     """
 
     link_id: int
     vertices: np.ndarray
     faces: np.ndarray
+    leaf_faces: tuple[int, ...] = ()
 
 
 def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, LinkMesh]:
@@ -200,9 +204,12 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
             n += len(v)
         v = np.concatenate(vs) if vs else np.zeros((0, 3))
         f = np.concatenate(fs).astype(np.int64) if fs else np.zeros((0, 3), dtype=np.int64)
+        leaves = tuple(len(x) for x in fs)
         if len(f):
-            v, f = simulator_safe(v, f, f"{shape.path}: link {lid}")
-        out[lid] = LinkMesh(lid, v, f)
+            v2, f2 = simulator_safe(v, f, f"{shape.path}: link {lid}")
+            if f2 is not f:  # replaced by a slab: one piece
+                v, f, leaves = v2, f2, ()
+        out[lid] = LinkMesh(lid, v, f, leaves)
     return out
 
 

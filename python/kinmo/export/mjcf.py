@@ -1,8 +1,8 @@
 """MJCF exporter (MuJoCo): nested bodies, hinge/slide joints, per-link meshes.
 
 ``mobility.xml`` plus ``meshes/link_<id>.obj`` (each link's leaf meshes merged, mesh frame:
-the visual geom, group 1, no contacts) and ``meshes/link_<id>_collision_<k>.obj`` (its V-HACD
-convex pieces, :func:`kinmo.export.urdf.convex_pieces`: the collision geoms, group 3; MuJoCo
+the visual geom, group 1, no contacts) and ``meshes/link_<id>_collision_<k>.obj`` (its convex
+pieces, :func:`kinmo.export.collision.collision_pieces`: the collision geoms, group 3; MuJoCo
 collides convex shapes only, and the hull of a whole cabinet would fill its drawers' space),
 written for and loaded by ``mujoco.MjModel.from_xml_path``.
 
@@ -32,7 +32,8 @@ from pathlib import Path
 from kinmo.data.names import clean_xml_tree
 from kinmo.export import ExportContext, register
 from kinmo.export.kinematics import write_obj
-from kinmo.export.urdf import convex_pieces, pieces_bar
+from kinmo.export.collision import collision_pieces
+from kinmo.export.urdf import pieces_bar
 from kinmo.io import atomic_path, write_text
 from kinmo.urdf import link_frame_origins, urdf_joints
 
@@ -131,7 +132,7 @@ def write_mjcf(ctx: ExportContext) -> list[Path]:
                 write_obj(tmp, m.vertices, m.faces)
             files.append(p)
             names[lid] = p.name
-            pieces = convex_pieces(m, mdir / f"link_{lid}_collision")
+            pieces = collision_pieces(m, mdir / f"link_{lid}_collision", ctx.collision)
             files.extend(pieces)
             collision[lid] = [q.name for q in pieces]
     path = ctx.out_dir / "mobility.xml"

@@ -3,11 +3,11 @@
 The URDF itself is written by :func:`kinmo.urdf.write_urdf` (frames, signs, joint types and
 names in :mod:`kinmo.urdf`): a single-parent tree (one URDF link per PartNet-Mobility link, a
 geometry-less helper link per cylindrical joint), joint limits, the original OBJ meshes as
-visuals. Collision geometry is each link's approximate convex decomposition by V-HACD
-(PyBullet's ``pybullet.vhacd``): ``collision/link_<id>_<k>.obj`` is its ``k``-th convex piece,
-one ``<collision>`` element each (simulators reject or slow down on concave triangle soups;
-every URDF loader takes a list of convex meshes). Decompositions are cached by the content of the link's mesh
-(``$KINMO_VHACD_CACHE``, default ``~/.cache/kinmo/vhacd``), so re-exports are instant.
+visuals. Collision geometry is a list of convex pieces per link (:mod:`kinmo.export.collision`:
+by default the convex hull of each leaf mesh; V-HACD or CoACD with ``--collision``):
+``collision/link_<id>_<k>.obj`` is its ``k``-th piece, one ``<collision>`` element each
+(simulators reject or slow down on concave triangle soups; every URDF loader takes a list of
+convex meshes).
 
 What URDF cannot express, and how kinmo keeps it: a cylindrical joint (slider that also
 rotates, PartNet-Mobility ``rotates``; the paper's ``PR`` types) is a prismatic joint to a
@@ -21,11 +21,8 @@ read from the standard tags alone).
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
-import shutil
-import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -35,153 +32,30 @@ import numpy as np
 from kinmo.data.model import Joint, JointType, Link
 from kinmo.errors import KinmoDataError
 from kinmo.export import ExportContext, register
-from kinmo.export.kinematics import LinkMesh, write_obj
-from kinmo.io import atomic_path, write_text
+from kinmo.export.collision import collision_pieces
 from kinmo.progress import CountingBar
 from kinmo.urdf import BASE_LINK, write_urdf
 
-__all__ = ["UrdfLink", "convex_pieces", "read_urdf", "read_urdf_tree", "write_urdf_convex"]
-
-#: V-HACD voxel resolution. PyBullet's default is 100000; V-HACD's time grows steeply with it
-#: on some PartNet parts (a laptop screen link: 1.4 s at 10000, 260 s at 50000), and 10000
-#: (the smallest it accepts) gives collision pieces that follow PartNet parts closely enough.
-VHACD_RESOLUTION = 10_000
-#: V-HACD's most clipping stages (its default 20): bounds the number of pieces and the time.
-VHACD_DEPTH = 10
-#: Seconds V-HACD may run on one link before its convex hull is used instead.
-VHACD_TIMEOUT = 60.0
-
-
-def _cache_dir() -> Path:
-    env = os.environ.get("KINMO_VHACD_CACHE")
-    if env:
-        return Path(env)
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "kinmo" / "vhacd"
-
-
-_VHACD_SCRIPT = (
-    "import sys, pybullet\n"
-    "a = sys.argv[1:]\n"
-    "pybullet.vhacd(a[0], a[1], a[2], resolution=int(a[3]), depth=int(a[4]))\n"
-)
-
-
-def _vhacd(src: Path, out: Path, resolution: int, timeout: float) -> bool:
-    """Run V-HACD in a child process (its C code prints to stdout and can run for minutes on
-    some parts); False when it failed or ran past ``timeout`` seconds."""
-    import subprocess
-    import sys
-
-    try:
-        r = subprocess.run([sys.executable, "-c", _VHACD_SCRIPT, str(src), str(out),
-                            str(out.with_suffix(".log")), str(resolution), str(VHACD_DEPTH)],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return False
-    return r.returncode == 0 and out.is_file() and "\nf " in out.read_text()
-
-
-def _hull_or_mesh(mesh: LinkMesh, src: Path, out: Path) -> None:
-    """The convex hull of a link as its one piece; a flat part's own triangles."""
-    import trimesh
-
-    try:
-        hull = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).convex_hull
-        write_obj(out, np.asarray(hull.vertices), np.asarray(hull.faces))
-    except Exception:  # qhull: no volume (a flat or degenerate part)
-        shutil.copyfile(src, out)
-
-
-def _split_objects(text: str) -> list[str]:
-    """The ``o`` objects of an OBJ text as separate OBJ texts (face indices renumbered)."""
-    out: list[str] = []
-    verts: list[str] = []
-    faces: list[list[int]] = []
-    base = 0
-
-    def flush() -> None:
-        nonlocal base
-        if faces:
-            lo = min(min(f) for f in faces)
-            hi = max(max(f) for f in faces)
-            body = "".join(verts[lo - 1:hi])
-            out.append(body + "".join("f " + " ".join(str(i - lo + 1) for i in f) + "\n"
-                                      for f in faces))
-        faces.clear()
-
-    for line in text.splitlines():
-        if line.startswith("o "):
-            flush()
-        elif line.startswith("v "):
-            verts.append(line.strip() + "\n")
-        elif line.startswith("f "):
-            faces.append([int(t.split("/")[0]) for t in line.split()[1:]])
-    flush()
-    return out
-
-
-def convex_pieces(mesh: LinkMesh, dest: Path, resolution: int = VHACD_RESOLUTION,
-                  timeout: float = VHACD_TIMEOUT) -> list[Path]:
-    """Convex decomposition of a link mesh by V-HACD, one OBJ file per convex piece.
-
-    Parameters
-    ----------
-    mesh : LinkMesh
-        Mesh frame, mesh units.
-    dest : Path
-        Stem of the output files: ``<dest>_<k>.obj`` for piece ``k`` (written atomically),
-        same frame as the mesh.
-    resolution : int
-        V-HACD voxel resolution.
-    timeout : float
-        Seconds V-HACD may take (it runs in a child process).
-
-    Returns
-    -------
-    list of Path
-        The pieces; empty for a mesh without faces (no collision geometry). When V-HACD
-        fails or times out, the link's convex hull is its one piece; a flat part without a
-        hull keeps its own triangles.
-    """
-    if len(mesh.faces) == 0:
-        return []
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
-    h.update(f"{resolution}/{VHACD_DEPTH}".encode())
-    cached = _cache_dir() / f"{h.hexdigest()[:32]}.obj"
-    if not cached.is_file():
-        cached.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory() as tmp:
-            src, out = Path(tmp) / "in.obj", Path(tmp) / "out.obj"
-            write_obj(src, mesh.vertices, mesh.faces)
-            if not _vhacd(src, out, resolution, timeout):
-                _hull_or_mesh(mesh, src, out)
-            with atomic_path(cached) as tmp_cached:
-                shutil.copyfile(out, tmp_cached)
-    files = []
-    for k, text in enumerate(_split_objects(cached.read_text())):
-        p = dest.parent / f"{dest.name}_{k}.obj"
-        write_text(p, text)
-        files.append(p)
-    return files
-
+__all__ = ["UrdfLink", "read_urdf", "read_urdf_tree", "write_urdf_convex"]
 
 #: Links from which the convex decomposition of an export shows a progress bar.
 PIECES_BAR_MIN_LINKS = 50
 
 
 def pieces_bar(ctx: ExportContext) -> Any:
-    """The progress bar (on stderr) of the convex decomposition of ``ctx``'s links: V-HACD
-    takes seconds per link, so an object of many links shows its progress (issue 21,
-    finding 5); none below :data:`PIECES_BAR_MIN_LINKS` links, nor without ``ctx.progress``."""
+    """The progress bar (on stderr) of the collision geometry of ``ctx``'s links: a convex
+    decomposition (``vhacd``, ``coacd``) takes seconds per link, so an object of many links
+    shows its progress (issue 21, finding 5); none below :data:`PIECES_BAR_MIN_LINKS` links,
+    nor without ``ctx.progress``."""
 
     n = len(ctx.meshes)
-    return CountingBar(n, ctx.progress and n >= PIECES_BAR_MIN_LINKS, "V-HACD", ctx.name, counters={})
+    return CountingBar(n, ctx.progress and n >= PIECES_BAR_MIN_LINKS,
+                       f"collision ({ctx.collision})", ctx.name, counters={})
 
 
 def write_urdf_convex(ctx: ExportContext, path: Path | None = None) -> list[Path]:
-    """Write ``mobility.urdf`` with V-HACD collision pieces into ``ctx.out_dir``.
+    """Write ``mobility.urdf`` with convex collision pieces (``ctx.collision``, a method of
+    :mod:`kinmo.export.collision`) into ``ctx.out_dir``.
 
     Returns
     -------
@@ -194,7 +68,7 @@ def write_urdf_convex(ctx: ExportContext, path: Path | None = None) -> list[Path
     files: list[Path] = []
     with pieces_bar(ctx) as bar:
         for lid, mesh in ctx.meshes.items():
-            ps = convex_pieces(mesh, ctx.out_dir / "collision" / f"link_{lid}")
+            ps = collision_pieces(mesh, ctx.out_dir / "collision" / f"link_{lid}", ctx.collision)
             files.extend(ps)
             if ps:
                 pieces[lid] = [os.path.relpath(p, path.parent) for p in ps]
@@ -202,7 +76,7 @@ def write_urdf_convex(ctx: ExportContext, path: Path | None = None) -> list[Path
     return [write_urdf(ctx.shape, path, ctx.links, name=ctx.name, collision=pieces)] + files
 
 
-@register("urdf", "URDF (PyBullet, SAPIEN, ROS): visual OBJ meshes, V-HACD convex collision")
+@register("urdf", "URDF (PyBullet, SAPIEN, ROS): visual OBJ meshes, convex collision pieces")
 def _urdf(ctx: ExportContext) -> list[Path]:
     return write_urdf_convex(ctx)
 
