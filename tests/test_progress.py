@@ -30,3 +30,23 @@ def test_help_written_to_a_log_is_not_cut_to_80_columns():
                        capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "[default: generic,semantic,leaf,partnet]" in r.stdout and "…" not in r.stdout
+
+
+TABLE = """
+from rich.table import Table
+from kinmo.progress import console
+t = Table(title="Pseudo-labels")
+for c in ("category", "shapes", "kept", "rejected low score", "rejected no motion", "failed"):
+    t.add_column(c)
+t.add_row("StorageFurniture", "13", "7", "1", "5", "0")
+t.add_row("all", "141", "114", "4", "23", "0")
+console().print(t)
+"""
+
+
+def test_a_report_table_written_to_a_log_is_not_cut_to_80_columns():
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "FORCE_COLOR", "TERM")}
+    r = subprocess.run([sys.executable, "-c", TABLE], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "StorageFurniture" in r.stdout and "rejected no motion" in r.stdout
+    assert "…" not in r.stdout

@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinmo.data.graph import PartGraph
-from kinmo.data.labels import is_vertical, pivot_is_central
+from kinmo.data.labels import VERTICAL_COS, pivots_are_central
 from kinmo.data.model import (
     COARSE_INDEX,
     FINE_INDEX,
@@ -519,11 +519,15 @@ def consistent_fine(graph: PartGraph, pred: EdgePrediction) -> EdgePrediction:
     probs[:, FINE_INDEX["Fixed"]] = cp[:, COARSE_INDEX["Fixed"]]
     probs[:, FINE_INDEX["None"]] = cp[:, COARSE_INDEX["None"]]
     edges = np.asarray(graph.sibling_edges, dtype=np.int64).reshape(-1, 2)
-    for k, (i, _) in enumerate(edges):
-        d, o = pred.direction[k], pred.origin[k]
-        hv = "V" if is_vertical(d) else "H"
-        cs = "C" if pivot_is_central(o, d, graph.obb_center[i], graph.obb_axes[i],
-                                     graph.obb_half_extents[i]) else "S"
+    mov = edges[:, 0]
+    d_all = np.asarray(pred.direction, dtype=np.float64).reshape(-1, 3)
+    vertical = np.abs(d_all[:, 1]) / np.linalg.norm(d_all, axis=1) > VERTICAL_COS  # is_vertical
+    central = pivots_are_central(pred.origin, d_all, np.asarray(graph.obb_center)[mov],
+                                 np.asarray(graph.obb_axes)[mov],
+                                 np.asarray(graph.obb_half_extents)[mov]) if len(edges) else []
+    for k in range(len(edges)):
+        hv = "V" if vertical[k] else "H"
+        cs = "C" if central[k] else "S"
         probs[k, FINE_INDEX[f"P_{hv}"]] += cp[k, COARSE_INDEX["P"]]
         probs[k, FINE_INDEX[f"PR_{hv}"]] += cp[k, COARSE_INDEX["PR"]]
         probs[k, FINE_INDEX[f"R_{hv}_{cs}"]] += cp[k, COARSE_INDEX["R"]]

@@ -55,11 +55,17 @@ def stderr_console() -> Any:
 
 def console(stderr: bool = False, **kw: Any) -> Any:
     """A rich console for a command's report: no emoji codes (``:x:`` stays text), no
-    automatic highlighting. Names in its messages go through :func:`literal`."""
+    automatic highlighting, :data:`LOG_WIDTH` columns when it writes to a file or pipe.
+    Names in its messages go through :func:`literal`."""
     from rich.console import Console
 
     kw = {"emoji": False, "highlight": False, "soft_wrap": True, **kw}
-    return Console(stderr=stderr, **kw)
+    c = Console(stderr=stderr, **kw)
+    if "width" not in kw and not c.is_terminal and "COLUMNS" not in os.environ:
+        # a log file or pipe (a cluster job): tables are laid out at LOG_WIDTH columns,
+        # never cut to 80 with an ellipsis
+        c = Console(stderr=stderr, width=LOG_WIDTH, **kw)
+    return c
 
 
 def literal(text: object) -> str:

@@ -537,7 +537,10 @@ def _csv(columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> str:
 
 
 def _write_tables(out: Path, records: Sequence[ShapeRecord]) -> None:
-    rows = [{**asdict(r), "min_score": r.min_score if np.isfinite(r.min_score) else ""}
+    # the table's columns only (no deep copy of every record's joints: this runs as
+    # records arrive)
+    rows = [{**{c: getattr(r, c) for c in SHAPE_COLUMNS if c != "min_score"},
+             "min_score": r.min_score if np.isfinite(r.min_score) else ""}
             for r in sorted(records, key=lambda r: r.id)]
     write_text(out / "shapes.csv", _csv(SHAPE_COLUMNS, rows))
     write_text(out / "summary.csv", _csv(SUMMARY_COLUMNS, summary_rows(records)))

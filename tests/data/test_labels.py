@@ -15,6 +15,7 @@ from kinmo.data.labels import (
     node_links,
     obb_edges,
     pivot_is_central,
+    pivots_are_central,
     rigid_groups,
 )
 from kinmo.data.model import FINE_TYPES, Joint, JointType, Link
@@ -76,6 +77,30 @@ def test_centre_versus_side() -> None:
     # Along the middle axis the edges across it bound a 1 x 0.1 cross-section: an axis 0.1
     # off the centre is nearer them (0.05) than the centre: side.
     assert not pivot_is_central(c + 0.2 * h[0] * axes[0], axes[1], c, axes, h)
+
+
+def test_the_batched_pivot_rule_is_the_same_rule() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        c, h = rng.normal(size=3), rng.uniform(0.01, 1.0, size=3)
+        # random lines, lines along box axes near the centre, and lines along box edges
+        o = np.concatenate([c + rng.normal(size=(30, 3)) * h.max(),
+                            c + 0.3 * rng.normal(size=(9, 3)) * h, obb_edges(c, q, h)[:, 0]])
+        d = np.concatenate([rng.normal(size=(30, 3)), q[np.arange(9) % 3] * 2.0,
+                            np.repeat(q, 4, axis=0)])
+        got = pivots_are_central(o, d, c, q, h)
+        want = [pivot_is_central(o[n], d[n], c, q, h) for n in range(len(o))]
+        assert got.tolist() == want
+        assert 0 < sum(want) < len(want)  # both outcomes occur
+    # one OBB per line (the mobility tree's use): the same as each line against its own box
+    qs = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(40)]
+    cs, hs = rng.normal(size=(40, 3)), rng.uniform(0.01, 1.0, size=(40, 3))
+    o = cs + 0.4 * rng.normal(size=(40, 3)) * hs
+    d = np.stack([q[n % 3] for n, q in enumerate(qs)])
+    got = pivots_are_central(o, d, cs, np.stack(qs), hs)
+    assert got.tolist() == [pivot_is_central(o[n], d[n], cs[n], qs[n], hs[n]) for n in range(40)]
+    assert 0 < got.sum() < 40
 
 
 def _joint(t: JointType, d, rotates: bool = False, o=(0.0, 0.0, 0.0)) -> Joint:

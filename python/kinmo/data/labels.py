@@ -64,6 +64,7 @@ __all__ = [
     "node_links",
     "obb_edges",
     "pivot_is_central",
+    "pivots_are_central",
     "rigid_groups",
 ]
 
@@ -221,6 +222,58 @@ def pivot_is_central(
     d_edges = line_segment_distance(origin, direction, e[:, 0], e[:, 1])
     d_centre = float(line_segment_distance(origin, direction, center, center))
     return bool(d_centre < d_edges.min())
+
+
+def pivots_are_central(
+    origins: np.ndarray,
+    directions: np.ndarray,
+    center: np.ndarray,
+    axes: np.ndarray,
+    half_extents: np.ndarray,
+) -> np.ndarray:
+    """:func:`pivot_is_central` of many axis lines at once (same rule, same results):
+    refinement asks it for every candidate line of an edge, the mobility tree for every edge.
+
+    Parameters
+    ----------
+    origins, directions : (C, 3) float64
+        The axis lines (directions non-zero, normalised here).
+    center : (3,) or (C, 3) float64
+    axes : (3, 3) or (C, 3, 3) float64
+    half_extents : (3,) or (C, 3) float64
+        One OBB for all lines, or one per line (see :func:`obb_edges`).
+
+    Returns
+    -------
+    (C,) bool
+        True (``C``, centre) where a line passes nearer its OBB's centre than any edge.
+    """
+    o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    n = len(o)
+    c = np.broadcast_to(np.asarray(center, dtype=np.float64), (n, 3))
+    ax = np.broadcast_to(np.asarray(axes, dtype=np.float64), (n, 3, 3)) \
+        * np.broadcast_to(np.asarray(half_extents, dtype=np.float64), (n, 3))[:, :, None]
+    starts, ends = [], []
+    for k in range(3):  # the 12 edges, in obb_edges' order
+        u, v = [m for m in range(3) if m != k]
+        for su in (-1.0, 1.0):
+            for sv in (-1.0, 1.0):
+                mid = c + su * ax[:, u] + sv * ax[:, v]
+                starts.append(mid - ax[:, k])
+                ends.append(mid + ax[:, k])
+    pts = np.stack(starts + ends + [c], axis=1)  # (C, 25, 3)
+    r = pts - o[:, None]  # onto each line's orthogonal plane
+    r = r - np.einsum("cmi,ci->cm", r, d)[..., None] * d[:, None]
+    pa, pb, pc = r[:, :12], r[:, 12:24], r[:, 24]
+    ab = pb - pa
+    den = np.einsum("cmi,cmi->cm", ab, ab)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(den > 0, -np.einsum("cmi,cmi->cm", pa, ab) / den, 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    d_edges = np.linalg.norm(pa + t[..., None] * ab, axis=-1).min(axis=1)
+    return np.linalg.norm(pc, axis=-1) < d_edges
 
 
 def fine_type(

@@ -549,6 +549,9 @@ def read_shape(path: str | Path, hierarchy: HierarchyChoice = "result", *,
     hfile = _hierarchy_file(folder, fmt, hierarchy)
     tree = read_hierarchy(hfile)
     mesh_dir = folder / ("textured_objs" if fmt is ShapeFormat.PARTNET_MOBILITY else "objs")
+    # a mesh name is a file name (kinmo.data.names): its file resolves inside the folder
+    # unless the mesh folder or the file itself is a link that leaves it
+    dir_inside = external_links or inside(mesh_dir, folder)
     for nid in tree.order:
         node = tree.nodes[nid]
         for name in node.objs:
@@ -557,7 +560,8 @@ def read_shape(path: str | Path, hierarchy: HierarchyChoice = "result", *,
                 raise KinmoDataError(
                     obj, f"mesh file is missing (named by leaf node {nid} of {hfile.name})"
                 )
-            if not external_links and not inside(obj, folder):
+            if not external_links and not (dir_inside and not obj.is_symlink()) \
+                    and not inside(obj, folder):
                 raise KinmoDataError(
                     obj, "is a symbolic link that leaves the shape folder (named by leaf node "
                     f"{nid} of {hfile.name}); kinmo reads only meshes inside the folder"

@@ -41,7 +41,7 @@ import numpy as np
 
 from kinmo.errors import KinmoDataError, KinmoUsageError
 from kinmo.export.kinematics import LinkMesh, simulator_safe, write_obj
-from kinmo.io import atomic_path, write_text
+from kinmo.io import atomic_path
 
 __all__ = ["COLLISION_METHODS", "DEFAULT_COLLISION", "CollisionMethod", "collision_pieces",
            "leaf_hulls", "check_collision_method"]
@@ -346,7 +346,10 @@ def collision_pieces(mesh: LinkMesh, dest: Path, method: str = DEFAULT_COLLISION
     dest.parent.mkdir(parents=True, exist_ok=True)
     for k, (v, f) in enumerate(pieces):
         p = dest.parent / f"{dest.name}_{k}.obj"
-        write_text(p, _obj_text([(v, f)]).split("\n", 1)[1])
+        # atomic, not fsync'ed one by one: an object has tens to hundreds of pieces, and
+        # every command writes them inside a staged object folder that appears whole
+        with atomic_path(p) as tmp:
+            tmp.write_text(_obj_text([(v, f)]).split("\n", 1)[1])
         files.append(p)
     return files
 

@@ -201,21 +201,18 @@ def _axis_groups(axes: np.ndarray, orientation: str | None) -> list[int]:
 def _dedupe(
     origins: list[np.ndarray], directions: list[np.ndarray], kinds: list[str], tol: float
 ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-    """Drop lines that coincide with an earlier one (parallel and within ``tol``)."""
-    keep_o: list[np.ndarray] = []
-    keep_d: list[np.ndarray] = []
-    keep_k: list[str] = []
-    for o, d, k in zip(origins, directions, kinds, strict=True):
-        dup = False
-        for o2, d2 in zip(keep_o, keep_d, strict=True):
-            if abs(float(np.dot(d, d2))) > 1.0 - 1e-9 and np.linalg.norm(np.cross(o - o2, d2)) <= tol:
-                dup = True
-                break
-        if not dup:
-            keep_o.append(o)
-            keep_d.append(d)
-            keep_k.append(k)
-    return np.asarray(keep_o).reshape(-1, 3), np.asarray(keep_d).reshape(-1, 3), tuple(keep_k)
+    """Drop lines that coincide with an earlier kept one (parallel and within ``tol``)."""
+    o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    # same[i, j]: line i coincides with line j (parallel, i's origin within tol of line j)
+    parallel = np.abs(d @ d.T) > 1.0 - 1e-9
+    off = np.linalg.norm(np.cross(o[:, None] - o[None], d[None]), axis=-1) <= tol
+    same = (parallel & off).tolist()
+    keep: list[int] = []
+    for i in range(len(o)):
+        if not any(same[i][j] for j in keep):
+            keep.append(i)
+    return o[keep].reshape(-1, 3), d[keep].reshape(-1, 3), tuple(kinds[i] for i in keep)
 
 
 def candidate_axes(

@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from kinmo.data.graph import PartGraph
-from kinmo.data.labels import VERTICAL_COS, pivot_is_central
+from kinmo.data.labels import VERTICAL_COS, pivots_are_central
 from kinmo.data.model import FINE_TYPES
 from kinmo.errors import KinmoError
 from kinmo.metrics.axis import line_distance
@@ -428,7 +428,7 @@ def candidate_features(
     x[:, _F["orient_prior"]] = np.where(vert, pv, ph)
     if revolute:
         pc, ps = priors.pivot(edge)
-        central = np.array([pivot_is_central(o[n], d[n], centre, axes, half) for n in range(c)])
+        central = pivots_are_central(o, d, centre, axes, half)
         x[:, _F["pivot_prior"]] = np.where(central, pc, ps)
         dist = np.linalg.norm(np.cross(np.asarray(gnn_origin, float) - o, d), axis=1) / diag
         x[:, _F["d_gnn"]] = np.minimum(dist, 2.0)
