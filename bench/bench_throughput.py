@@ -1,0 +1,121 @@
+"""Throughput of the per-shape commands as users run them, with cold caches (issue 24, item 4).
+
+Each stage is the ``kinmo`` command itself, run in a child process with its default model
+(the pretrained bundle) and default outputs, into an empty output folder, with an empty
+convex-decomposition cache (``KINMO_VHACD_CACHE`` pointing to an empty folder) and no part
+graph cache, as for a dataset seen for the first time:
+
+- ``pseudo-label``: ``kinmo pseudo-label PARTNET -o OUT -j 2 -q``;
+- ``predict``: ``kinmo predict PARTNET -o OUT -q`` (one process: predict has no worker pool);
+- ``render``: ``kinmo render MOBILITY -o OUT -j 2 -q`` (its defaults: 10 frames of 256 x 256
+  per object).
+
+Reported per stage: shapes, wall seconds, shapes per second on this machine, CPU seconds
+(user + system of the command and every process it started, from ``RUSAGE_CHILDREN``) per
+shape, and the 1-minute load average before and after (anything above ~0 besides the stage
+itself is someone else's work on the cores). Each stage runs ``--repeats`` times; the table
+gives the medians.
+
+Usage::
+
+    python bench/bench_throughput.py [--partnet ../shared/data/partnet]
+        [--mobility ../shared/data/partnet-mobility] [--stages pseudo-label,predict,render]
+        [--repeats 1]
+
+Prints a Markdown table and writes ``bench/results/throughput.csv``; ``docs/results/scaling.md``
+extrapolates the CPU seconds per shape to PartNet's 26,671 shapes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "bench" / "results" / "throughput.csv"
+SHARED = REPO.parent / "shared" / "data"
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _command(stage: str, partnet: Path, mobility: Path, out: Path) -> list[str]:
+    kinmo = [sys.executable, "-m", "kinmo"]
+    if stage == "pseudo-label":
+        return kinmo + ["pseudo-label", str(partnet), "-o", str(out), "-j", "2", "-q"]
+    if stage == "predict":
+        return kinmo + ["predict", str(partnet), "-o", str(out), "-q"]
+    if stage == "render":
+        return kinmo + ["render", str(mobility), "-o", str(out), "-j", "2", "-q"]
+    raise SystemExit(f"unknown stage {stage}")
+
+
+def _count(stage: str, partnet: Path, mobility: Path) -> int:
+    from kinmo.data.readers import find_shapes
+
+    return len(find_shapes(mobility if stage == "render" else partnet))
+
+
+def run_stage(stage: str, partnet: Path, mobility: Path) -> dict:
+    """One cold run of ``stage``: its row (module docstring)."""
+    n = _count(stage, partnet, mobility)
+    with tempfile.TemporaryDirectory(prefix=f"kinmo-throughput-{stage}-") as tmp:
+        env = dict(os.environ, KINMO_VHACD_CACHE=str(Path(tmp) / "collision-cache"))
+        load0 = os.getloadavg()[0]
+        c0, t0 = _children_cpu(), time.perf_counter()
+        r = subprocess.run(_command(stage, partnet, mobility, Path(tmp) / "out"), env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
+        load1 = os.getloadavg()[0]
+        if r.returncode not in (0, 1):  # 1: some shapes failed (reported), the rest done
+            raise SystemExit(f"{stage} failed ({r.returncode}):\n{r.stdout[-2000:]}")
+        shutil.rmtree(Path(tmp) / "out", ignore_errors=True)
+    return dict(stage=stage, shapes=n, wall_s=round(wall, 2), shapes_per_s=round(n / wall, 3),
+                cpu_s_per_shape=round(cpu / n, 4), load_before=round(load0, 2),
+                load_after=round(load1, 2), exit_code=r.returncode)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--partnet", type=Path, default=SHARED / "partnet")
+    ap.add_argument("--mobility", type=Path, default=SHARED / "partnet-mobility")
+    ap.add_argument("--stages", default="pseudo-label,predict,render")
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    args = ap.parse_args()
+    rows = []
+    for stage in args.stages.split(","):
+        for k in range(args.repeats):
+            row = run_stage(stage, args.partnet, args.mobility)
+            print(f"{stage} #{k + 1}: {row}", file=sys.stderr, flush=True)
+            rows.append(row)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with open(args.out, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print("| stage | shapes | runs | wall s (median) | shapes/s | CPU s per shape | load before / after |")
+    print("|---|---:|---:|---:|---:|---:|---|")
+    for stage in dict.fromkeys(r["stage"] for r in rows):
+        rs = [r for r in rows if r["stage"] == stage]
+        med = lambda k: statistics.median(r[k] for r in rs)  # noqa: E731
+        loads = ", ".join(f"{r['load_before']:.2f} / {r['load_after']:.2f}" for r in rs)
+        print(f"| {stage} | {rs[0]['shapes']} | {len(rs)} | {med('wall_s'):.1f} | "
+              f"{med('shapes_per_s'):.2f} | {med('cpu_s_per_shape'):.3f} | "
+              f"{loads} |")
+    print(f"\nrows: {args.out}")
+
+
+if __name__ == "__main__":
+    main()
