@@ -294,3 +294,27 @@ def test_hostile_mesh_name_writes_nothing_outside_out(data, runs, tmp_path, monk
         assert not (out / sid).exists()
     assert victim.read_text() == "precious\n"
     assert sorted(p.name for p in victim_dir.iterdir()) == ["victim.obj"]
+
+
+def test_each_shape_s_meshes_are_read_once(data, tmp_path, monkeypatch):
+    """One path per data flow: the part graph, the learned selector's sweep and the URDF
+    export of a kept shape share one read of its meshes (they read them three times before)."""
+    from typer.testing import CliRunner
+
+    import kinmo.data.build
+    from kinmo.cli import app
+
+    reads: list[int] = []
+    real = kinmo.data.build.load_objs
+
+    def counted(paths, *a, **kw):
+        reads.append(len(paths))
+        return real(paths, *a, **kw)
+
+    monkeypatch.setattr(kinmo.data.build, "load_objs", counted)
+    out = tmp_path / "out"
+    r = CliRunner().invoke(app, ["pseudo-label", str(data), "-o", str(out), "-t", "0", "-j", "1", "-q"])
+    assert r.exit_code == 0, r.output
+    kept = [p for p in out.iterdir() if (p / "mobility.urdf").is_file()]
+    assert kept and len(list((kept[0] / "collision").glob("*.obj")))  # exported with geometry
+    assert len(reads) == len(SHAPES), reads

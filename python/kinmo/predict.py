@@ -28,13 +28,13 @@ from __future__ import annotations
 import csv
 import json
 import io
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from kinmo.data.build import build_graph
+from kinmo.data.build import MeshesOnce, build_graph
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import PartHierarchy, PartNode, Shape, ShapeFormat
 from kinmo.data.readers import find_shapes, read_shape
@@ -44,6 +44,7 @@ from kinmo.export.collision import DEFAULT_COLLISION
 from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
 from kinmo.inference.predictor import Predictor
 from kinmo.io import atomic_path, check_outputs_apart, output_dir, staged_folder, write_json, write_text
+from kinmo.refine.selector import graph_meshes
 from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
 from kinmo.train.gnn import Run, load_run
 from kinmo.viz import render_prediction
@@ -134,7 +135,10 @@ def write_edges_json(pred: ShapePrediction, path: str | Path) -> Path:
 
 def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | None = None,
                      formats: Sequence[str] | None = None, progress: bool = True,
-                     collision: str = DEFAULT_COLLISION) -> dict[str, Path]:
+                     collision: str = DEFAULT_COLLISION,
+                     meshes: Mapping[str, tuple[np.ndarray, np.ndarray]]
+                     | Callable[[], Mapping[str, tuple[np.ndarray, np.ndarray]]] | None = None,
+                     ) -> dict[str, Path]:
     """Write one shape's outputs (module docstring) into ``out_dir``.
 
     Parameters
@@ -153,6 +157,8 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
         Show the exporters' progress bars (convex decomposition of objects with many links).
     collision : str
         Collision geometry of URDF / MJCF (:mod:`kinmo.export.collision`).
+    meshes : mapping of str to (vertices, faces), or a callable returning one, optional
+        ``shape``'s meshes by name when the caller reads them (:func:`kinmo.export.export`).
 
     Returns
     -------
@@ -169,7 +175,7 @@ def write_prediction(pred: ShapePrediction, out_dir: str | Path, shape: Shape | 
         shape = Shape(pred.shape_id, "unknown", ShapeFormat.PARTNET, out_dir, out_dir,
                       hierarchy_from_graph(pred.graph))
     files = export(shape, out_dir, fmts, links=pred.tree.links, name=shape.id, progress=progress,
-                   collision=collision)
+                   collision=collision, meshes=meshes)
     paths = {f: written[0] for f, written in files.items()}
     write_edges_json(pred, out_dir / "edges.json")
     paths["edges"] = out_dir / "edges.json"
@@ -278,12 +284,14 @@ def predict_dataset(
             try:
                 shape = read_shape(folder)
                 sid = shape.id
-                graph = _graph_for(folder, data, shape, cache, cache_rows if cache is not None else None)
-                pred = predictor.predict(graph)
+                named = MeshesOnce(shape)  # read once, shared by the graph, selector, exporters
+                graph = _graph_for(folder, data, shape, cache, cache_rows if cache is not None else None,
+                                   named)
+                pred = predictor.predict(graph, lambda g: graph_meshes(g, shape.hierarchy, named()))
                 # written into a temporary sibling, renamed into place whole (issue 21,
                 # finding 12: a reader never sees half an object)
                 with staged_folder(out / sid) as tmp:
-                    paths = write_prediction(pred, tmp, shape, formats, progress, collision)
+                    paths = write_prediction(pred, tmp, shape, formats, progress, collision, named)
                     if render:
                         paths["png"] = render_prediction(pred, tmp / "prediction.png")
                 paths = {k: out / sid / Path(v).relative_to(tmp) for k, v in paths.items()}
@@ -297,7 +305,7 @@ def predict_dataset(
 
 
 def _graph_for(folder: Path, root: Path, shape: Shape, cache: str | Path | None,
-               rows=None) -> PartGraph:
+               rows=None, named: MeshesOnce | None = None) -> PartGraph:
     """The shape's graph: from ``cache`` when its entry is current
     (:func:`kinmo.data.cache.cached_graph`: a stale or mismatched entry is rebuilt), else built."""
     if cache is not None:
@@ -308,4 +316,4 @@ def _graph_for(folder: Path, root: Path, shape: Shape, cache: str | Path | None,
         if graph is not None:
             return graph
 
-    return build_graph(shape)
+    return build_graph(shape, meshes=None if named is None else named())

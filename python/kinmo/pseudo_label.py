@@ -63,7 +63,7 @@ import os
 import shutil
 import time
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
@@ -73,7 +73,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from kinmo import stages
-from kinmo.data.build import build_graph
+from kinmo.data.build import MeshesOnce, build_graph
 from kinmo.data.cache import cached_graph
 from kinmo.data.readers import HIERARCHY_FILES, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
@@ -86,6 +86,7 @@ from kinmo.io import check_outputs_apart, write_json, write_text
 from kinmo.mobility_tree import TreeOptions
 from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
+from kinmo.refine.selector import graph_meshes
 from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
 
 logger = logging.getLogger(__name__)
@@ -288,8 +289,10 @@ def _link_or_copy(src: Path, dst: Path, mode: str) -> None:
 def _write_folder(
     stage: Path, shape, hierarchy_file: Path, links, records: list[dict[str, Any]],
     config: PseudoLabelConfig, models: _Models,
+    meshes: Callable[[], Mapping[str, tuple[np.ndarray, np.ndarray]]] | None = None,
 ) -> None:
-    """Assemble the PartNet-Mobility folder of a kept shape in ``stage``."""
+    """Assemble the PartNet-Mobility folder of a kept shape in ``stage`` (``meshes``: the
+    shape's meshes by name, read once by :func:`pseudo_label_shape`)."""
 
     stage.mkdir(parents=True)
     shutil.copyfile(hierarchy_file, stage / "result.json")
@@ -305,11 +308,11 @@ def _write_folder(
     names = {m for nid in shape.hierarchy.nodes for m in shape.hierarchy.nodes[nid].objs}
     for name in sorted(names):
         _link_or_copy(shape.mesh_path(name), tex / f"{name}.obj", config.link)
-    export(shape, stage, ["mobility_v2"], links=links, name=shape.id)
+    export(shape, stage, ["mobility_v2"], links=links, name=shape.id, meshes=meshes)
     # the folder as kinmo reads it (validates the round trip)
     out_shape = read_shape(stage, external_links=config.link == "symlink")
     export(out_shape, stage, [f for f in config.formats if f != "mobility_v2"], name=shape.id,
-           progress=False, collision=config.collision)  # one bar: the dataset's
+           progress=False, collision=config.collision, meshes=meshes)  # same files, same names  # one bar: the dataset's
     write_json(stage / "scores.json", {
         "shape_id": shape.id,
         "category": shape.category,
@@ -372,17 +375,22 @@ def pseudo_label_shape(
         rec.fingerprint = _fingerprint(source_fingerprint(folder), models.models_fp, config)
         shape = read_shape(folder)
         rec.id, rec.category = shape.id, shape.category
+        # the shape's meshes: read once, when first needed (part graph, the selector's
+        # sweep, the exporters), and passed down
+        named = MeshesOnce(shape)
+
         graph = None
         if cache is not None:
             graph = cached_graph(cache, cache_key(folder, root or folder.parent), folder)
         if graph is None:
             if cache is not None:
                 logger.debug("%s: not in the cache %s, building its part graph", folder, cache)
-            graph = build_graph(shape)
+            graph = build_graph(shape, meshes=named())
         predictor = models.predictor
         options = TreeOptions(tuple(config.hinge_limit), config.slider_fraction)
         gnn = predict_graphs(predictor.run, [graph], options, consistent=config.consistent)[0]
-        sp, refined = predictor.refine_with_details(gnn, options=options)
+        sp, refined = predictor.refine_with_details(
+            gnn, meshes=lambda g: graph_meshes(g, shape.hierarchy, named()), options=options)
         tree, tree_pred, type_names = sp.tree, sp.edges, refined.type_names
         links = list(tree.links)
         joints: list[dict[str, Any]] = []
@@ -431,7 +439,7 @@ def pseudo_label_shape(
                     raise KinmoDataError(shape.path, "no hierarchy file")
                 stage = out / ".staging" / f"{shape.id}-{uuid.uuid4().hex[:8]}"
                 try:
-                    _write_folder(stage, shape, hfile, links, joints, config, models)
+                    _write_folder(stage, shape, hfile, links, joints, config, models, named)
                     _place(stage, out / shape.id)
                 finally:
                     if stage.exists():

@@ -25,6 +25,7 @@ Frames and units: mesh frame of the OBJ files (y-up), mesh units.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ from kinmo import limits
 from kinmo.errors import KinmoDataError
 from kinmo.geometry import contact_pairs, fit_obb_batch, load_obj, load_objs, sample_surface_groups
 
-__all__ = ["build_graph", "links_to_json", "load_shape_meshes"]
+__all__ = ["MeshesOnce", "build_graph", "links_to_json", "load_named_meshes", "load_shape_meshes"]
 
 
 def links_to_json(links: list[Link]) -> list[dict]:
@@ -108,6 +109,63 @@ def load_shape_meshes(paths: list[Path]) -> list[tuple[np.ndarray, np.ndarray]]:
     raise KinmoDataError(paths[0].parent, "loading the meshes failed")  # pragma: no cover
 
 
+def _check_part_limits(shape: Shape) -> None:
+    """The ``parts`` and ``edges`` limits of :mod:`kinmo.limits` on the hierarchy alone."""
+    h = shape.hierarchy
+    where = shape.mesh_dir.parent
+    leaves = sum(h.nodes[n].is_leaf for n in h.order)
+    limits.check("parts", int(leaves), where)
+    kids = [len(h.nodes[n].children) for n in h.order]
+    limits.check("edges", int(sum(c * (c - 1) for c in kids)), where)
+
+
+def load_named_meshes(shape: Shape) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every mesh the shape's hierarchy names, read once: the one load that a command's
+    stages (part graph, the selector's sweep, the exporters) share for one shape.
+
+    The resource limits (:mod:`kinmo.limits`: parts and edges of the hierarchy and each
+    file's size before reading, triangles after) are checked as :func:`build_graph` checks
+    them.
+
+    Returns
+    -------
+    dict of str to (vertices (V, 3) float64, faces (F, 3) int64)
+        Mesh name (``<name>.obj`` in ``shape.mesh_dir``) -> mesh, mesh frame and units.
+
+    Raises
+    ------
+    KinmoDataError
+        As :func:`load_shape_meshes`, or a limit exceeded.
+    """
+    _check_part_limits(shape)
+    names = list(dict.fromkeys(o for n in shape.hierarchy.order for o in shape.hierarchy.nodes[n].objs))
+    paths = [shape.mesh_path(o) for o in names]
+    for p in paths:
+        limits.check_file(p)
+    meshes = load_shape_meshes(paths)
+    for p, (_, f) in zip(paths, meshes):
+        limits.check("triangles", len(f), p)
+    return dict(zip(names, meshes))
+
+
+class MeshesOnce:
+    """A shape's meshes by name (:func:`load_named_meshes`), read on the first call and
+    kept: a command reads each shape's meshes once and passes them to the part graph, the
+    selector's sweep and the exporters ("one path per data flow").
+
+    Calling it returns ``dict of str to (vertices (V, 3) float64, faces (F, 3) int64)``;
+    it raises :class:`~kinmo.errors.KinmoDataError` as :func:`load_named_meshes`."""
+
+    def __init__(self, shape: Shape) -> None:
+        self.shape = shape
+        self._named: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
+
+    def __call__(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        if self._named is None:
+            self._named = load_named_meshes(self.shape)
+        return self._named
+
+
 def _mesh_areas(meshes: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     out = np.zeros(len(meshes))
     for k, (v, f) in enumerate(meshes):
@@ -123,6 +181,7 @@ def build_graph(
     seed: int = 0,
     contact_tolerance: float = 0.01,
     distance_cap: float = 0.1,
+    meshes: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> PartGraph:
     """Build the part graph of a shape read by :func:`kinmo.data.readers.read_shape`.
 
@@ -138,6 +197,9 @@ def build_graph(
     distance_cap : float
         Distances above ``distance_cap * diag`` are clipped to it (fraction of the diagonal),
         ``>= contact_tolerance``.
+    meshes : mapping of str to (vertices, faces), optional
+        The shape's meshes by name, already read (:func:`load_named_meshes`); read here
+        when not given.
 
     Returns
     -------
@@ -176,10 +238,7 @@ def build_graph(
         depth[v] = depth[parent[v]] + 1
 
     # Resource limits (kinmo.limits), before any mesh is read or edge allocated.
-    where = shape.mesh_dir.parent
-    limits.check("parts", int(is_leaf.sum()), where)
-    n_children = np.bincount(parent[1:], minlength=n_nodes) if n_nodes > 1 else np.zeros(1, np.int64)
-    limits.check("edges", int((n_children * (n_children - 1)).sum()), where)
+    _check_part_limits(shape)
 
     # Meshes: every OBJ once, in leaf pre-order.
     names: dict[str, int] = {}
@@ -187,11 +246,8 @@ def build_graph(
         for o in n.objs:
             names.setdefault(o, len(names))
     paths = [shape.mesh_path(o) for o in names]
-    for p in paths:
-        limits.check_file(p)
-    meshes = load_shape_meshes(paths)
-    for p, (_, f) in zip(paths, meshes):
-        limits.check("triangles", len(f), p)
+    named = meshes if meshes is not None else load_named_meshes(shape)
+    meshes = [named[o] for o in names]
 
     # Mesh indices under every node (post-order accumulation); leaf indices likewise.
     leaf_index = np.cumsum(is_leaf) - 1  # node index -> leaf index (valid for leaves)

@@ -30,10 +30,11 @@ frames sit on their joint axes at the rest pose (all joint values 0), as in
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 from kinmo.data.model import Link, Shape
 from kinmo.data.names import inside
@@ -74,6 +75,9 @@ class ExportContext:
         False under ``-q``.
     collision : str
         How collision geometry is made: a method of :mod:`kinmo.export.collision`.
+    named_meshes : mapping of str to (vertices, faces), or a callable returning one, optional
+        The shape's meshes by name when the caller reads them (:class:`kinmo.data.build.MeshesOnce`:
+        called on first use only); otherwise read here, once, on first use.
     """
 
     shape: Shape
@@ -82,12 +86,14 @@ class ExportContext:
     name: str
     progress: bool = True
     collision: str = DEFAULT_COLLISION
+    named_meshes: Mapping[str, tuple[Any, Any]] | Callable[[], Mapping[str, tuple[Any, Any]]] | None = None
 
     @cached_property
     def meshes(self):
         """Per-link merged meshes (:func:`kinmo.export.kinematics.link_meshes`), loaded once."""
 
-        return link_meshes(self.shape, self.links)
+        named = self.named_meshes() if callable(self.named_meshes) else self.named_meshes
+        return link_meshes(self.shape, self.links, named)
 
 
 @dataclass(frozen=True)
@@ -145,7 +151,9 @@ def formats() -> list[str]:
 
 def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORMATS,
            links: Sequence[Link] | None = None, name: str | None = None,
-           progress: bool = True, collision: str = DEFAULT_COLLISION) -> dict[str, list[Path]]:
+           progress: bool = True, collision: str = DEFAULT_COLLISION,
+           meshes: Mapping[str, tuple[Any, Any]] | Callable[[], Mapping[str, tuple[Any, Any]]] | None = None,
+           ) -> dict[str, list[Path]]:
     """Write ``shape`` moving as ``links`` in each of ``fmts`` into ``out_dir``.
 
     Parameters
@@ -165,6 +173,10 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
     collision : str
         Collision geometry of URDF and MJCF: a method of :mod:`kinmo.export.collision`
         (``hull``, ``vhacd``, ``coacd``).
+    meshes : mapping of str to (vertices (V, 3) float64, faces (F, 3) int64), optional
+        ``shape``'s meshes by name when the caller reads them (one read per shape and
+        command), or a callable returning them (called only when a format needs geometry);
+        read from ``shape.mesh_dir`` when not given.
 
     Returns
     -------
@@ -191,7 +203,7 @@ def export(shape: Shape, out_dir: str | Path, fmts: Iterable[str] = DEFAULT_FORM
 
     out_dir = output_dir(out_dir)
     ctx = ExportContext(self_contained(shape, out_dir), links, out_dir, name or shape.id, progress,
-                        collision)
+                        collision, meshes)
     return {f: EXPORTERS[f].write(ctx) for f in fmts}
 
 

@@ -167,7 +167,8 @@ class LinkMesh:
     leaf_faces: tuple[int, ...] = ()
 
 
-def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, LinkMesh]:
+def link_meshes(shape: Shape, links: Sequence[Link] | None = None,
+                named: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> dict[int, LinkMesh]:
     """Every link's leaf meshes (``textured_objs/*.obj``) merged into one mesh per link.
 
     The meshes are read by :func:`kinmo.render.ancsh_gt.link_meshes` (parallel Rust loading).
@@ -177,6 +178,9 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
     shape : Shape
     links : sequence of Link, optional
         Default ``shape.links``.
+    named : mapping of str to (vertices, faces), optional
+        The shape's meshes by name, already read (:func:`kinmo.data.build.load_named_meshes`);
+        read here when not given.
 
     Returns
     -------
@@ -196,7 +200,12 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None) -> dict[int, 
             raise KinmoDataError(shape.path, f"link {link.id}: part {bad[0]} is not a node of "
                                              "the part hierarchy")
     out: dict[int, LinkMesh] = {}
-    for lid, meshes in leaf_meshes(shape, links).items():
+    if named is None:
+        by_link = leaf_meshes(shape, links)
+    else:
+        by_link = {l.id: [named[m] for pid in l.parts for m in shape.hierarchy.mesh_names(pid)]
+                   for l in links}
+    for lid, meshes in by_link.items():
         vs, fs, n = [], [], 0
         for v, f in meshes:
             vs.append(v)

@@ -74,6 +74,7 @@ __all__ = [
     "GNNPriors",
     "ShapeMeshes",
     "Ranker",
+    "graph_meshes",
     "candidate_features",
     "calibrate",
     "candidate_labels",
@@ -309,22 +310,38 @@ def shape_meshes(graph: PartGraph) -> ShapeMeshes | None:
 
         shape = read_shape(src)
         nodes = shape.hierarchy.nodes
-        leaves = [int(k) for k in np.flatnonzero(graph.is_leaf)]
-        objs: dict[str, int] = {}
-        for k in leaves:
-            for o in nodes[int(graph.node_ids[k])].objs:
-                objs.setdefault(o, len(objs))
+        objs = list(dict.fromkeys(o for k in np.flatnonzero(graph.is_leaf)
+                                  for o in nodes[int(graph.node_ids[k])].objs))
         meshes = load_shape_meshes([shape.mesh_path(o) for o in objs])
-        out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        for k in leaves:
-            idx = [objs[o] for o in nodes[int(graph.node_ids[k])].objs]
-            part = ShapeMeshes({n: (np.asarray(meshes[i][0], np.float64),
-                                    np.asarray(meshes[i][1], np.int64))
-                                for n, i in enumerate(idx)})
-            out[k] = part.union(range(len(idx)))
-        return ShapeMeshes(out)
+        return graph_meshes(graph, shape.hierarchy, dict(zip(objs, meshes)))
     except (KinmoError, OSError, ValueError, KeyError):
         return None
+
+
+def graph_meshes(graph: PartGraph, hierarchy, named) -> ShapeMeshes:
+    """The leaf meshes of ``graph`` from meshes already read (no file access).
+
+    Parameters
+    ----------
+    graph : PartGraph
+    hierarchy : PartHierarchy
+        The shape's hierarchy (``graph.node_ids`` are its node ids).
+    named : mapping of str to (vertices (V, 3) float64, faces (F, 3) int64)
+        Mesh name -> mesh, e.g. :func:`kinmo.data.build.load_named_meshes`.
+
+    Raises
+    ------
+    KeyError
+        A leaf names a mesh missing from ``named``.
+    """
+    nodes = hierarchy.nodes
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for k in np.flatnonzero(graph.is_leaf):
+        objs = nodes[int(graph.node_ids[k])].objs
+        part = ShapeMeshes({n: (np.asarray(named[o][0], np.float64), np.asarray(named[o][1], np.int64))
+                            for n, o in enumerate(objs)})
+        out[int(k)] = part.union(range(len(objs)))
+    return ShapeMeshes(out)
 
 
 def _point_line(points: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
