@@ -305,3 +305,37 @@ def test_hinge_lies_away_from_the_moving_parts_handle():
     assert x[h, F["d_child"]] > 0.5 > 0.05 > x[other, F["d_child"]]
     np.testing.assert_allclose(x[:, F["d_child_edge"]],
                                x[:, F["d_child"]] * x[:, F["kind_edge"]])
+
+
+def test_sweeps_of_a_shape_are_computed_once_per_line_with_the_same_results(monkeypatch):
+    import trimesh
+
+    import kinmo.geometry
+    from kinmo.geometry import sweep_collisions
+    from kinmo.refine.selector import ShapeMeshes
+
+    box = trimesh.creation.box((1.0, 1.0, 1.0))
+    wall = (np.asarray(box.vertices) * [0.1, 2, 2] + [0.6, 0, 0], np.asarray(box.faces, np.int64))
+    meshes = ShapeMeshes({1: wall, 2: (np.asarray(box.vertices), np.asarray(box.faces, np.int64))})
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-0.5, 0.5, size=(64, 3))
+    o = rng.normal(size=(6, 3)) * 0.5
+    d = rng.normal(size=(6, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    kinds = np.array([0, 0, 0, 1, 1, 1])
+    ranges = np.array([1.5, 1.5, 1.5, 0.5, 0.5, 0.5])
+    ov, of = meshes.union([1])
+    want = sweep_collisions(pts, ov, of, o, d, kinds, ranges, n_steps=8)
+    calls = []
+    real = kinmo.geometry.sweep_collisions
+    monkeypatch.setattr(kinmo.geometry, "sweep_collisions",
+                        lambda p, v, f, oo, *a, **k: calls.append(len(oo)) or real(p, v, f, oo, *a, **k))
+    first = meshes.sweep(2, np.array([1]), pts, o[:4], d[:4], kinds[:4], ranges[:4], 8)
+    again = meshes.sweep(2, np.array([1]), pts, o, d, kinds, ranges, 8)  # two new lines
+    assert calls == [4, 2]
+    np.testing.assert_array_equal(first[0], want[0][:4])
+    np.testing.assert_array_equal(again[0], want[0])
+    np.testing.assert_array_equal(again[1], want[1])
+    assert 0 < want[1].max() and want[0].min() < 1  # the wall is hit: a check that can fail
+    meshes.sweep(2, np.array([1]), pts[:32], o[:1], d[:1], kinds[:1], ranges[:1], 8)
+    assert calls == [4, 2, 1]  # other points of the part: not the same key

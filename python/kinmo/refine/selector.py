@@ -47,7 +47,7 @@ from the candidates, GNN priors and meshes defined here; the ranker is
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -270,9 +270,61 @@ class ShapeMeshes:
     ----------
     leaves : dict of int to (vertices (V, 3) float64, faces (F, 3) int64)
         By graph node index (leaves only).
+
+    One object serves every edge of one shape, and :meth:`sweep` remembers its results: the
+    edges of one moving part (one per sibling it may move against) share most candidate lines
+    (its OBB edges and centre lines), and their swept collisions do not depend on the
+    reference part.
     """
 
     leaves: dict[int, tuple[np.ndarray, np.ndarray]]
+    _sweeps: dict = field(default_factory=dict, repr=False, compare=False)
+    _obstacles: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def sweep(self, moving: int, static_leaves: np.ndarray, points: np.ndarray, origins: np.ndarray,
+              directions: np.ndarray, kinds: np.ndarray, ranges: np.ndarray,
+              n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`kinmo.geometry.sweep_collisions` of ``moving``'s ``points`` against the union
+        of ``static_leaves``, each line computed once per shape (same results: every line's
+        sweep is independent of the others in a call).
+
+        Parameters
+        ----------
+        moving : int
+            Graph node of the moving part (with ``static_leaves`` and ``points``: the cache
+            key of the part).
+        static_leaves : (L,) int
+        points : (N, 3) float64
+        origins, directions : (C, 3) float64
+        kinds : (C,) int64
+        ranges : (C,) float64
+        n_steps : int
+
+        Returns
+        -------
+        free, colliding : (C, 2) float64
+            As :func:`kinmo.geometry.sweep_collisions`.
+        """
+        from kinmo.geometry import sweep_collisions
+
+        part = (int(moving), np.asarray(static_leaves, np.int64).tobytes(),
+                np.ascontiguousarray(points, np.float64).tobytes())
+        keys = [(part, origins[k].tobytes(), directions[k].tobytes(), int(kinds[k]),
+                 float(ranges[k]), int(n_steps)) for k in range(len(origins))]
+        todo = [k for k, key in enumerate(keys) if key not in self._sweeps]
+        if todo:
+            if part[:2] not in self._obstacles:
+                self._obstacles[part[:2]] = self.union(static_leaves)
+            ov, of = self._obstacles[part[:2]]
+            t = np.asarray(todo)
+            free, coll = sweep_collisions(points, ov, of, np.ascontiguousarray(origins[t]),
+                                          np.ascontiguousarray(directions[t]), kinds[t], ranges[t],
+                                          n_steps=n_steps)
+            for n, k in enumerate(todo):
+                self._sweeps[keys[k]] = (free[n], coll[n])
+        got = [self._sweeps[key] for key in keys]
+        return (np.array([g[0] for g in got]).reshape(-1, 2),
+                np.array([g[1] for g in got]).reshape(-1, 2))
 
     def union(self, nodes) -> tuple[np.ndarray, np.ndarray]:
         """One mesh of the given leaf nodes (faces re-indexed); empty arrays for none."""
@@ -488,11 +540,10 @@ def candidate_features(
     x[:, _F["sweep_free_min"]] = x[:, _F["sweep_free_max"]] = 1.0
     x[:, _F["attach_mesh"]] = x[:, _F["attach_ref"]]
     if meshes is not None:
-        from kinmo.geometry import line_mesh_distance, sweep_collisions
+        from kinmo.geometry import line_mesh_distance
 
         sub = _subtree(graph, moving)
         static_leaves = np.flatnonzero(np.asarray(graph.is_leaf, bool) & ~sub)
-        ov, of = meshes.union(static_leaves)
         mp = np.asarray(graph.points[moving], dtype=np.float64)[:sweep_points]
         if revolute:
             kinds = np.zeros(c, np.int64)
@@ -500,8 +551,8 @@ def candidate_features(
         else:
             kinds = np.ones(c, np.int64)
             ranges = np.maximum(sweep_fraction * np.ptp(mp @ d.T, axis=0), 1e-9)
-        free, coll = sweep_collisions(mp, ov, of, np.ascontiguousarray(o),
-                                      np.ascontiguousarray(d), kinds, ranges, n_steps=8)
+        free, coll = meshes.sweep(moving, static_leaves, mp, np.ascontiguousarray(o),
+                                  np.ascontiguousarray(d), kinds, ranges, n_steps=8)
         x[:, _F["sweep_free_min"]] = free.min(axis=1)
         x[:, _F["sweep_free_max"]] = free.max(axis=1)
         x[:, _F["sweep_coll_min"]] = coll.min(axis=1)
