@@ -16,9 +16,25 @@ peak resident memory (``resource.getrusage``: the process itself and the largest
 worker processes). The table gives ratios against the same-run baseline: wall time, CPU
 time and median per-shape time (target >= 10x), and peak memory (target < 2 GB).
 
+``--stages`` instead times the three Rust stages of ``kinmo prepare`` one shape at a time
+(one process, one rayon thread unless ``RAYON_NUM_THREADS`` says otherwise): it runs
+:func:`kinmo.prepare.prepare_dataset` with ``workers=1`` and wraps the ``load_objs``,
+``fit_obb_batch`` and ``contact_pairs`` that :mod:`kinmo.data.build` calls, so each stage
+sees exactly the inputs of a real run. On the same inputs, in the same run, it times
+
+- **load**: ``trimesh.load(path, force="mesh", process=False)`` of every file, and a plain
+  read of the same bytes (``Path.read_bytes``, page cache warm: the files were just read):
+  the *parse limit*; kinmo's load throughput should be >= 50% of the plain read's;
+- **OBB**: ``trimesh.bounds.oriented_bounds`` of every point set (scipy's Qhull inside);
+- **contacts**: python-fcl ``distance`` between every pair of meshes whose boxes, grown by
+  the tolerance, overlap (BVHs built once per mesh).
+
+and prints per-stage medians over shapes (kinmo, baseline, ratio) and the total per shape.
+
 Usage::
 
     python bench/bench_prepare.py [--data DIR] [--workers N] [--n-points 1024] [--limit K]
+    python bench/bench_prepare.py --stages [--data DIR] [--limit K] [--repeat R]
 """
 
 from __future__ import annotations
@@ -140,6 +156,129 @@ def run_kinmo(data: str, workers: int, n_points: int, seed: int) -> dict:
     }
 
 
+# ------------------------------------------------------------------------------ stages
+
+
+def _median_ms(xs: list[float]) -> float:
+    import numpy as np
+
+    return 1e3 * float(np.median(xs)) if xs else float("nan")
+
+
+def run_stages(data: str, n_points: int, seed: int, limit: int, repeat: int) -> dict:
+    """Per-shape seconds of each prepare stage, kinmo and baseline, on the same inputs."""
+    import fcl
+    import numpy as np
+    import trimesh
+
+    import kinmo.data.build as build
+    from kinmo.data.readers import find_shapes
+    from kinmo.prepare import PrepareConfig, prepare_dataset
+
+    folders = [str(f) for f in find_shapes(data)][: limit or None]
+    cur: dict[str, float] = {}
+    rows: list[dict[str, float]] = []
+    orig = {n: getattr(build, n) for n in ("load_objs", "fit_obb_batch", "contact_pairs")}
+
+    def best_of(fn, *args):
+        t = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            out = fn(*args)
+            t.append(time.perf_counter() - t0)
+        cur["spent"] = cur.get("spent", 0.0) + sum(t)  # all timed work, baselines included
+        return out, min(t)
+
+    def load_objs(paths):
+        out, cur["load"] = best_of(orig["load_objs"], paths)
+        _, cur["read"] = best_of(lambda: [Path(p).read_bytes() for p in paths])
+        cur["bytes"] = float(sum(os.path.getsize(p) for p in paths))
+        _, cur["load_base"] = best_of(
+            lambda: [trimesh.load(str(p), force="mesh", process=False) for p in paths])
+        return out
+
+    def fit_obb_batch(sets, *a, **k):
+        out, cur["obb"] = best_of(orig["fit_obb_batch"], sets, *a, **k)
+        _, cur["obb_base"] = best_of(
+            lambda: [trimesh.bounds.oriented_bounds(np.asarray(v)) for v in sets])
+        return out
+
+    def contact_pairs(meshes, tol):
+        out, cur["contact"] = best_of(orig["contact_pairs"], meshes, tol)
+
+        def fcl_pairs():
+            objs, lo, hi = [], [], []
+            for v, f in meshes:
+                m = fcl.BVHModel()
+                m.beginModel(len(v), len(f))
+                m.addSubModel(np.asarray(v, float), np.asarray(f, np.int32))
+                m.endModel()
+                objs.append(fcl.CollisionObject(m, fcl.Transform()))
+                lo.append(v.min(0) - tol)
+                hi.append(v.max(0) + tol)
+            for i in range(len(objs)):
+                for j in range(i + 1, len(objs)):
+                    if (lo[i] <= hi[j]).all() and (lo[j] <= hi[i]).all():
+                        fcl.distance(objs[i], objs[j], fcl.DistanceRequest(),
+                                     fcl.DistanceResult())
+
+        _, cur["contact_base"] = best_of(fcl_pairs)
+        return out
+
+    def wrapped_build(*a, **k):
+        cur.clear()
+        t0 = time.perf_counter()
+        out = orig_build(*a, **k)
+        # build_graph as it runs alone: the timed work replaced by one kinmo run of each stage
+        cur["total"] = time.perf_counter() - t0 - cur.pop("spent", 0.0) + sum(
+            cur.get(x, 0.0) for x in ("load", "obb", "contact"))
+        rows.append(dict(cur))
+        return out
+
+    import kinmo.prepare as prep
+
+    orig_build = prep.build_graph
+    for n, f in (("load_objs", load_objs), ("fit_obb_batch", fit_obb_batch),
+                 ("contact_pairs", contact_pairs)):
+        setattr(build, n, f)
+    prep.build_graph = wrapped_build
+    with tempfile.TemporaryDirectory() as out:
+        for f in folders:
+            prepare_dataset(f, out, PrepareConfig(n_points=n_points, seed=seed), workers=1,
+                            force=True, progress=False)
+    return {"rows": rows, "n": len(folders)}
+
+
+def print_stages(res: dict, repeat: int) -> None:
+    import numpy as np
+    from rich.console import Console
+    from rich.table import Table
+
+    rows = res["rows"]
+    col = lambda k: [r[k] for r in rows if k in r]  # noqa: E731
+    t = Table(title=f"prepare stages: {len(rows)} shapes, 1 process, "
+                    f"RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'all')}, "
+                    f"best of {repeat} per shape, medians over shapes")
+    for c in ("stage", "kinmo [ms]", "baseline [ms]", "baseline", "ratio"):
+        t.add_column(c, justify="right")
+    for name, k, b, what in (("load", "load", "load_base", "trimesh.load"),
+                             ("OBB", "obb", "obb_base", "trimesh oriented_bounds"),
+                             ("contacts", "contact", "contact_base", "python-fcl distance")):
+        km, bm = _median_ms(col(k)), _median_ms(col(b))
+        t.add_row(name, f"{km:.2f}", f"{bm:.2f}", what, f"{bm / km:.1f}x")
+    t.add_row("plain read", f"{_median_ms(col('read')):.2f}", "", "read_bytes, warm cache", "")
+    t.add_row("total build_graph", f"{_median_ms(col('total')):.2f}", "", "", "")
+    Console().print(t)
+    mb = np.array(col("bytes")) / 2**20
+    load_tp = float(np.median(mb / np.array(col("load"))))
+    read_tp = float(np.median(mb / np.array(col("read"))))
+    print(f"throughput (median over shapes): load_objs {load_tp:.0f} MB/s, plain read "
+          f"{read_tp:.0f} MB/s: parse limit {100 * load_tp / read_tp:.1f}% of plain read "
+          f"(target >= 50%)")
+    print("STAGES_JSON " + json.dumps({k: _median_ms(col(k)) for k in (
+        "load", "load_base", "read", "obb", "obb_base", "contact", "contact_base", "total")}))
+
+
 def _child(side: str, data: str, workers: int, n_points: int, seed: int) -> None:
     fn = run_kinmo if side == "kinmo" else run_baseline
     out = fn(data, workers, n_points, seed)
@@ -174,7 +313,14 @@ def main() -> None:
     ap.add_argument("--n-points", type=int, default=1024)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--child", choices=["kinmo", "baseline"], help=argparse.SUPPRESS)
+    ap.add_argument("--stages", action="store_true",
+                    help="time the load / OBB / contact stages against trimesh, fcl, plain read")
+    ap.add_argument("--limit", type=int, default=0, help="--stages: first K shapes (0: all)")
+    ap.add_argument("--repeat", type=int, default=3, help="--stages: best of R per shape")
     a = ap.parse_args()
+    if a.stages:
+        print_stages(run_stages(a.data, a.n_points, a.seed, a.limit, a.repeat), a.repeat)
+        return
     workers = a.workers or len(os.sched_getaffinity(0))
     if a.child:
         _child(a.child, a.data, workers, a.n_points, a.seed)

@@ -18,6 +18,11 @@
 //!    otherwise returns the true minimum distance of the pairs within `tolerance`.
 //!
 //! Steps 1 and 3 run in parallel (rayon) when the meshes have 20 000 triangles or more.
+//! [`contact_pairs_of_meshes`] (what kinmo's part graphs call) runs the broad phase first, on
+//! boxes taken from the vertices, and builds each hierarchy once, only for the meshes of some
+//! candidate pair, then reuses it for every pair of the sweep (`kinmo prepare` on the shared
+//! PartNet-Mobility objects: most leaves are near few others, and the BVH build was the
+//! largest single cost of the contact stage).
 //!
 //! **Own code kept:** the triangle-triangle distance at the leaves. parry measures the
 //! distance of two triangles with GJK (`query::distance` on support maps), an iterative
@@ -381,22 +386,35 @@ pub fn contact_pairs(meshes: &[MeshBvh], tolerance: f64) -> Result<Vec<ContactPa
 /// unscaled units.
 fn pairs_within(meshes: &[MeshBvh], tolerance: f64, scale: f64) -> Result<Vec<ContactPair>> {
     let boxes: Vec<Option<Aabb>> = meshes.iter().map(MeshBvh::root_aabb).collect();
+    let candidates = broad_phase(&boxes, tolerance * scale);
+    let hierarchies: Vec<Option<&MeshBvh>> = meshes.iter().map(Some).collect();
+    Ok(narrow_phase(&hierarchies, &candidates, tolerance, scale))
+}
+
+/// The exact distances of the `candidates` pairs (broad-phase output), kept when within
+/// `tolerance`; `meshes[i]` is `None` only for meshes in no candidate pair.
+fn narrow_phase(
+    meshes: &[Option<&MeshBvh>],
+    candidates: &[(usize, usize)],
+    tolerance: f64,
+    scale: f64,
+) -> Vec<ContactPair> {
     let tol = tolerance * scale;
-    let candidates = broad_phase(&boxes, tol);
     let tol2 = tol * tol;
     let narrow = |&(i, j): &(usize, usize)| {
-        let distance = min_distance2_within(&meshes[i], &meshes[j], tol2)?.sqrt() / scale;
+        let (a, b) = (meshes[i]?, meshes[j]?);
+        let distance = min_distance2_within(a, b, tol2)?.sqrt() / scale;
         // Also guards against `tolerance²` overflowing to infinity.
         (distance <= tolerance).then_some(ContactPair { i, j, distance })
     };
-    let total: usize = meshes.iter().map(MeshBvh::num_triangles).sum();
+    let total: usize = meshes.iter().flatten().map(|m| m.num_triangles()).sum();
     let mut pairs: Vec<ContactPair> = if total >= PARALLEL_MIN_TRIANGLES {
         candidates.par_iter().filter_map(narrow).collect()
     } else {
         candidates.iter().filter_map(narrow).collect()
     };
     pairs.sort_unstable_by_key(|p| (p.i, p.j));
-    Ok(pairs)
+    pairs
 }
 
 fn check_tolerance(tolerance: f64) -> Result<()> {
@@ -409,8 +427,14 @@ fn check_tolerance(tolerance: f64) -> Result<()> {
     }
 }
 
-/// [`contact_pairs`] on validated meshes: builds the hierarchies (in parallel) first, on
-/// coordinates scaled by one power of two (see the module documentation).
+/// [`contact_pairs`] on validated meshes, on coordinates scaled by one power of two (see
+/// the module documentation).
+///
+/// The broad phase runs first, on each mesh's bounding box (the box of its scaled triangle
+/// corners, exactly the root box of its hierarchy), and a hierarchy is built (in parallel
+/// for large shapes) only for the meshes of at least one candidate pair: a mesh far from
+/// every other costs one pass over its faces, not a BVH build. Same pairs and distances
+/// as building every hierarchy.
 ///
 /// # Errors
 ///
@@ -418,14 +442,42 @@ fn check_tolerance(tolerance: f64) -> Result<()> {
 pub fn contact_pairs_of_meshes(meshes: &[TriMesh], tolerance: f64) -> Result<Vec<ContactPair>> {
     check_tolerance(tolerance)?;
     let s = unit_scale(meshes);
-    let total: usize = meshes.iter().map(TriMesh::n_faces).sum();
-    let build = |m: &TriMesh| MeshBvh::from_mesh_scaled(m, s);
-    let bvhs: Vec<MeshBvh> = if total >= PARALLEL_MIN_TRIANGLES {
-        meshes.par_iter().map(build).collect()
+    let boxes: Vec<Option<Aabb>> = meshes.iter().map(|m| scaled_aabb(m, s)).collect();
+    let candidates = broad_phase(&boxes, tolerance * s);
+    let mut needed = vec![false; meshes.len()];
+    for &(i, j) in &candidates {
+        needed[i] = true;
+        needed[j] = true;
+    }
+    let total: usize = meshes
+        .iter()
+        .zip(&needed)
+        .filter(|(_, &n)| n)
+        .map(|(m, _)| m.n_faces())
+        .sum();
+    let build = |(m, &n): (&TriMesh, &bool)| n.then(|| MeshBvh::from_mesh_scaled(m, s));
+    let bvhs: Vec<Option<MeshBvh>> = if total >= PARALLEL_MIN_TRIANGLES {
+        meshes.par_iter().zip(&needed).map(build).collect()
     } else {
-        meshes.iter().map(build).collect()
+        meshes.iter().zip(&needed).map(build).collect()
     };
-    pairs_within(&bvhs, tolerance, s)
+    let refs: Vec<Option<&MeshBvh>> = bvhs.iter().map(Option::as_ref).collect();
+    Ok(narrow_phase(&refs, &candidates, tolerance, s))
+}
+
+/// The box of the triangle corners of `mesh` scaled by `scale` (with [`flush_tiny`], as in
+/// [`MeshBvh::from_mesh_scaled`]): the root box of its hierarchy, `None` without faces.
+///
+/// [`flush_tiny`]: crate::mesh::flush_tiny
+fn scaled_aabb(mesh: &TriMesh, scale: f64) -> Option<Aabb> {
+    let v = mesh.vertices();
+    let mut used = mesh.faces().iter().flatten();
+    let first = crate::mesh::flush_tiny(&(v[*used.next()? as usize] * scale));
+    let (lo, hi) = used.fold((first, first), |(lo, hi), &i| {
+        let p = crate::mesh::flush_tiny(&(v[i as usize] * scale));
+        (lo.inf(&p), hi.sup(&p))
+    });
+    Some(Aabb::new(lo, hi))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -779,6 +831,26 @@ mod tests {
         for (g, w) in got.iter().zip(&want) {
             assert_eq!((g.i, g.j), (w.0, w.1));
             assert!((g.distance - w.2).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn broad_phase_boxes_are_the_hierarchy_root_boxes() {
+        // contact_pairs_of_meshes decides which hierarchies to build from these boxes: they
+        // must be exactly the root boxes, unreferenced vertices and tiny coordinates included.
+        let mut rng = Rng(7);
+        for n in [0usize, 1, 2, 17, 300] {
+            let mut v: Vec<Point3<f64>> = (0..n + 3).map(|_| rng.point(3.0)).collect();
+            v.push(Point3::new(1e-200, -1e-170, 50.0)); // never referenced
+            v[0] = Point3::new(1e-160, 2.0, -1e-155);
+            let f: Vec<[u32; 3]> = (0..n)
+                .map(|k| [k as u32, (k + 1) as u32, (k + 2) as u32])
+                .collect();
+            let m = TriMesh::new(v, f, "m").expect("valid");
+            for scale in [1.0, 0.25, 1024.0] {
+                let root = MeshBvh::from_mesh_scaled(&m, scale).root_aabb();
+                assert_eq!(scaled_aabb(&m, scale), root, "n = {n}, scale = {scale}");
+            }
         }
     }
 
