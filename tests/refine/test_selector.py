@@ -310,7 +310,7 @@ def test_hinge_lies_away_from_the_moving_parts_handle():
 def test_sweeps_of_a_shape_are_computed_once_per_line_with_the_same_results(monkeypatch):
     import trimesh
 
-    import kinmo.geometry
+    import kinmo.refine.selector
     from kinmo.geometry import sweep_collisions
     from kinmo.refine.selector import ShapeMeshes
 
@@ -327,8 +327,8 @@ def test_sweeps_of_a_shape_are_computed_once_per_line_with_the_same_results(monk
     ov, of = meshes.union([1])
     want = sweep_collisions(pts, ov, of, o, d, kinds, ranges, n_steps=8)
     calls = []
-    real = kinmo.geometry.sweep_collisions
-    monkeypatch.setattr(kinmo.geometry, "sweep_collisions",
+    real = sweep_collisions
+    monkeypatch.setattr(kinmo.refine.selector, "sweep_collisions",
                         lambda p, v, f, oo, *a, **k: calls.append(len(oo)) or real(p, v, f, oo, *a, **k))
     first = meshes.sweep(2, np.array([1]), pts, o[:4], d[:4], kinds[:4], ranges[:4], 8)
     again = meshes.sweep(2, np.array([1]), pts, o, d, kinds, ranges, 8)  # two new lines

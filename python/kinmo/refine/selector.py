@@ -56,6 +56,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.labels import VERTICAL_COS, pivots_are_central
 from kinmo.data.model import FINE_TYPES
 from kinmo.errors import KinmoError
+from kinmo.geometry import line_mesh_distance, sweep_collisions
 from kinmo.metrics.axis import line_distance
 from kinmo.refine.candidates import (
     Candidates,
@@ -305,8 +306,6 @@ class ShapeMeshes:
         free, colliding : (C, 2) float64
             As :func:`kinmo.geometry.sweep_collisions`.
         """
-        from kinmo.geometry import sweep_collisions
-
         part = (int(moving), np.asarray(static_leaves, np.int64).tobytes(),
                 np.ascontiguousarray(points, np.float64).tobytes())
         keys = [(part, origins[k].tobytes(), directions[k].tobytes(), int(kinds[k]),
@@ -540,8 +539,6 @@ def candidate_features(
     x[:, _F["sweep_free_min"]] = x[:, _F["sweep_free_max"]] = 1.0
     x[:, _F["attach_mesh"]] = x[:, _F["attach_ref"]]
     if meshes is not None:
-        from kinmo.geometry import line_mesh_distance
-
         sub = _subtree(graph, moving)
         static_leaves = np.flatnonzero(np.asarray(graph.is_leaf, bool) & ~sub)
         mp = np.asarray(graph.points[moving], dtype=np.float64)[:sweep_points]
