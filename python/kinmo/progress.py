@@ -64,7 +64,7 @@ def console(stderr: bool = False, **kw: Any) -> Any:
     if "width" not in kw and not c.is_terminal and "COLUMNS" not in os.environ:
         # a log file or pipe (a cluster job): tables are laid out at LOG_WIDTH columns,
         # never cut to 80 with an ellipsis
-        c = Console(stderr=stderr, width=LOG_WIDTH, **kw)
+        c.width = LOG_WIDTH
     return c
 
 

@@ -128,6 +128,20 @@ class RefineOptions:
                              self.box_frames, axis_model, self.paper_selector, self.ranker)
 
 
+def model_or_pretrained(model: Path | None) -> Path:
+    """``--model`` as given, or (None) the packaged pretrained bundle
+    (:func:`kinmo.pretrained.default_model`), its licence notice printed once on stderr:
+    what ``kinmo predict`` and ``kinmo pseudo-label`` use without ``--model``."""
+    if model is not None:
+        return model
+    from kinmo.pretrained import default_model, license_notice
+    from kinmo.progress import console
+
+    model = default_model()
+    console(stderr=True).print(license_notice(model), markup=False, highlight=False, soft_wrap=True)
+    return model
+
+
 #: Default of a command's ``refine`` parameter (replaced by :func:`with_refine_options`).
 REFINE = RefineOptions()
 

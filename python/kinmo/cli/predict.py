@@ -11,7 +11,7 @@ import kinmo.cli._values as _values
 
 from kinmo.cli._apps import app
 from kinmo.cli.export import COLLISION_HELP, FORMAT_HELP, _locked, check_formats
-from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
+from kinmo.cli._refine import REFINE, RefineOptions, model_or_pretrained, with_refine_options
 
 
 @app.command("predict")
@@ -56,12 +56,7 @@ def predict_cmd(
             from kinmo.io import output_dir
 
             output_dir(out)
-        if model is None:  # the packaged bundle; its terms said once
-            from kinmo.pretrained import default_model, license_notice
-
-            model = default_model()
-            err.print(license_notice(model), markup=False, highlight=False, soft_wrap=True)
-        model, axis_model, rc = refine.resolve(model, axis_model)
+        model, axis_model, rc = refine.resolve(model_or_pretrained(model), axis_model)
         options = TreeOptions((0.0, hinge_max), slider_fraction)
         predictor = Predictor.from_parts(model, axis_model, rc, options, device)
         err.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)

@@ -12,7 +12,7 @@ import kinmo.cli._values as _values
 from kinmo.cli._apps import app
 from kinmo.cli.export import COLLISION_HELP, FORMAT_HELP, check_formats
 from kinmo.cli._executor import EXECUTOR
-from kinmo.cli._refine import REFINE, RefineOptions, with_refine_options
+from kinmo.cli._refine import REFINE, RefineOptions, model_or_pretrained, with_refine_options
 
 
 @app.command("pseudo-label")
@@ -61,14 +61,7 @@ def pseudo_label_cmd(
     console = new_console()
     check_formats(fmt)
     with cli_errors(2):
-        if model is None:  # the packaged bundle; its terms said once
-            from kinmo.pretrained import default_model, license_notice
-            from kinmo.progress import console as err_console
-
-            model = default_model()
-            err_console(stderr=True).print(license_notice(model), markup=False, highlight=False,
-                                           soft_wrap=True)
-        model, axis_model, rc = refine.resolve(model, axis_model)
+        model, axis_model, rc = refine.resolve(model_or_pretrained(model), axis_model)
     if axis_model is None:
         fail("no axis network and no ranker: give a model bundle with them, or --axis-model", 2)
     with cli_errors(2, also=(ValueError,)):

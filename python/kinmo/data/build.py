@@ -237,8 +237,13 @@ def build_graph(
     for v in range(1, n_nodes):
         depth[v] = depth[parent[v]] + 1
 
-    # Resource limits (kinmo.limits), before any mesh is read or edge allocated.
-    _check_part_limits(shape)
+    # Resource limits (kinmo.limits), before any mesh is read or edge allocated
+    # (load_named_meshes checks them first; meshes read elsewhere are checked here).
+    if meshes is None:
+        named = load_named_meshes(shape)
+    else:
+        _check_part_limits(shape)
+        named = meshes
 
     # Meshes: every OBJ once, in leaf pre-order.
     names: dict[str, int] = {}
@@ -246,7 +251,6 @@ def build_graph(
         for o in n.objs:
             names.setdefault(o, len(names))
     paths = [shape.mesh_path(o) for o in names]
-    named = meshes if meshes is not None else load_named_meshes(shape)
     meshes = [named[o] for o in names]
 
     # Mesh indices under every node (post-order accumulation); leaf indices likewise.

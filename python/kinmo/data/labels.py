@@ -172,30 +172,30 @@ def line_segment_distance(
 
 
 def obb_edges(center: np.ndarray, axes: np.ndarray, half_extents: np.ndarray) -> np.ndarray:
-    """The 12 edges of an OBB.
+    """The 12 edges of an OBB (or of a batch of OBBs).
 
     Parameters
     ----------
-    center : (3,) float64
-    axes : (3, 3) float64
+    center : (..., 3) float64
+    axes : (..., 3, 3) float64
         Orthonormal rows.
-    half_extents : (3,) float64
+    half_extents : (..., 3) float64
 
     Returns
     -------
-    (12, 2, 3) float64
-        End points of each edge.
+    (..., 12, 2, 3) float64
+        End points of each edge, 4 per box axis in axis order.
     """
     c = np.asarray(center, dtype=np.float64)
-    ax = np.asarray(axes, dtype=np.float64) * np.asarray(half_extents, dtype=np.float64)[:, None]
+    ax = np.asarray(axes, dtype=np.float64) * np.asarray(half_extents, dtype=np.float64)[..., :, None]
     edges = []
     for k in range(3):  # edges parallel to axis k
         u, v = [m for m in range(3) if m != k]
         for su in (-1.0, 1.0):
             for sv in (-1.0, 1.0):
-                mid = c + su * ax[u] + sv * ax[v]
-                edges.append((mid - ax[k], mid + ax[k]))
-    return np.asarray(edges)
+                mid = c + su * ax[..., u, :] + sv * ax[..., v, :]
+                edges.append(np.stack([mid - ax[..., k, :], mid + ax[..., k, :]], axis=-2))
+    return np.stack(edges, axis=-3)
 
 
 def pivot_is_central(
@@ -253,17 +253,9 @@ def pivots_are_central(
     d = d / np.linalg.norm(d, axis=1, keepdims=True)
     n = len(o)
     c = np.broadcast_to(np.asarray(center, dtype=np.float64), (n, 3))
-    ax = np.broadcast_to(np.asarray(axes, dtype=np.float64), (n, 3, 3)) \
-        * np.broadcast_to(np.asarray(half_extents, dtype=np.float64), (n, 3))[:, :, None]
-    starts, ends = [], []
-    for k in range(3):  # the 12 edges, in obb_edges' order
-        u, v = [m for m in range(3) if m != k]
-        for su in (-1.0, 1.0):
-            for sv in (-1.0, 1.0):
-                mid = c + su * ax[:, u] + sv * ax[:, v]
-                starts.append(mid - ax[:, k])
-                ends.append(mid + ax[:, k])
-    pts = np.stack(starts + ends + [c], axis=1)  # (C, 25, 3)
+    e = obb_edges(c, np.broadcast_to(np.asarray(axes, dtype=np.float64), (n, 3, 3)),
+                  np.broadcast_to(np.asarray(half_extents, dtype=np.float64), (n, 3)))
+    pts = np.concatenate([e[:, :, 0], e[:, :, 1], c[:, None]], axis=1)  # (C, 25, 3)
     r = pts - o[:, None]  # onto each line's orthogonal plane
     r = r - np.einsum("cmi,ci->cm", r, d)[..., None] * d[:, None]
     pa, pb, pc = r[:, :12], r[:, 12:24], r[:, 24]

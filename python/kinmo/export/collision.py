@@ -255,15 +255,15 @@ def _whole_hull(mesh: LinkMesh) -> list[Piece]:
         return []
 
 
-def _decompose(script: str, extra: list[str]) -> Callable[[LinkMesh], list[Piece]]:
+def _decompose(args: Callable[[Path, Path], list[str]]) -> Callable[[LinkMesh], list[Piece]]:
+    """A method running ``python -c <args(in.obj, out.obj)>`` in a child process on the link's
+    merged mesh; the link's hull (:func:`_whole_hull`) when it fails."""
+
     def pieces(mesh: LinkMesh) -> list[Piece]:
         with tempfile.TemporaryDirectory(prefix="kinmo-collision-") as tmp:
             src, out = Path(tmp) / "in.obj", Path(tmp) / "out.obj"
             write_obj(src, mesh.vertices, mesh.faces)
-            args = [script, str(src), str(out)]
-            if script is _VHACD_SCRIPT:
-                args.append(str(out.with_suffix(".log")))
-            if _child(args + extra, out, DECOMPOSITION_TIMEOUT):
+            if _child(args(src, out), out, DECOMPOSITION_TIMEOUT):
                 return _split_objects(out.read_text())
         return _whole_hull(mesh)
 
@@ -272,11 +272,12 @@ def _decompose(script: str, extra: list[str]) -> Callable[[LinkMesh], list[Piece
 
 _register(CollisionMethod(
     "vhacd", "V-HACD of each link (PyBullet; seconds per link, cached)",
-    _decompose(_VHACD_SCRIPT, [str(VHACD_RESOLUTION), str(VHACD_DEPTH)]),
+    _decompose(lambda src, out: [_VHACD_SCRIPT, str(src), str(out), str(out.with_suffix(".log")),
+                                 str(VHACD_RESOLUTION), str(VHACD_DEPTH)]),
     cached=True, settings=f"vhacd/{VHACD_RESOLUTION}/{VHACD_DEPTH}"))
 _register(CollisionMethod(
     "coacd", "CoACD of each link (pip install coacd; seconds to minutes per link, cached)",
-    _decompose(_COACD_SCRIPT, [repr(COACD_THRESHOLD)]),
+    _decompose(lambda src, out: [_COACD_SCRIPT, str(src), str(out), repr(COACD_THRESHOLD)]),
     cached=True, settings=f"coacd/{COACD_THRESHOLD}"))
 
 
@@ -291,6 +292,8 @@ def _cache_dir() -> Path:
 
 
 def _obj_text(pieces: list[Piece]) -> str:
+    """Several meshes as one OBJ text, an ``o piece_<k>`` object each (the cache's format,
+    read back by :func:`_split_objects`)."""
     lines: list[str] = []
     base = 1
     for k, (v, f) in enumerate(pieces):
@@ -349,7 +352,7 @@ def collision_pieces(mesh: LinkMesh, dest: Path, method: str = DEFAULT_COLLISION
         # atomic, not fsync'ed one by one: an object has tens to hundreds of pieces, and
         # every command writes them inside a staged object folder that appears whole
         with atomic_path(p) as tmp:
-            tmp.write_text(_obj_text([(v, f)]).split("\n", 1)[1])
+            write_obj(tmp, v, f)
         files.append(p)
     return files
 
