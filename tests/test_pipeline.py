@@ -50,7 +50,7 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert result["selector"] == "learned" and result["stages"]["ranker"] == [str(run / "ranker")]
     ranker = json.loads((run / "ranker/ranker.json").read_text())
     assert ranker["meta"]["trained_on"]["split"] == str(run / "split.json")
-    assert json.loads((run / "ranker/folds.json").read_text())["fine"]["epochs"] == 25
+    assert json.loads((run / "ranker/folds.json").read_text())["fine"]["epochs"] == 25  # the demo's --gnn-epochs
     fold_ids = {i for d in (run / "ranker/folds").iterdir() for i in json.loads((d / "split.json").read_text())["test"]}
     assert fold_ids == set(split["train"])
     ranker_file = str(run / "ranker" / "ranker.json")

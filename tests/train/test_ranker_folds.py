@@ -43,3 +43,11 @@ def test_a_failed_fold_is_named(tmp_path):
     with pytest.raises(KinmoError, match="fold GNN .*fine_"):
         ranker.train_folds(graphs, [g.shape_id for g in graphs], tmp_path, k=3, preset="tiny",
                            types=("fine",), epochs=1, workers=2)
+
+
+def test_fold_gnns_train_two_thirds_of_the_preset_epochs():
+    assert ranker.fold_config("quick", "fine").epochs == 40  # of the quick preset's 60
+    assert ranker.fold_config("paper", "fine").epochs == round(2 / 3 * ranker.make_preset("paper").epochs)
+    assert ranker.fold_config("quick", "coarse", epochs=25).epochs == 25  # given: as given
+    cfg = ranker.fold_config("quick", "coarse", seed=3)
+    assert (cfg.model.types, cfg.seed, cfg.threads, cfg.device) == ("coarse", 3, 1, "auto")

@@ -35,9 +35,12 @@ class PipelineConfig(BaseModel):
         0.8, 1.0).
     seed : int
     workers : int
-        Worker processes of the per-shape stages (0: one per core).
+        Worker processes of the per-shape stages, and trainings run at once (the motion GNNs,
+        the axis network and the ranker's fold GNNs; 0: one per core).
     gnn_epochs, axis_epochs, ancsh_epochs, semi_epochs : int or None
-        Override the presets' epochs (tiny demo runs).
+        Override the presets' epochs (tiny demo runs; ``gnn_epochs`` also sets the ranker's
+        fold GNNs', which otherwise train :data:`kinmo.train.ranker.FOLD_EPOCH_SHARE` of the
+        preset's).
     frames_per_object : int or None
         Override the rendered scans per object.
     ancsh_steps_per_epoch : int or None

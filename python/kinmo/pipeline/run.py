@@ -17,16 +17,18 @@ from kinmo.ancsh.structure import structure_slug
 from kinmo.ancsh.train import train_ancsh
 from kinmo.data.cache import load_cache
 from kinmo.data.readers import find_shapes
-from kinmo.errors import KinmoDataError
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.executor import map_unordered
 from kinmo.evaluate.pre_segmented import run_evaluation
 from kinmo.inference.bundle import write_bundle
 from kinmo.io import write_json
 from kinmo.pipeline.config import PipelineConfig
 from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
 from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
-from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage
+from kinmo.parallel import resolve_workers
+from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage, mark_done, stage_done
 from kinmo.prepare import PrepareConfig, prepare_dataset
-from kinmo.progress import console as new_console
+from kinmo.progress import CountingBar, console as new_console, literal
 from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.train import preset_config as axis_preset, train_axis_model
@@ -36,7 +38,7 @@ from kinmo.stages import file_fingerprint
 from kinmo.synth import SYNTH_VERSION, generate_dataset
 from kinmo.train.config import preset as gnn_preset
 from kinmo.train.gnn import train_gnn
-from kinmo.train.ranker import train_ranker
+from kinmo.train.ranker import fold_config, fold_plan, ranker_graphs, train_ranker
 from kinmo.train.split import Split
 
 __all__ = ["RANKER_FOLDS", "RANKER_TYPES", "SPLIT_TEST_FRACTION", "run_pipeline"]
@@ -175,7 +177,12 @@ class _Context:
     #: ANCSH models per category (:func:`ancsh_plan`), set by the main run's ANCSH stage.
     plan: dict[str, list[Any]] = dataclasses.field(default_factory=dict)
 
+    #: Stages trained in the pool of :meth:`train_in_parallel` (recorded there, skipped here).
+    pooled: set[str] = dataclasses.field(default_factory=set)
+
     def stage(self, folder: Path, key: dict[str, Any], run: Callable[[], Any], name: str) -> bool:
+        if name in self.pooled:
+            return False
         return _stage(folder, key, run, self.console.print, name, self.clock)
 
     def prepare(self, src: Path, cache: Path, prep: Any, name: str) -> None:
@@ -226,6 +233,74 @@ class _Context:
         self.res.stages[f"{v.prefix}model"] = [str(folder)]
         return folder
 
+    def train_in_parallel(self, v: _Variant, base: dict[str, Any], trainings: list[_Training],
+                          graphs: Callable[[], Any]) -> None:
+        """Train ``trainings`` (stages not up to date) and the ranker stage's fold GNNs
+        ``cfg.workers`` at a time (issue 24), on the project's executor
+        (:func:`kinmo.executor.map_unordered`, local process pool).
+
+        Each training runs single-threaded in its worker exactly as its stage would run it
+        in this process (same function, configuration, split and seed), so the models do not
+        depend on ``-j``. A finished stage's marker is written as it completes (an interrupted
+        pool resumes with what is left); its wall and CPU seconds, measured in the worker, are
+        recorded as a :attr:`~kinmo.pipeline.stages.StageTiming.parallel` row, and the pool's
+        own row holds the wall and CPU time of all of them. The stages then find their models
+        trained; the ranker stage finds its folds trained and only fits.
+
+        With one worker, or fewer than two trainings to run, nothing happens here: each
+        stage trains in turn, as before.
+
+        Raises
+        ------
+        KinmoError
+            A training failed (the message names its folder).
+        """
+        cfg = self.cfg
+        pending = [t for t in trainings if not stage_done(t.folder, t.key)]
+        stage = self._ranker_stage(v, base)
+        if stage is not None and not stage_done(*stage):
+            folder = stage[0]
+            _ranker_fold_stamp(cfg, folder)
+            rg = ranker_graphs(v.graphs, Split.load(v.split))
+            ids = sorted({g.shape_id for g in rg})
+            cats = {g.shape_id: g.category for g in rg}
+            plan = fold_plan(ids, [cats[i] for i in ids], folder, k=RANKER_FOLDS, preset=cfg.preset,
+                             types=RANKER_TYPES, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs)
+            pending += [_Training(f"{v.prefix}train ranker: fold GNN {run_dir.name}", "gnn", run_dir, fcfg, split)
+                        for run_dir, fcfg, split in plan]
+        workers = resolve_workers(cfg.workers, len(pending))
+        if workers < 2:
+            return
+        # longest first (the axis network, then the augmented GNNs), so that the last one to
+        # finish is a short one
+        pending.sort(key=lambda t: (t.kind != "axis", -getattr(t.config, "flatten_prob", 0.0)))
+        data = graphs()
+        name = f"{v.prefix}train {len(pending)} models, {workers} at a time"
+        self.console.print(f"[bold cyan]{name}[/]: " + ", ".join(literal(t.name) for t in pending))
+
+        def done(job: tuple[_Training, Any, bool], timing: tuple[float, float]) -> None:
+            t = job[0]
+            if t.key is not None:
+                mark_done(t.folder, t.key)
+                self.pooled.add(t.name)
+            self.clock.record(t.name, StageTiming(wall_s=round(timing[0], 2), cpu_s=round(timing[1], 2),
+                                                  parallel=True))
+            bar.advance()
+
+        with CountingBar(len(pending), self.progress, name, "models", counters={}) as bar:
+            self.clock.run(name, lambda: map_unordered(
+                _train_one, [(t, data, False) for t in pending], workers, done, _training_failed))
+
+    def _ranker_stage(self, v: _Variant, base: dict[str, Any]) -> tuple[Path, dict[str, Any]] | None:
+        """Folder and key of ``v``'s ranker stage; None when it has none (paper selector,
+        no refinement, or the baseline's ranker reused)."""
+        cfg = self.cfg
+        if not cfg.refine or cfg.selector != "learned" or "ranker" in v.reuse:
+            return None
+        epochs = fold_config(cfg.preset, "fine", epochs=cfg.gnn_epochs).epochs
+        return v.out / "ranker", {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES),
+                                                     "epochs": epochs}}
+
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
         """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
         fit on out-of-fold GNN predictions of ``v``'s training objects
@@ -240,10 +315,9 @@ class _Context:
         if not cfg.refine or cfg.selector != "learned":
             return None
         folder = v.reuse.get("ranker", v.out / "ranker")
-        if "ranker" not in v.reuse:
-            key = {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES), "epochs": cfg.gnn_epochs}}
-            self.stage(folder, key, lambda: _train_ranker(cfg, v, folder, self.progress),
-                       f"{v.prefix}train ranker")
+        stage = self._ranker_stage(v, base)
+        if stage is not None:
+            self.stage(*stage, lambda: _train_ranker(cfg, v, folder, self.progress), f"{v.prefix}train ranker")
         self.res.stages[f"{v.prefix}ranker"] = [str(folder)]
         return folder / "ranker.json"
 
@@ -257,9 +331,12 @@ class _Context:
         graphs = functools.cache(functools.partial(_graphs, v.graphs))
         split_file = v.split
 
-        # 3. motion GNN, fine and coarse types (Sec. 3.1-3.2)
+        # 3. motion GNN, fine and coarse types (Sec. 3.1-3.2), and 4. the axis-selection
+        # network (Sec. 3.3): independent trainings, which with -j N train N at a time beside
+        # the ranker's fold GNNs (train_in_parallel); each stage then finds its model trained
 
         gnn_runs: dict[str, Path] = {}
+        trainings: list[_Training] = []
         for types in ("fine", "coarse"):
             if f"gnn_{types}" in v.reuse:
                 gnn_runs[types] = v.reuse[f"gnn_{types}"]
@@ -268,21 +345,19 @@ class _Context:
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
                               **({} if cfg.augment_gnn and types == "fine"
                                  else {"flatten_prob": 0.0, "drop_names_prob": 0.0}))
-            self.stage(run_dir, {**base, "gnn": gcfg.model_dump()},
-                       lambda gcfg=gcfg, run_dir=run_dir: train_gnn(
-                           graphs(), run_dir, gcfg, split=split_file, progress=progress),
-                       f"{v.prefix}train gnn ({types})")
+            trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, split_file,
+                                       {**base, "gnn": gcfg.model_dump()}))
             gnn_runs[types] = run_dir
-        res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
-
-        # 4. axis-selection network (Sec. 3.3)
-
         axis_dir = v.reuse.get("axis", out / "axis")
         if "axis" not in v.reuse and cfg.refine:
             acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
                                seed=cfg.seed)
-            self.stage(axis_dir, {**base, "axis": acfg.model_dump()}, lambda: train_axis_model(
-                graphs(), axis_dir, acfg, split=split_file, progress=progress), f"{v.prefix}train axis")
+            trainings.append(_Training(f"{v.prefix}train axis", "axis", axis_dir, acfg, split_file,
+                                       {**base, "axis": acfg.model_dump()}))
+        self.train_in_parallel(v, base, trainings, graphs)
+        for t in trainings:
+            self.stage(t.folder, t.key, lambda t=t: _train_one((t, graphs(), progress)), t.name)
+        res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
         if cfg.refine:
             res.stages[f"{v.prefix}axis"] = [str(axis_dir)]
             res.selector = cfg.selector
@@ -509,22 +584,79 @@ class _Context:
 
 
 
-def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool) -> None:
-    """Fit the ranker of ``v`` into ``folder`` (:func:`kinmo.train.ranker.train_ranker`
-    on ``v``'s cache and split, fold GNNs of ``cfg.preset`` and ``cfg.gnn_epochs``).
+@dataclasses.dataclass(frozen=True)
+class _Training:
+    """One model training of ``train all``: a stage's (motion GNN, axis network) or one of the
+    ranker stage's fold GNNs (``key`` None: its ``model.pt`` marks it done).
 
-    ``train_ranker`` skips a fold whose ``folds/<types>_<f>/model.pt`` exists; ``folds.json``
-    holds the fold GNNs' configuration, and folds of another one are trained again.
+    Attributes
+    ----------
+    name : str
+        Stage name (log and timings).
+    kind : {"gnn", "axis"}
+        :func:`~kinmo.train.gnn.train_gnn` or :func:`~kinmo.refine.train.train_axis_model`.
+    folder : Path
+        The run folder.
+    config : TrainConfig or AxisTrainConfig
+    split : Path or Split
+    key : dict or None
+        The stage's key (its ``.done`` marker).
     """
+
+    name: str
+    kind: str
+    folder: Path
+    config: Any
+    split: Any
+    key: dict[str, Any] | None = None
+
+
+def _train_one(job: tuple[_Training, Any, bool]) -> tuple[float, float]:
+    """Train one :class:`_Training` on ``graphs`` (a cache folder or graphs); a worker of
+    :meth:`_Context.train_in_parallel`, and each stage's own run in one process.
+
+    Returns
+    -------
+    (float, float)
+        Wall and CPU seconds of this process.
+    """
+    import time
+
+    t, graphs, progress = job
+    w0, c0 = time.perf_counter(), time.process_time()
+    if t.kind == "axis":
+        train_axis_model(graphs, t.folder, t.config, split=t.split, progress=progress)
+    else:
+        train_gnn(graphs, t.folder, t.config, split=t.split, progress=progress)
+    return time.perf_counter() - w0, time.process_time() - c0
+
+
+def _training_failed(job: tuple[_Training, Any, bool], exc: Exception) -> tuple[float, float]:
+    raise KinmoError(f"{job[0].name} ({job[0].folder}): {exc}") from exc
+
+
+def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path) -> None:
+    """Write ``folder/folds.json``, the fold GNNs' configuration, removing folds trained with
+    another one (they are trained again)."""
     import shutil
 
-    configs = {t: gnn_preset(cfg.preset, types=t, seed=cfg.seed, epochs=cfg.gnn_epochs, threads=1, device="auto")
-               for t in RANKER_TYPES}
+    configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs) for t in RANKER_TYPES}
     stamp = json.loads(json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}))
     if (folder / "folds.json").is_file() and json.loads((folder / "folds.json").read_text()) != stamp:
         shutil.rmtree(folder / "folds", ignore_errors=True)
     folder.mkdir(parents=True, exist_ok=True)
     write_json(folder / "folds.json", stamp)
+
+
+def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool) -> None:
+    """Fit the ranker of ``v`` into ``folder`` (:func:`kinmo.train.ranker.train_ranker`
+    on ``v``'s cache and split, fold GNNs of ``cfg.preset`` and ``cfg.gnn_epochs``).
+
+    ``train_ranker`` skips a fold whose ``folds/<types>_<f>/model.pt`` exists (trained by
+    :meth:`_Context.train_in_parallel`, or by an interrupted run); ``folds.json`` holds the
+    fold GNNs' configuration, and folds of another one are trained again.
+    """
+    _ranker_fold_stamp(cfg, folder)
     train_ranker(v.graphs, folder, v.split, folds=RANKER_FOLDS, preset=cfg.preset, types=RANKER_TYPES,
                  seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs,
                  workers=cfg.workers)

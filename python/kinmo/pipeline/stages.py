@@ -13,7 +13,7 @@ from pydantic import BaseModel, Field
 from kinmo.io import write_text
 from kinmo.progress import literal
 
-__all__ = ["PipelineResult", "StageTiming"]
+__all__ = ["PipelineResult", "StageTiming", "mark_done", "stage_done"]
 
 
 class StageTiming(BaseModel):
@@ -28,11 +28,17 @@ class StageTiming(BaseModel):
         during the stage.
     ran : bool
         False when the stage was up to date (skipped).
+    parallel : bool
+        Trained in the pool of ``kinmo train all -j N`` beside other stages: its wall time
+        overlaps theirs, and its times are the worker's own (wall and CPU of that process).
+        The pool's own row counts the wall and CPU of all of them, so :meth:`PipelineResult.total`
+        leaves these rows out.
     """
 
     wall_s: float
     cpu_s: float
     ran: bool = True
+    parallel: bool = False
 
 
 class PipelineResult(BaseModel):
@@ -66,9 +72,10 @@ class PipelineResult(BaseModel):
     synth_extra: Path | None = None
 
     def total(self) -> StageTiming:
-        """The sum over the stages."""
-        return StageTiming(wall_s=sum(t.wall_s for t in self.timings.values()),
-                           cpu_s=sum(t.cpu_s for t in self.timings.values()),
+        """The sum over the stages (rows of a pool, :attr:`StageTiming.parallel`, are counted
+        by the pool's row)."""
+        own = [t for t in self.timings.values() if not t.parallel]
+        return StageTiming(wall_s=sum(t.wall_s for t in own), cpu_s=sum(t.cpu_s for t in own),
                            ran=any(t.ran for t in self.timings.values()))
 
 
@@ -97,6 +104,12 @@ class _Clock:
         self.log(f"[green]{name}[/]: {t.wall_s:.1f} s wall, {t.cpu_s:.1f} s CPU")
         return value
 
+    def record(self, name: str, timing: StageTiming) -> None:
+        """Record a stage timed elsewhere (in a worker of a pool), print it."""
+        self.timings[name] = timing
+        where = " (in parallel)" if timing.parallel else ""
+        self.log(f"[green]{name}[/]: {timing.wall_s:.1f} s wall, {timing.cpu_s:.1f} s CPU{where}")
+
     def skipped(self, name: str) -> None:
         """Record stage ``name`` as up to date (not run)."""
         self.timings[name] = StageTiming(wall_s=0.0, cpu_s=0.0, ran=False)
@@ -109,9 +122,7 @@ def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Calla
     With a ``clock``, the stage's time is recorded under ``name``. A stage writing one file
     into a folder shared with others (the split) gets its own ``marker_name``.
     """
-    marker = folder / marker_name
-    text = json.dumps(key, sort_keys=True, default=str)
-    if marker.is_file() and marker.read_text() == text:
+    if stage_done(folder, key, marker_name):
         log(f"[dim]{name}: up to date ({literal(folder)})[/]")
         if clock is not None:
             clock.skipped(name)
@@ -121,8 +132,23 @@ def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Calla
         clock.run(name, run)
     else:
         run()
-    folder.mkdir(parents=True, exist_ok=True)
-    write_text(marker, text)
+    mark_done(folder, key, marker_name)
     return True
 
 
+
+
+def _key_text(key: dict[str, Any]) -> str:
+    return json.dumps(key, sort_keys=True, default=str)
+
+
+def stage_done(folder: Path, key: dict[str, Any], marker_name: str = ".done") -> bool:
+    """True when the stage of ``folder`` ran with ``key`` (its marker holds it)."""
+    marker = folder / marker_name
+    return marker.is_file() and marker.read_text() == _key_text(key)
+
+
+def mark_done(folder: Path, key: dict[str, Any], marker_name: str = ".done") -> None:
+    """Write the marker of a stage that ran with ``key`` (a stage run outside :func:`_stage`)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    write_text(folder / marker_name, _key_text(key))

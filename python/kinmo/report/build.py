@@ -218,18 +218,19 @@ def _timings_table(timings: dict[str, dict]) -> Table:
     rows, wall, cpu = [], 0.0, 0.0
     for name, t in timings.items():
         w, c = to_float(str(t.get("wall_s", ""))), to_float(str(t.get("cpu_s", "")))
-        ran = bool(t.get("ran", True))
+        ran, parallel = bool(t.get("ran", True)), bool(t.get("parallel", False))
         rows.append([name, f"{w:.1f}" if ran else "–", f"{c:.1f}" if ran else "–",
-                     "ran" if ran else "up to date"])
-        if ran and not math.isnan(w):
+                     ("ran, in parallel" if parallel else "ran") if ran else "up to date"])
+        if ran and not parallel and not math.isnan(w):
             wall += w
-        if ran and not math.isnan(c):
+        if ran and not parallel and not math.isnan(c):
             cpu += c
     bold = {len(rows)}
     rows.append(["total", f"{wall:.1f}", f"{cpu:.1f}", ""])
     return Table(["stage", "wall (s)", "CPU (s)", ""], rows, align="lrrl", bold_rows=bold, caption=(
         "Time of each stage of the last `kinmo train all` / `kinmo demo` call (CPU: user + system "
-        "seconds of the process and its workers; stages up to date were skipped)."))
+        "seconds of the process and its workers; stages up to date were skipped; stages run in "
+        "parallel show their own worker's time, and the total counts them once, in their pool's row)."))
 
 
 # --- Generated shapes: with vs without ----------------------------------------------------

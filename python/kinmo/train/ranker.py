@@ -33,11 +33,11 @@ from kinmo.refine.fit_selector import (
 )
 from kinmo.refine.ranker import Ranker
 from kinmo.refine.semantic_prior import SemanticPrior
-from kinmo.train.config import preset as make_preset
+from kinmo.train.config import TrainConfig, preset as make_preset
 from kinmo.train.gnn import load_run, train_gnn
 from kinmo.train.split import Split
 
-__all__ = ["oof_predictions", "train_folds", "train_ranker"]
+__all__ = ["FOLD_EPOCH_SHARE", "fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_folds", "train_ranker"]
 
 
 def _fold_job(job: tuple) -> str:
@@ -49,6 +49,102 @@ def _fold_job(job: tuple) -> str:
 
 def _fold_failed(job: tuple, exc: Exception) -> str:
     raise KinmoError(f"fold GNN {job[1]}: {exc}") from exc
+
+
+#: The fold GNNs train for this share of their preset's epochs (40 of the quick preset's 60)
+#: when no epoch count is given: their held-out folds' accuracy and axis angle are flat from
+#: about epoch 30 of 60 (``ranker/folds/*/metrics.csv`` of ``kinmo train all`` on the shared
+#: data, docs/results/benchmarks.md), and the ranker only needs their out-of-fold
+#: predictions. The motion GNNs of the tables and the bundle keep the preset's epochs.
+FOLD_EPOCH_SHARE = 2 / 3
+
+
+def fold_config(preset: str, types: str, *, seed: int = 0, threads: int = 1,
+                epochs: int | None = None) -> TrainConfig:
+    """The training configuration of a fold GNN (:func:`fold_plan`).
+
+    Parameters
+    ----------
+    preset : str
+        GNN preset (:func:`kinmo.train.config.preset`).
+    types : {"fine", "coarse"}
+    seed, threads
+    epochs : int, optional
+        The fold GNN's epochs; by default :data:`FOLD_EPOCH_SHARE` of the preset's (at least 1).
+
+    Returns
+    -------
+    TrainConfig
+        On device ``"auto"``: CUDA where there is one (the paper preset's fold GNNs take
+        hours on a CPU), the CPU elsewhere, as every other GNN training of kinmo.
+    """
+    if epochs is None:
+        epochs = max(1, round(make_preset(preset).epochs * FOLD_EPOCH_SHARE))
+    return make_preset(preset, types=types, seed=seed, threads=threads, device="auto", epochs=epochs)
+
+
+def ranker_graphs(data: str | Path, split: Split) -> list[PartGraph]:
+    """The graphs :func:`train_ranker` fits on: the labelled graphs of ``split``'s training ids.
+
+    Parameters
+    ----------
+    data : str or Path
+        A ``kinmo prepare`` cache.
+    split : Split
+
+    Returns
+    -------
+    list of PartGraph
+        In the cache's order.
+
+    Raises
+    ------
+    KinmoDataError
+        None of them is in ``data``.
+    """
+    train = set(split.train)
+    graphs = [g for g in load_cache(data) if g.shape_id in train and g.has_labels]
+    if not graphs:
+        raise KinmoDataError(data, "no labelled graph of the split's training ids")
+    return graphs
+
+
+def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: int = 3,
+              preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
+              threads: int = 1, epochs: int | None = None) -> list[tuple[Path, TrainConfig, Split]]:
+    """The fold GNNs of :func:`train_folds` still to train: run folder, configuration, split.
+
+    Parameters
+    ----------
+    ids : sequence of str
+        The training objects that have a labelled graph, sorted.
+    categories : sequence of str
+        Their categories (the folds are stratified by category, :func:`fold_ids`).
+    out, k, preset, types, seed, threads, epochs
+        As :func:`train_folds`.
+
+    Returns
+    -------
+    list of (Path, TrainConfig, Split)
+        ``out/folds/<types>_<f>/`` without a ``model.pt``, in type-set then fold order; each
+        is :func:`~kinmo.train.gnn.train_gnn` of the graphs of ``ids`` with that
+        configuration and split (fold ``f`` held out). ``kinmo train all`` trains them beside
+        its other models (:mod:`kinmo.pipeline.run`).
+    """
+    ids = list(ids)
+    folds = fold_ids(ids, list(categories), k, seed)
+    cats = dict(zip(ids, categories))
+    plan = []
+    for t in types:
+        for f in range(k):
+            run_dir = out / "folds" / f"{t}_{f}"
+            if (run_dir / "model.pt").is_file():
+                continue
+            held = [i for i, ff in zip(ids, folds) if ff == f]
+            rest = [i for i, ff in zip(ids, folds) if ff != f]
+            cfg = fold_config(preset, t, seed=seed, threads=threads, epochs=epochs)
+            plan.append((run_dir, cfg, Split(rest, held, cats, seed, 1.0 / k)))
+    return plan
 
 
 def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
@@ -84,21 +180,9 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
     """
     by_id = {g.shape_id: g for g in graphs}
     ids = [i for i in sorted(train_ids) if i in by_id]
-    cats = [by_id[i].category for i in ids]
-    folds = fold_ids(ids, cats, k, seed)
-    jobs = []
-    for t in types:
-        for f in range(k):
-            run_dir = out / "folds" / f"{t}_{f}"
-            if (run_dir / "model.pt").is_file():
-                continue
-            held = [i for i, ff in zip(ids, folds) if ff == f]
-            rest = [i for i, ff in zip(ids, folds) if ff != f]
-            # "auto": CUDA where there is one (the paper preset's fold GNNs take hours on
-            # a CPU), the CPU elsewhere, as every other GNN training of kinmo
-            cfg = make_preset(preset, types=t, seed=seed, threads=threads, device="auto", epochs=epochs)
-            split = Split(rest, held, {i: by_id[i].category for i in ids}, seed, 1.0 / k)
-            jobs.append(([by_id[i] for i in ids], run_dir, cfg, split))
+    plan = fold_plan(ids, [by_id[i].category for i in ids], out, k=k, preset=preset, types=types,
+                     seed=seed, threads=threads, epochs=epochs)
+    jobs = [([by_id[i] for i in ids], run_dir, cfg, split) for run_dir, cfg, split in plan]
     if not jobs:
         return 0
     workers = resolve_workers(workers, len(jobs))
@@ -127,7 +211,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         Folds and the GNN's training options (:func:`kinmo.train.config.preset`).
     progress : bool
     epochs : int, optional
-        The fold GNNs' epochs instead of the preset's (``kinmo train all --preset tiny``).
+        The fold GNNs' epochs; by default :data:`FOLD_EPOCH_SHARE` of the preset's
+        (:func:`fold_config`; ``kinmo train all --gnn-epochs N`` gives N to every GNN).
 
     Returns
     -------
@@ -171,7 +256,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     folds, preset, seed, threads
         OOF folds and the fold GNNs' training options.
     epochs : int, optional
-        The fold GNNs' epochs instead of the preset's.
+        The fold GNNs' epochs; by default :data:`FOLD_EPOCH_SHARE` of the preset's
+        (:func:`fold_config`; ``kinmo train all --gnn-epochs N`` gives N to every GNN).
     types : sequence of {"fine", "coarse"}
         Fold GNNs of these type sets; their groups are pooled (one ranker serves both).
     progress : bool
@@ -191,9 +277,7 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     out = Path(out)
     sp = Split.load(split)
     train = set(sp.train)
-    graphs = [g for g in load_cache(data) if g.shape_id in train and g.has_labels]
-    if not graphs:
-        raise KinmoDataError(data, "no labelled graph of the split's training ids")
+    graphs = ranker_graphs(data, sp)
     semantic = SemanticPrior.from_graphs(graphs)
     train_folds(graphs, sorted(train), out, k=folds, preset=preset, types=types, seed=seed,
                 threads=threads, epochs=epochs, workers=workers, executor=executor, progress=progress)
