@@ -203,3 +203,42 @@ def test_paper_preset_starts():
     logits = net(torch.from_numpy(np.concatenate([rest, rest])),
                  torch.from_numpy(np.concatenate([pos, neg])))
     assert logits.shape == (2,) and torch.isfinite(logits).all()
+
+
+def test_progress_bar_tasks_end_at_their_totals(tmp_path, monkeypatch):
+    """The axis network's bar and the per-category networks' have their own totals, and each
+    ends exactly at it (the category fine-tuning once ran the base task to 612/528)."""
+    import kinmo.refine.train as axis_train
+
+    tasks: dict[str, list[int]] = {}
+
+    class Recording:
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def task(self, description, total):
+            tasks[description] = [total, 0]
+            return description
+
+        def advance(self, task, n=1, info=None):
+            tasks[task][1] += n
+
+        def describe(self, task, description):
+            pass
+
+        def log(self, text):
+            pass
+
+    monkeypatch.setattr(axis_train, "training_bar", lambda progress, title: Recording())
+    gs = [box_cabinet(128, seed=s, jitter=0.2, shape_id=f"b{s}") for s in range(6)]
+    for g in gs[3:]:
+        g.category = "Oven"
+    cfg = preset_config("quick", epochs=2, batch_size=4, test_fraction=0.0, val_fraction=0.34,
+                        net=TINY_NET, category_min_objects=2, category_epochs=2, samples_per_shape=3)
+    train_axis_model(gs, tmp_path / "run", cfg, progress=True)
+    assert set(tasks) == {"axis net", "category nets"}
+    for name, (total, done) in tasks.items():
+        assert total > 0 and done == total, (name, total, done)

@@ -287,7 +287,7 @@ class _Context:
                                                   parallel=True))
             bar.advance()
 
-        with CountingBar(len(pending), self.progress, name, "models", counters={}) as bar:
+        with CountingBar(len(pending), self.progress, f"{v.prefix}train", "models", counters={}) as bar:
             self.clock.run(name, lambda: map_unordered(
                 _train_one, [(t, data, False) for t in pending], workers, done, _training_failed))
 

@@ -282,6 +282,14 @@ def _run_batches(model, opt, graphs, edges, config, rng, device, train: bool,
     return losses / max(count, 1), accs / max(count, 1)
 
 
+def _steps_per_epoch(edges: Sequence[MovingEdge], config: AxisTrainConfig) -> int:
+    """Batches of one epoch of :func:`_fit` on ``edges`` (:func:`_epoch_edges`' count)."""
+    per_graph: dict[int, int] = {}
+    for e in edges:
+        per_graph[e.graph] = per_graph.get(e.graph, 0) + 1
+    return math.ceil(sum(min(config.samples_per_shape, n) for n in per_graph.values()) / config.batch_size)
+
+
 def _epoch_edges(edges: Sequence[MovingEdge], per_shape: int, rng: np.random.Generator
                  ) -> list[MovingEdge]:
     by_graph: dict[int, list[MovingEdge]] = {}
@@ -348,7 +356,6 @@ def _fit(
 def _category_networks(
     base: AxisSelectionNet, graphs: Sequence[PartGraph], tr_edges: Sequence[MovingEdge],
     va_edges: Sequence[MovingEdge], config: AxisTrainConfig, out: Path, bar: TrainingBar,
-    task: Any,
 ) -> list[dict[str, Any]]:
     """Fine-tune per-category copies of ``base`` (rule: :class:`AxisTrainConfig`)."""
     objs: dict[str, set[int]] = {}
@@ -356,12 +363,16 @@ def _category_networks(
         objs.setdefault(graphs[e.graph].category, set()).add(e.graph)
     rows: list[dict[str, Any]] = []
     kept: dict[str, dict[str, Any]] = {}
+    fits = {}  # the categories fine-tuned: their (order, training edges, validation edges)
     for n_cat, cat in enumerate(sorted(objs)):
         cat_val = [e for e in va_edges if graphs[e.graph].category == cat]
-        if len(objs[cat]) < config.category_min_objects or not cat_val:
-            continue
+        if len(objs[cat]) >= config.category_min_objects and cat_val:
+            fits[cat] = (n_cat, [e for e in tr_edges if graphs[e.graph].category == cat], cat_val)
+    # a task of their own, of the batches they will run (not more steps on the base net's)
+    task = bar.task("category nets", sum(config.category_epochs * _steps_per_epoch(tr, config)
+                                         for _, tr, _ in fits.values()))
+    for cat, (n_cat, cat_tr, cat_val) in fits.items():
         t0 = time.perf_counter()
-        cat_tr = [e for e in tr_edges if graphs[e.graph].category == cat]
         g_acc = selection_accuracy(base, graphs, cat_val, config, seed=config.seed)[0]
         model = copy.deepcopy(base)
         _, best_epoch, best_state = _fit(
@@ -454,11 +465,7 @@ def train_axis_model(
                 "n_train_edges": len(tr_edges),
                 "n_val_edges": len(va_edges),
             })
-        per_graph: dict[int, int] = {}
-        for e in tr_edges:
-            per_graph[e.graph] = per_graph.get(e.graph, 0) + 1
-        steps = math.ceil(sum(min(config.samples_per_shape, n) for n in per_graph.values())
-                          / config.batch_size)
+        steps = _steps_per_epoch(tr_edges, config)
         rows: list[dict[str, float]] = []
 
         def on_epoch(epoch: int, row: dict[str, float], better: bool) -> None:
@@ -481,6 +488,6 @@ def train_axis_model(
                 (out / CATEGORIES_FILE).unlink(missing_ok=True)  # a stale index of an earlier run
             if config.category_min_objects > 0:
                 model.load_state_dict(best_state)
-                cats = _category_networks(model, graphs, tr_edges, va_edges, config, out, bar, task)
+                cats = _category_networks(model, graphs, tr_edges, va_edges, config, out, bar)
                 kept = [r["category"] for r in cats if r["kept"]]
     return TrainResult(out, rows, best_epoch, len(tr_edges), len(va_edges), kept)
