@@ -24,6 +24,7 @@ from kinmo.ancsh.evaluate import (
     summarize,
     table2_markdown,
 )
+from kinmo.ancsh.interchangeable import interchangeable_groups, matched_frame_errors
 from kinmo.ancsh.postprocess import JointEstimate, estimate
 from kinmo.ancsh.scans import render_objects
 from kinmo.render.dataset import load_frame
@@ -99,6 +100,27 @@ def test_perfect_per_point_predictions_recover_poses_and_joints(frames, oid):
     assert e.iou[0] > 0.5
 
 
+def test_swapped_cabinet_doors_are_matched_back(frames):
+    """The two revolute doors of a real cabinet frame: the perfect estimate with the doors
+    swapped has large raw errors and zero permutation-matched ones."""
+    cat, fr, _ = frames[CABINET]
+    parts = cat.parts[CABINET]
+    truth = frame_truth(fr, parts)
+    groups = interchangeable_groups(parts.structure)
+    assert groups == [(1, 2)]
+    est = ground_truth_estimate(truth)
+    est.parts[1], est.parts[2] = est.parts[2], est.parts[1]
+    est.joints[0], est.joints[1] = est.joints[1], est.joints[0]
+    raw = frame_errors(est, truth)
+    m, perm = matched_frame_errors(est, truth, groups)
+    assert perm.tolist() == [0, 2, 1]
+    assert raw.translation[1:].min() > 0.05 * truth.parts[0].scale and m.translation.max() < 1e-9
+    assert m.rotation_deg.max() < 1e-4 and m.angle_deg.max() < 1e-6 and m.state.max() < 1e-9
+    # the unswapped estimate is left alone
+    m0, perm0 = matched_frame_errors(ground_truth_estimate(truth), truth, groups)
+    assert perm0.tolist() == [0, 1, 2] and m0.translation.max() < 1e-9
+
+
 def test_table_rows_and_markdown(frames):
     cat, fr, _ = frames[POT]
     truth = frame_truth(fr, cat.parts[POT])
@@ -146,6 +168,13 @@ def test_train_and_eval_commands_end_to_end(mobility_root, tmp_path, monkeypatch
     assert "Table 2" in res.output
     info = json.loads((out / "eval.json").read_text())
     assert info["symmetry_aware"] is True and info["symmetric_parts"] == {"10040": [None, None]}
+    # no interchangeable parts in 0<R-1: the matched columns repeat the raw ones, nothing swapped
+    assert info["interchangeable_parts"] == {"0<R-1": []}
+    assert [m["swapped_scans"] for m in info["permutation_matched"]] == [0]
+    for n in ("rotation_deg", "translation", "angle_deg", "distance"):
+        assert rows[0][f"{n}_matched_mean"] == rows[0][f"{n}_mean"], n
+    assert rows[0]["swapped_scans"] == "0"
+    assert "no interchangeable parts" in (out / "table2.md").read_text()
     # --no-symmetry: recorded, and identical numbers for a category without symmetric parts
     res = runner.invoke(app, ["eval", "--category", "Laptop", "--frames", "2", "-q", "--no-symmetry",
                               "--out", str(tmp_path / "plain"), "--scans", str(out / "scans")])

@@ -23,6 +23,15 @@ to it, as in NOCS and ANCSH (:mod:`kinmo.ancsh.symmetry`): the predicted pose is
 its symmetric equivalent closest to the truth before the part errors are computed
 (``symmetric=False`` turns this off).
 
+Interchangeable parts (leaf siblings of one parent with joints of one type, e.g. the two
+temples of eyeglasses or two cabinet doors; :mod:`kinmo.ancsh.interchangeable` for the rule and its
+limits) are scored a second way: per scan, the predicted parts of each group are assigned to
+its true parts by the permutation of least summed rotation error, and the rotation,
+translation, axis angle and axis distance errors under that assignment are reported beside
+the raw ones (``<metric>_matched_*`` columns of ``table2.csv`` and ``frames.csv``, a second
+table in ``table2.md`` and on the console, ``permutation_matched`` in ``eval.json``). The raw
+errors stay the Table 2 metric.
+
 Table entries are means over frames; the "mean" columns average the parts (or joints).
 Outputs in the evaluation folder: ``table2.csv`` (one row per run), ``table2.md``,
 ``frames.csv`` (every frame's errors) and ``eval.json`` (test objects, frames, runs).
@@ -48,13 +57,16 @@ from kinmo.ancsh.frame_metrics import (
     ground_truth_predictions,
 )
 from kinmo.ancsh.inference import load_run, predict_scans, quiet_estimate
+from kinmo.ancsh.interchangeable import describe_groups, interchangeable_groups, matched_frame_errors
 from kinmo.ancsh.objects import category_key, scan_category
 from kinmo.ancsh.scans import render_objects
 from kinmo.ancsh.structure import KinematicStructure, structure_slug
 from kinmo.ancsh.table2 import (
+    MATCHED_METRICS,
     METRICS,
     SETTING_ORDER,
     Table2Row,
+    matched_rich_table,
     num,
     paper_table,
     rich_table,
@@ -141,6 +153,8 @@ class _StructureEval:
     runs: list[Any]
     rows: list[Table2Row]
     errors: list[list[FrameErrors]]  # per run, per frame
+    matched: list[list[FrameErrors]]  # per run, per frame: permutation-matched
+    groups: list[tuple[int, ...]]  # interchangeable parts
     frame_lines: list[dict[str, Any]]
     test_ids: list[str]
     n_frames: int
@@ -308,6 +322,16 @@ def evaluate_category(
     write_text(paths["frames"], rows_csv(frame_lines, cols, digits=None, nan="nan"))
     test_ids = [i for e in evals for i in e.test_ids]
     sym = {k: v for e in evals for k, v in e.sym.items()}
+    matched_json = []
+    for e in evals:
+        for r in e.rows:
+            matched_json.append({
+                "structure": e.structure.signature(), "setting": r.setting, "run": r.run, "frames": r.frames,
+                "swapped_scans": r.swapped,
+                **{f"{n}_mean": _json_num(r.mean(n)) for n in MATCHED_METRICS},
+                **{f"{n}_matched_mean": _json_num(r.matched_mean(n)) for n in MATCHED_METRICS},
+                **{f"{n}_matched": [_json_num(float(x)) for x in r.matched.get(n, ())] for n in MATCHED_METRICS},
+            })
     write_json(paths["json"], {
         "category": name, "structure": "; ".join(e.structure.signature() for e in evals), "data": str(data),
         "structures": {e.structure.signature(): e.test_ids for e in evals},
@@ -317,16 +341,31 @@ def evaluate_category(
         "seed": seed, "render_failed": {k: v for e in evals for k, v in e.failed.items()},
         "runs": [str(r.path) for e in evals for r in e.runs], "symmetry_aware": symmetric,
         "symmetric_parts": {i: [None if a is None else [float(x) for x in a] for a in v] for i, v in sym.items()},
+        "interchangeable_parts": {e.structure.signature(): [list(g) for g in e.groups] for e in evals},
+        "permutation_matched": matched_json,
         "seconds": round(time.perf_counter() - t0, 2),
     })
     if console is not None:
         for e in evals if multi else []:
             console.print(rich_table(e.rows, name, e.structure))
+            if e.groups:
+                console.print(matched_rich_table(e.rows, name, e.structure, describe_groups(e.groups, e.structure)))
         if multi:
             console.print(rich_table(rows, name, None))
+            if any(e.groups for e in evals):
+                console.print(matched_rich_table(rows, name, None, "; ".join(
+                    f"{e.structure.signature()}: {describe_groups(e.groups, e.structure)}" for e in evals if e.groups)))
         else:
             console.print(rich_table(rows, name, evals[0].structure))
+            if evals[0].groups:
+                console.print(matched_rich_table(rows, name, evals[0].structure,
+                                                 describe_groups(evals[0].groups, evals[0].structure)))
     return rows, paths
+
+
+def _json_num(x: float) -> float | None:
+    """A JSON number (None for NaN / infinity)."""
+    return float(x) if np.isfinite(x) else None
 
 
 class _NoTestObject(Exception):
@@ -342,13 +381,16 @@ def _aggregate(evals: Sequence[_StructureEval]) -> list[Table2Row]:
     (joints), then the mean over scans (NaNs ignored)."""
     settings = sorted({r.setting for e in evals for r in e.rows}, key=lambda x: SETTING_ORDER.get(x, 9))
     rows = []
+
+    def scan_mean(errs: Sequence[FrameErrors], n: str) -> np.ndarray:
+        per = np.array([np.nanmean(v) if np.isfinite(v := np.asarray(getattr(fe, n), float)).any() else np.nan
+                        for fe in errs])
+        return np.array([np.nanmean(per) if np.isfinite(per).any() else np.nan])
+
     for setting in settings:
         errs = [fe for e in evals for r, fes in zip(e.rows, e.errors) if r.setting == setting for fe in fes]
-        vals = {}
-        for n in METRICS:
-            per = np.array([np.nanmean(v) if np.isfinite(v := np.asarray(getattr(fe, n), float)).any() else np.nan
-                            for fe in errs])
-            vals[n] = np.array([np.nanmean(per) if np.isfinite(per).any() else np.nan])
+        matched = [fe for e in evals for r, fes in zip(e.rows, e.matched) if r.setting == setting for fe in fes]
+        vals = {n: scan_mean(errs, n) for n in METRICS}
         training: dict[str, Any] = {}
         for e in evals:
             for r in e.rows:
@@ -356,7 +398,9 @@ def _aggregate(evals: Sequence[_StructureEval]) -> list[Table2Row]:
                     for k, v in r.training.items():
                         training[k] = training.get(k, 0) + v
         rows.append(Table2Row(setting, ", ".join(r.run for e in evals for r in e.rows if r.setting == setting),
-                              len(errs), *(vals[n] for n in METRICS), ("mean",), training))
+                              len(errs), *(vals[n] for n in METRICS), ("mean",), training,
+                              {n: scan_mean(matched, n) for n in MATCHED_METRICS},
+                              sum(r.swapped for e in evals for r in e.rows if r.setting == setting)))
     return rows
 
 
@@ -418,29 +462,41 @@ def _evaluate_structure(
         frames_data.append((f, fr, frame_truth(fr, cat.parts[key])))  # type: ignore[arg-type]
     seeds = [zlib.crc32(f"{seed}:{fr['meta']['key']}:{fr['meta']['frame']}".encode()) for _, fr, _ in frames_data]
 
+    groups = interchangeable_groups(structure)
     rows: list[Table2Row] = []
     all_errs: list[list[FrameErrors]] = []
+    all_matched: list[list[FrameErrors]] = []
     frame_lines: list[dict[str, Any]] = []
     for r, info in zip(loaded, infos):
         with torch_threads(r.config.threads):
             preds = predict_scans(r.model, [fr["points"] for _, fr, _ in frames_data], r.config.n_points,
                                   r.device, seeds)
         errs: list[FrameErrors] = []
+        matched: list[FrameErrors] = []
+        swapped = 0
         for (f, fr, truth), (pts, pred) in zip(frames_data, preds):
             est = quiet_estimate(pts, pred, structure, theta=r.config.theta, seed=seed)
-            e = frame_errors(est, truth, sym.get(str(fr["meta"]["key"])) or None)
+            axes = sym.get(str(fr["meta"]["key"])) or None
+            e = frame_errors(est, truth, axes)
+            em, perm = matched_frame_errors(est, truth, groups, axes)
             errs.append(e)
+            matched.append(em)
+            swapped += int((perm != np.arange(len(perm))).any())
             line: dict[str, Any] = {"setting": r.setting, "run": str(r.path), "id": fr["meta"]["key"],
-                                    "frame": int(fr["meta"]["frame"])}
+                                    "frame": int(fr["meta"]["frame"]), "permutation": " ".join(map(str, perm))}
             for n in METRICS:
                 for i, x in enumerate(getattr(e, n)):
                     line[f"{n}_{i}"] = num(float(x))
+                if n in MATCHED_METRICS:
+                    for i, x in enumerate(getattr(em, n)):
+                        line[f"{n}_matched_{i}"] = num(float(x))
             frame_lines.append(line)
         training = {k: info.get(k, 0) for k in ("labeled_scans", "pseudo_labeled_scans", "pseudo_target_scans")}
         training.update({f"{k}_count": len(info.get(k, [])) for k in
                          ("labeled_objects", "pseudo_labeled_objects", "unlabeled_objects")})
-        rows.append(summarize(r.setting, str(r.path), errs, structure.joint_types, training))
+        rows.append(summarize(r.setting, str(r.path), errs, structure.joint_types, training, matched, swapped))
         all_errs.append(errs)
+        all_matched.append(matched)
 
     source = "objects no run trained on" if foreign else "test objects"
     notes = [f"{source}: {', '.join(test_ids)}; {len(frames_data)} scans "
@@ -457,5 +513,12 @@ def _evaluate_structure(
                                                       for k in ks) for i, ks in sym_parts.items() if ks))
     else:
         notes.append("no test part is rotationally symmetric (symmetry-aware errors change nothing)")
-    return _StructureEval(structure, loaded, rows, all_errs, frame_lines, test_ids, len(frames_data), failed,
-                          sym, notes, refused), cat.category
+    if groups:
+        notes.append(f"permutation-matched errors: interchangeable {describe_groups(groups, structure)} matched "
+                     "by least summed rotation error per scan; swapped in "
+                     + ", ".join(f"{r.swapped} of {r.frames} scans ({r.setting})" for r in rows))
+    else:
+        notes.append("no interchangeable parts (leaf siblings with one joint type): permutation-matched errors "
+                     "equal the raw ones")
+    return _StructureEval(structure, loaded, rows, all_errs, all_matched, groups, frame_lines, test_ids,
+                          len(frames_data), failed, sym, notes, refused), cat.category

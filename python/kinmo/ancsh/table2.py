@@ -3,7 +3,10 @@
 :func:`summarize` turns the :class:`~kinmo.ancsh.frame_metrics.FrameErrors` of one run into a
 :class:`Table2Row` (means over frames, NaNs ignored); :func:`table2_markdown`,
 :func:`table2_csv`, :func:`rich_table` and :func:`paper_table` write the rows
-(:mod:`kinmo.ancsh.evaluate` for the metrics and the files of an evaluation).
+(:mod:`kinmo.ancsh.evaluate` for the metrics and the files of an evaluation). Rows may carry
+permutation-matched errors of interchangeable parts (:mod:`kinmo.ancsh.interchangeable`):
+``table2.csv`` has their columns next to the raw ones, :func:`table2_markdown` and
+:func:`matched_rich_table` a table of raw and matched errors side by side.
 """
 
 from __future__ import annotations
@@ -17,11 +20,12 @@ from typing import Any
 import numpy as np
 
 from kinmo.ancsh.frame_metrics import FrameErrors
+from kinmo.ancsh.interchangeable import describe_groups, interchangeable_groups
 from kinmo.ancsh.structure import KinematicStructure
 from kinmo.paper import PAPER_TABLE2
 
-__all__ = ["METRICS", "SETTING_ORDER", "Table2Row", "num", "paper_table", "rich_table", "structures_markdown",
-           "summarize", "table2_csv", "table2_markdown"]
+__all__ = ["MATCHED_METRICS", "METRICS", "SETTING_ORDER", "Table2Row", "matched_rich_table", "num", "paper_table",
+           "rich_table", "structures_markdown", "summarize", "table2_csv", "table2_markdown"]
 
 #: Row order of the settings.
 SETTING_ORDER = {"supervised": 0, "semi": 1, "semi-weakly": 2}
@@ -42,6 +46,12 @@ class Table2Row:
     training : dict
         Scans the run trained on (``labeled``, ``pseudo_labeled``, ``pseudo_targets``) and the
         object counts.
+    matched : dict of str to ndarray
+        Permutation-matched errors (:mod:`kinmo.ancsh.interchangeable`): for each name of
+        :data:`MATCHED_METRICS`, (K,) or (J,) float64 means over frames, same units as the raw
+        array. Empty when not computed.
+    swapped : int
+        Frames whose matching assigned some predicted part to another true part.
     """
 
     setting: str
@@ -55,35 +65,59 @@ class Table2Row:
     distance: np.ndarray
     joint_types: tuple[str, ...]
     training: dict[str, Any] = field(default_factory=dict)
+    matched: dict[str, np.ndarray] = field(default_factory=dict)
+    swapped: int = 0
 
     def mean(self, name: str) -> float:
         """Mean over parts / joints of a metric (NaN entries ignored; NaN when none)."""
-        v = np.asarray(getattr(self, name), dtype=np.float64)
-        v = v[np.isfinite(v)]
-        return float(v.mean()) if len(v) else float("nan")
+        return _nanmean(getattr(self, name))
+
+    def matched_mean(self, name: str) -> float:
+        """Mean over parts / joints of a permutation-matched metric (NaN when not computed)."""
+        return _nanmean(self.matched.get(name, ()))
+
+
+def _nanmean(values: Any) -> float:
+    v = np.asarray(values, dtype=np.float64).ravel()
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if len(v) else float("nan")
 
 
 #: The per-part / per-joint error arrays of a row, in column order.
 METRICS = ("rotation_deg", "translation", "iou", "state", "angle_deg", "distance")
+#: The metrics also reported permutation-matched (:mod:`kinmo.ancsh.interchangeable`): part
+#: rotation and translation, joint axis angle and distance.
+MATCHED_METRICS = ("rotation_deg", "translation", "angle_deg", "distance")
 
 
 def summarize(setting: str, run: str, errors: Sequence[FrameErrors], joint_types: Sequence[str],
-              training: Mapping[str, Any] | None = None) -> Table2Row:
-    """Mean of per-frame errors (NaNs ignored per entry)."""
-    def m(name: str) -> np.ndarray:
-        a = np.stack([getattr(e, name) for e in errors]) if errors else np.zeros((0, 0))
+              training: Mapping[str, Any] | None = None, matched: Sequence[FrameErrors] | None = None,
+              swapped: int = 0) -> Table2Row:
+    """Mean of per-frame errors (NaNs ignored per entry).
+
+    ``matched``: the permutation-matched errors of the same frames
+    (:func:`kinmo.ancsh.interchangeable.matched_frame_errors`), averaged alike into
+    :attr:`Table2Row.matched`; ``swapped``: how many of them swapped parts.
+    """
+    def m(errs: Sequence[FrameErrors], name: str) -> np.ndarray:
+        a = np.stack([getattr(e, name) for e in errs]) if errs else np.zeros((0, 0))
         with np.errstate(invalid="ignore"):
             return np.array([np.nanmean(c) if np.isfinite(c).any() else np.nan for c in a.T])
-    return Table2Row(setting, run, len(errors), *(m(n) for n in METRICS), tuple(joint_types),
-                     dict(training or {}))
+    if matched is not None and len(matched) != len(errors):
+        raise ValueError(f"{len(matched)} matched errors for {len(errors)} frames")
+    return Table2Row(setting, run, len(errors), *(m(errors, n) for n in METRICS), tuple(joint_types),
+                     dict(training or {}), {n: m(matched, n) for n in MATCHED_METRICS} if matched is not None else {},
+                     int(swapped))
 
 
 def _fmt(x: float, digits: int = 3) -> str:
     return "—" if not np.isfinite(x) else f"{x:.{digits}f}"
 
 
-def _cell(row: Table2Row, name: str, digits: int) -> str:
-    v = np.asarray(getattr(row, name))
+def _cell(row: Table2Row, name: str, digits: int, matched: bool = False) -> str:
+    v = np.asarray(row.matched.get(name, np.full(0, np.nan)) if matched else getattr(row, name), dtype=np.float64)
+    if len(v) == 0:
+        return "—"
     finite = v[np.isfinite(v)]
     if len(v) == 1:
         return _fmt(float(v[0]), digits)
@@ -121,9 +155,29 @@ def table2_markdown(rows: Sequence[Table2Row], category: str, structure: Kinemat
         tr = f"{t.get('labeled_scans', 0)} / {t.get('pseudo_labeled_scans', 0)} / {t.get('pseudo_target_scans', 0)}"
         lines.append(f"| {r.setting} | {r.frames} | {tr} | "
                      + " | ".join(_cell(r, n, d) for n, _, d in _HEADERS) + " |")
+    groups = interchangeable_groups(structure)
+    if groups and any(r.matched for r in rows):
+        lines += _matched_markdown(rows, f"Permutation-matched errors (interchangeable "
+                                   f"{describe_groups(groups, structure)}): per scan, predicted parts of a "
+                                   "group are assigned to its true parts by the permutation of least summed "
+                                   "rotation error (joints follow their parts); raw: part k against true part "
+                                   "k, as in the table above.")
     if notes:
         lines += [""] + [f"- {n}" for n in notes]
     return "\n".join(lines) + "\n"
+
+
+def _matched_markdown(rows: Sequence[Table2Row], lead: str) -> list[str]:
+    """Markdown lines: ``lead``, then raw and permutation-matched cells of
+    :data:`MATCHED_METRICS` side by side, one line per row."""
+    lines = ["", lead, "", "| setting | frames | swapped scans | "
+             + " | ".join(f"{h} raw | {h} matched" for n, h, _ in _HEADERS if n in MATCHED_METRICS) + " |",
+             "|---|---:|---:|" + "---:|" * (2 * len(MATCHED_METRICS))]
+    for r in rows:
+        lines.append(f"| {r.setting} | {r.frames} | {r.swapped} | " + " | ".join(
+            f"{_cell(r, n, d)} | {_cell(r, n, d, matched=True)}" for n, _, d in _HEADERS if n in MATCHED_METRICS)
+            + " |")
+    return lines
 
 
 def structures_markdown(
@@ -151,6 +205,10 @@ def structures_markdown(
           "axis angle error (°) | axis distance |", "|---|---:|" + "---:|" * 6]
     for r in rows:
         md.append(f"| {r.setting} | {r.frames} | " + " | ".join(_cell(r, n, d) for n, _, d in _HEADERS) + " |")
+    if any(interchangeable_groups(st) for st, _, _, _ in structures) and any(r.matched for r in rows):
+        md += _matched_markdown(rows, "Permutation-matched errors of the interchangeable parts (per-structure "
+                                "tables below); category row: mean over all test scans of the per-scan mean "
+                                "over parts (joints).")
     md += ["", f"- structures: {'; '.join(f'{st.signature()} ({n} test objects)' for st, _, _, n in structures)}"]
     md += [f"- not evaluated: {m}" for m in missing]
     for st, st_rows, notes, _ in structures:
@@ -159,11 +217,17 @@ def structures_markdown(
 
 
 def table2_csv(rows: Sequence[Table2Row], k: int, jn: int) -> str:
-    """``table2.csv`` text: one row per run, the mean and per-part (``k``) / per-joint (``jn``) columns."""
+    """``table2.csv`` text: one row per run, the mean and per-part (``k``) / per-joint (``jn``)
+    columns of each metric, each of :data:`MATCHED_METRICS` followed by its permutation-matched
+    columns (``<metric>_matched_mean``, ``<metric>_matched_part<i>`` / ``_joint<i>``; empty
+    cells when not computed), and ``swapped_scans`` last."""
     cols = ["setting", "run", "frames", "labeled_scans", "pseudo_labeled_scans", "pseudo_target_scans"]
     for n in METRICS:
         per, width = ("part", k) if n in ("rotation_deg", "translation", "iou") else ("joint", jn)
         cols += [f"{n}_mean"] + [f"{n}_{per}{i}" for i in range(width)]
+        if n in MATCHED_METRICS:
+            cols += [f"{n}_matched_mean"] + [f"{n}_matched_{per}{i}" for i in range(width)]
+    cols.append("swapped_scans")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(cols)
@@ -174,6 +238,12 @@ def table2_csv(rows: Sequence[Table2Row], k: int, jn: int) -> str:
         for n in METRICS:
             vals.append(num(r.mean(n)))
             vals += [num(float(x)) for x in getattr(r, n)]
+            if n in MATCHED_METRICS:
+                m = r.matched.get(n)
+                width = len(getattr(r, n))
+                vals.append(num(r.matched_mean(n)))
+                vals += [num(float(x)) for x in m] if m is not None else [""] * width
+        vals.append(r.swapped)
         w.writerow(vals)
     return buf.getvalue()
 
@@ -201,6 +271,41 @@ def rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStr
         t.add_row(r.setting, str(r.frames),
                   f"{tr.get('labeled_scans', 0)}+{tr.get('pseudo_labeled_scans', 0)}+{tr.get('pseudo_target_scans', 0)}",
                   *(_cell(r, n, d) for n, _, d in _HEADERS))
+    return t
+
+
+def matched_rich_table(rows: Sequence[Table2Row], category: str, structure: KinematicStructure | None,
+                       groups: str) -> Any:
+    """Raw and permutation-matched means side by side, as a :class:`rich.table.Table`
+    (:mod:`kinmo.ancsh.interchangeable`; per-part values in ``table2.md`` / ``table2.csv``).
+
+    Parameters
+    ----------
+    rows : sequence of Table2Row
+    category : str
+    structure : KinematicStructure or None
+        None: category rows over several structures.
+    groups : str
+        The matched parts, for the caption (:func:`kinmo.ancsh.interchangeable.describe_groups`).
+    """
+    from rich.table import Table
+
+    what = structure.signature() if structure is not None else "all structures"
+    t = Table(title=f"Table 2 — {category} ({what}), raw vs permutation-matched means over test scans",
+              caption=f"matched: {groups}")
+    t.add_column("setting", no_wrap=True)
+    t.add_column("frames", justify="right")
+    t.add_column("swapped", justify="right")
+    for n, _, _ in _HEADERS:
+        if n in MATCHED_METRICS:
+            t.add_column(f"{_SHORT[n]} raw", justify="right")
+            t.add_column(f"{_SHORT[n]} matched", justify="right")
+    for r in rows:
+        cells = []
+        for n, _, d in _HEADERS:
+            if n in MATCHED_METRICS:
+                cells += [_fmt(r.mean(n), d), _fmt(r.matched_mean(n), d)]
+        t.add_row(r.setting, str(r.frames), str(r.swapped), *cells)
     return t
 
 

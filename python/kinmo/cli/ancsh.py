@@ -119,7 +119,8 @@ def eval_ancsh_cmd(
     row per training setting (paper Table 2): part rotation / translation errors, 3D IoU,
     joint state, axis angle and axis distance errors, next to the paper's means. A category
     with one model per kinematic structure: each object is evaluated with the model of its
-    structure and the row averages all of them."""
+    structure and the row averages all of them. Interchangeable parts (leaf siblings with one
+    joint type, e.g. two doors) are also scored permutation-matched, beside the raw errors."""
     if ctx.invoked_subcommand is not None:
         return
     _single_blas_thread()

@@ -19,7 +19,9 @@ kind            file                    recognised by (writer)
                                         its column, else ``eval.json``'s ``category``
                                         next to the file, else the folder name
                                         (``eval-<category>``); all files are merged
-                                        (:func:`combine_table2`)
+                                        (:func:`combine_table2`). Permutation-matched
+                                        columns (``*_matched*``) are left out: the
+                                        report compares the raw errors with the paper.
 ``curves``      ``metrics.csv``         an ``epoch`` column (``kinmo train gnn``,
                                         ``kinmo train axis``, ``kinmo train ancsh``)
 ``pseudo``      ``summary.csv``         columns ``category``, ``shapes``, ``kept``
@@ -135,6 +137,7 @@ def _as_table2(t: CsvTable) -> Table2File | None:
     skip = {"category", setting_col}
     numeric = [c for c in cols if c not in skip and not _COUNT_COLUMN.search(low[c])
                and any(not math.isnan(to_float(r.get(c))) for r in t.rows)]
+    numeric = [c for c in numeric if "_matched" not in low[c]]  # beside the raw protocol, not the paper's
     means = [c for c in numeric if low[c].endswith("_mean")]
     metric_cols = means or numeric
     if not any("rot" in low[c] for c in metric_cols):
