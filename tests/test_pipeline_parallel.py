@@ -1,12 +1,13 @@
-"""``kinmo train all -j N`` (issue 24): the motion GNNs, the axis network and the ranker's fold
-GNNs train N at a time, giving the models the one-after-the-other run gives, timed once."""
+"""``kinmo train all -j N`` (issues 24, 23): the motion GNNs, the axis network and the ranker's
+fold GNNs train N at a time, then the ANCSH models one category per worker, giving the models
+the one-after-the-other run gives, timed once."""
 
 import json
 
 import pytest
 import torch
 
-from kinmo.pipeline import PipelineConfig, run_pipeline
+from kinmo.pipeline import PipelineConfig, category_runs, run_pipeline
 from kinmo.synth import generate_dataset
 
 MODELS = ["gnn_fine", "gnn_coarse", "axis", *(f"ranker/folds/{t}_{f}" for t in ("fine", "coarse") for f in range(3))]
@@ -61,3 +62,49 @@ def test_a_second_run_is_up_to_date(runs):
     cfg = PipelineConfig.model_validate_json((root / "j2" / "pipeline.json").read_text())
     res = run_pipeline(cfg, progress=False)
     assert {k for k, t in res.timings.items() if t.ran} == {"report"}
+
+
+@pytest.fixture(scope="module")
+def ancsh_runs(tmp_path_factory):
+    """Two categories with an ANCSH model each (supervised only: no unlabelled data), tiny
+    settings, trained with -j 2 and -j 1."""
+    root = tmp_path_factory.mktemp("parallel-ancsh")
+    data = root / "partnet-mobility"
+    generate_dataset(data, 12, 5, categories=["Laptop", "Microwave"], progress=False)
+    out = {}
+    for j in (2, 1):
+        cfg = PipelineConfig(labeled=data, out=root / f"j{j}", gnn_epochs=1, refine=False, render=False,
+                             categories=["Laptop", "Microwave"], ancsh_epochs=1, ancsh_steps_per_epoch=2,
+                             frames_per_object=2, workers=j)
+        out[j] = run_pipeline(cfg, progress=False)
+    return root, out
+
+
+def test_ancsh_categories_train_in_parallel_as_one_after_the_other(ancsh_runs):
+    root, out = ancsh_runs
+    assert out[2].categories == out[1].categories == ["Laptop", "Microwave"]
+    models = sorted(p.relative_to(root / "j1") for p in (root / "j1" / "ancsh").rglob("model.pt"))
+    assert len(models) == 3  # Laptop, and Microwave's two structures (generated layouts)
+    for rel in models:
+        a, b = _weights((root / "j2" / rel).parent), _weights((root / "j1" / rel).parent)
+        assert a.keys() == b.keys()
+        assert all(torch.equal(a[n], b[n]) for n in a), f"{rel} differs"
+    for cat in ("Laptop", "Microwave"):
+        # each category renders into its own scans/<Category>/ (one lock and manifest each)
+        assert (root / "j2" / "scans" / cat / "labeled" / "manifest.csv").is_file()
+        # the same Table 2
+        t2csv = (root / "j2" / "eval" / cat / "table2.csv").read_text().replace(str(root / "j2"), str(root / "j1"))
+        assert t2csv == (root / "j1" / "eval" / cat / "table2.csv").read_text()
+    ancsh2 = {k: t for k, t in out[2].timings.items() if k.startswith("train ancsh ")}
+    ancsh1 = {k: t for k, t in out[1].timings.items() if k.startswith("train ancsh ")}
+    assert ancsh2.keys() == ancsh1.keys() and len(ancsh2) == 3
+    assert all(t.ran and t.parallel for t in ancsh2.values()) and not any(t.parallel for t in ancsh1.values())
+    assert [k for k in out[2].timings if "chains" in k] == ["train ancsh: 3 models in 2 chains, 2 at a time"]
+    # `kinmo eval --category laptop` in the folder of that run finds its runs and the
+    # category's render cache
+    cwd = root / "cwd"
+    (cwd / "runs").mkdir(parents=True)
+    (cwd / "runs" / "all").symlink_to(root / "j2", target_is_directory=True)
+    found = category_runs("laptop", cwd=cwd)
+    assert found.runs == cwd / "runs" / "all" / "ancsh" / "Laptop"
+    assert found.scans == cwd / "runs" / "all" / "scans" / "Laptop"

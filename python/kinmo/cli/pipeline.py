@@ -21,7 +21,7 @@ def train_all(
     category: list[str] | None = typer.Option(None, "--category", help="ANCSH categories (repeatable)."),
     labeled_fraction: float = typer.Option(1.0, callback=_values.finite, help="Share of labelled training objects for ANCSH."),
     seed: int = typer.Option(0),
-    workers: int = typer.Option(0, "--workers", "-j", help="Processes for per-shape stages (0: all cores)."),
+    workers: int = typer.Option(0, "--workers", "-j", help="Processes for per-shape stages, and models trained at once (motion GNNs, axis network, the ranker's fold GNNs; 0: all cores)."),
     skip_ancsh: bool = typer.Option(False, "--skip-ancsh", help="Stop after the pseudo-labels (Table 1 only)."),
     render: bool = typer.Option(True, "--render/--no-render", help="Render Table 1 predictions for the gallery."),
     refine: bool = typer.Option(True, "--refine/--no-refine",

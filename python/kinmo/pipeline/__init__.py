@@ -22,15 +22,19 @@ JSON), so an interrupted run resumes where it stopped. Layout::
     out/eval/pre-segmented-paper/    the same with the paper's selector (--selector learned only)
     out/pseudo/                      kinmo pseudo-label (with the selector)
     out/ancsh/<Category>/<setting>/  kinmo train ancsh
+    out/scans/<Category>/            the rendered scans of a category (every variant shares them)
     out/eval/<Category>/             kinmo eval --category (Table 2)
     out/synth-extra-<as>-<N>/        --synth-extra N: the same with generated shapes added
     out/report/                      kinmo report
     out/pipeline_result.json         every stage's outputs and times (the report reads it first)
 
 The per-shape stages (prepare, render, pseudo-label) run in worker processes through pure
-per-shape functions, ready to be mapped on Ray instead; training runs in this process (a
-torch.distributed launch would wrap :func:`kinmo.train.gnn.train_gnn` and
-:func:`kinmo.ancsh.train.train_ancsh`).
+per-shape functions, ready to be mapped on Ray instead. Trainings that do not depend on each
+other run ``workers`` at a time in the same process pool (:mod:`kinmo.executor`), each
+single-threaded and exactly as it would run alone, so the models do not depend on ``-j``:
+the motion GNNs, the axis network and the ranker's fold GNNs in one pool, then the ANCSH
+models, one chain of settings per category (its scans in ``scans/<Category>/``). Each trainer
+can also run data-parallel under ``torchrun`` (:mod:`kinmo.train.distributed`).
 
 The package, by concern: :mod:`~kinmo.pipeline.config` (:class:`PipelineConfig`),
 :mod:`~kinmo.pipeline.data` (which folders, :func:`find_data`), :mod:`~kinmo.pipeline.plan`

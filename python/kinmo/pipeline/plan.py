@@ -167,7 +167,8 @@ class CategoryRuns:
     runs : Path or None
         Folder holding the category's runs; None when there are none.
     scans : Path or None
-        The run's render cache (``kinmo train all``'s ``scans/``) to reuse for the test scans.
+        The run's render cache of the category (``kinmo train all``'s ``scans/<Category>/``) to
+        reuse for the test scans.
     message : str
         Where the runs were found, or (``runs`` None) one line saying why there are none and
         the command that would train them.
@@ -206,7 +207,8 @@ def category_runs(category: str, cwd: Path | None = None) -> CategoryRuns:
     if ancsh.is_dir():
         for d in sorted(p for p in ancsh.iterdir() if p.is_dir()):
             if category_key(d.name) in keys:
-                return CategoryRuns(d, run / "scans" if (run / "scans").is_dir() else None,
+                scans = run / "scans" / d.name  # the category's render cache of train all
+                return CategoryRuns(d, scans if scans.is_dir() else None,
                                     f"runs of `kinmo train all` in {d}", d.name)
     single = cwd / "runs" / "ancsh"
     if single.is_dir():

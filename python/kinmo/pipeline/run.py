@@ -419,7 +419,7 @@ class _Context:
                 "skipped": res.skipped_categories})
             self.plan = plan
         settings = [s for s in cfg.settings if s == "supervised" or v.unlabeled is not None]
-        scans = cfg.out / "scans"  # one render cache for every variant: scans of the same objects
+        scans = cfg.out / "scans"  # one render cache for every variant (scans/<Category>/): the same objects
         overrides = {
             "epochs": cfg.ancsh_epochs, "semi_epochs": cfg.semi_epochs,
             "steps_per_epoch": cfg.ancsh_steps_per_epoch, "frames_per_object": cfg.frames_per_object,
@@ -429,6 +429,13 @@ class _Context:
         }
         ac = ancsh_preset(cfg.preset, **{k: val for k, val in overrides.items() if val is not None})
 
+        # one chain of trainings per category: per structure supervised, then semi (from the
+        # supervised weights) and semi-weakly; categories share no object and render into
+        # scans/<Category>/, so with -j N they train N at a time (ancsh_in_parallel)
+        shared = _AncshShared(ac, v.labeled, v.unlabeled, pseudo if v.unlabeled is not None else None,
+                              split_file, scans)
+        chains: dict[str, list[_AncshStage]] = {}
+        runs_of: dict[str, list[Path]] = {}
         for cat in res.categories:
             groups = self.plan[cat]
             runs: list[Path] = []
@@ -438,6 +445,7 @@ class _Context:
                 label = f"{cat} {g.structure.signature()}" if sub else cat
                 st = {"parents": list(g.structure.parents), "joint_types": list(g.structure.joint_types)}
                 group_runs: list[Path] = []
+                chain = chains.setdefault(cat, [])
                 for setting in settings:
                     reused = v.reuse.get(f"ancsh/{cat}/{sub + '/' if sub else ''}{setting}")
                     if reused is not None:
@@ -448,17 +456,20 @@ class _Context:
                     # reproduce them
                     init = (group_runs[0] if setting == "semi" and group_runs and settings[0] == "supervised"
                             else None)
-                    self.stage(run_dir, {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
-                                         **({"structure": st} if sub else {}),
-                                         **({"init": str(init)} if init is not None else {})},
-                               lambda run_dir=run_dir, setting=setting, cat=cat, init=init, g=g: train_ancsh(
-                                   cat, setting, run_dir, ac, data=v.labeled, partnet=v.unlabeled,
-                                   pseudo=pseudo if v.unlabeled is not None else None, split=split_file,
-                                   scans=scans, init=init, progress=progress, console=console,
-                                   structure=g.structure),
-                               f"{v.prefix}train ancsh {label} ({setting})")
+                    chain.append(_AncshStage(
+                        f"{v.prefix}train ancsh {label} ({setting})", run_dir,
+                        {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
+                         **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
+                        cat, setting, g.structure, init))
                     group_runs.append(run_dir)
                 runs += group_runs
+            runs_of[cat] = runs
+        self.ancsh_in_parallel([chains[c] for c in res.categories if chains.get(c)], shared)
+        for cat in res.categories:
+            for a in chains.get(cat, []):
+                self.stage(a.folder, a.key, lambda a=a: _train_ancsh_stage(a, shared, progress, console), a.name)
+            runs = runs_of[cat]
+            groups = self.plan[cat]
             res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
             if not any(g.test for g in groups):
                 log(f"[dim]ANCSH: {cat}: no test object of a trained structure, no Table 2 row[/]")
@@ -466,10 +477,48 @@ class _Context:
             ev = out / "eval" / cat
             self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
                        lambda runs=runs, ev=ev, cat=cat: evaluate_category(
-                           cat, runs, data=cfg.labeled, out=ev, scans=scans, frames=cfg.frames_per_object,
+                           cat, runs, data=cfg.labeled, out=ev, scans=scans / cat, frames=cfg.frames_per_object,
                            seed=cfg.seed, progress=progress, console=console),
                        f"{v.prefix}eval {cat} (Table 2)")
             res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
+
+    def ancsh_in_parallel(self, chains: list[list[_AncshStage]], shared: _AncshShared) -> None:
+        """Train the ANCSH chains (per category: for each structure supervised, semi,
+        semi-weakly, one after the other) ``cfg.workers`` at a time, as
+        :meth:`train_in_parallel` does for the motion models.
+
+        Categories share no object and render into their own ``scans/<Category>/`` (each
+        render folder has its own lock and manifest), so each worker renders and trains its
+        own. Each
+        stage runs in its worker as it would in this process (same function, configuration,
+        seed; rendering with one process, as the worker is one of ``cfg.workers``), writes its
+        marker when done (an interrupted pool resumes), and is recorded with its worker's
+        times as a :attr:`~kinmo.pipeline.stages.StageTiming.parallel` row. With one worker or
+        fewer than two chains to run, nothing happens here.
+
+        Raises
+        ------
+        KinmoError
+            A training failed (the message names the stage).
+        """
+        pending = [[a for a in c if not stage_done(a.folder, a.key)] for c in chains]
+        pending = [c for c in pending if c]
+        workers = resolve_workers(self.cfg.workers, len(pending))
+        if workers < 2:
+            return
+        prefix = pending[0][0].name.split("train ancsh")[0]
+        name = f"{prefix}train ancsh: {sum(map(len, pending))} models in {len(pending)} chains, {workers} at a time"
+        self.console.print(f"[bold cyan]{name}[/]")
+
+        def done(job: tuple[list[_AncshStage], _AncshShared], timings: list[tuple[str, float, float]]) -> None:
+            for stage_name, wall, cpu in timings:
+                self.pooled.add(stage_name)
+                self.clock.record(stage_name, StageTiming(wall_s=round(wall, 2), cpu_s=round(cpu, 2), parallel=True))
+            bar.advance()
+
+        with CountingBar(len(pending), self.progress, f"{prefix}train ancsh", "chains", counters={}) as bar:
+            self.clock.run(name, lambda: map_unordered(
+                _train_ancsh_chain, [(c, shared) for c in pending], workers, done, _ancsh_failed))
 
     def release(self, cache_l: Path, prep: Any) -> Path:
         """The release bundle (``kinmo train all --release``, issue 22) in ``out/release/model/``.
@@ -633,6 +682,68 @@ def _train_one(job: tuple[_Training, Any, bool]) -> tuple[float, float]:
 
 def _training_failed(job: tuple[_Training, Any, bool], exc: Exception) -> tuple[float, float]:
     raise KinmoError(f"{job[0].name} ({job[0].folder}): {exc}") from exc
+
+
+@dataclasses.dataclass(frozen=True)
+class _AncshShared:
+    """What every ANCSH training of a variant shares (:func:`kinmo.ancsh.train.train_ancsh`'s
+    configuration, data folders, split, and the render cache whose ``<Category>/`` folders
+    hold each category's scans)."""
+
+    config: Any
+    data: Path
+    partnet: Path | None
+    pseudo: Path | None
+    split: Path
+    scans: Path
+
+
+@dataclasses.dataclass(frozen=True)
+class _AncshStage:
+    """One ANCSH training stage: name, run folder, stage key, category, setting, structure and
+    the supervised run it starts from (semi)."""
+
+    name: str
+    folder: Path
+    key: dict[str, Any]
+    category: str
+    setting: str
+    structure: Any
+    init: Path | None = None
+
+
+def _train_ancsh_stage(a: _AncshStage, shared: _AncshShared, progress: bool, console: Any,
+                       config: Any = None) -> None:
+    """:func:`~kinmo.ancsh.train.train_ancsh` of one stage (``config``: instead of the shared one)."""
+    train_ancsh(a.category, a.setting, a.folder, config or shared.config, data=shared.data, partnet=shared.partnet,
+                pseudo=shared.pseudo, split=shared.split, scans=shared.scans / a.category, init=a.init, progress=progress,
+                console=console, structure=a.structure)
+
+
+def _train_ancsh_chain(job: tuple[list[_AncshStage], _AncshShared]) -> list[tuple[str, float, float]]:
+    """Train a chain of ANCSH stages in order, in a worker of :meth:`_Context.ancsh_in_parallel`;
+    each stage's marker is written as it finishes.
+
+    Returns
+    -------
+    list of (str, float, float)
+        Per stage: its name, wall and CPU seconds of this process.
+    """
+    import time
+
+    chain, shared = job
+    one_renderer = shared.config.model_copy(update={"render_workers": 1})  # this process is one of -j
+    out = []
+    for a in chain:
+        w0, c0 = time.perf_counter(), time.process_time()
+        _train_ancsh_stage(a, shared, False, None, one_renderer)
+        mark_done(a.folder, a.key)
+        out.append((a.name, time.perf_counter() - w0, time.process_time() - c0))
+    return out
+
+
+def _ancsh_failed(job: tuple[list[_AncshStage], _AncshShared], exc: Exception) -> list[tuple[str, float, float]]:
+    raise KinmoError(f"train ancsh {job[0][0].category}: {exc}") from exc
 
 
 def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path) -> None:
