@@ -18,14 +18,14 @@ from kinmo.ancsh.train import train_ancsh
 from kinmo.data.cache import load_cache
 from kinmo.data.readers import find_shapes
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.executor import map_unordered
 from kinmo.evaluate.pre_segmented import run_evaluation
+from kinmo.executor import map_unordered
 from kinmo.inference.bundle import write_bundle
 from kinmo.io import write_json
+from kinmo.parallel import resolve_workers
 from kinmo.pipeline.config import PipelineConfig
 from kinmo.pipeline.data import _graphs, _link_folder, _synth_categories
 from kinmo.pipeline.plan import ANCSH_PLAN_FILE, ancsh_plan, structure_split
-from kinmo.parallel import resolve_workers
 from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage, mark_done, stage_done
 from kinmo.prepare import PrepareConfig, prepare_dataset
 from kinmo.progress import CountingBar, console as new_console, literal
