@@ -318,3 +318,25 @@ def test_each_shape_s_meshes_are_read_once(data, tmp_path, monkeypatch):
     kept = [p for p in out.iterdir() if (p / "mobility.urdf").is_file()]
     assert kept and len(list((kept[0] / "collision").glob("*.obj")))  # exported with geometry
     assert len(reads) == len(SHAPES), reads
+
+
+def test_one_worker_writes_the_bytes_two_workers_write(partnet_root, tmp_path):
+    """``-j 1`` (in this process) and ``-j 2`` (worker processes) with the pretrained bundle:
+    the same kept shapes, byte for byte (this process uses one torch thread, as each worker
+    does; with torch's default threads, axis origins differed in the 8th digit)."""
+    import subprocess
+    import sys
+
+    data = tmp_path / "data"
+    data.mkdir()
+    for s in sorted(p.name for p in partnet_root.iterdir() if p.is_dir())[:12]:
+        (data / s).symlink_to(partnet_root / s)
+    for j in ("1", "2"):  # fresh processes, as users run it (torch's default threads)
+        r = subprocess.run([sys.executable, "-m", "kinmo", "pseudo-label", str(data), "-o", str(tmp_path / f"j{j}"),
+                            "-j", j, "-q"], capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stdout + r.stderr
+    kept = sorted(p.parent.name for p in (tmp_path / "j1").glob("*/mobility_v2.json"))
+    assert kept and kept == sorted(p.parent.name for p in (tmp_path / "j2").glob("*/mobility_v2.json"))
+    for s in kept:
+        for name in ("mobility_v2.json", "scores.json", "mobility.urdf"):
+            assert (tmp_path / "j1" / s / name).read_bytes() == (tmp_path / "j2" / s / name).read_bytes(), (s, name)

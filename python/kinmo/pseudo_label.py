@@ -88,6 +88,7 @@ from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.selector import graph_meshes
 from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
+from kinmo.train.loop import torch_threads
 
 logger = logging.getLogger(__name__)
 
@@ -626,7 +627,8 @@ def pseudo_label_dataset(
         if todo:
             # 0: one per CPU; a negative count runs in this process
             workers = resolve_workers(workers, len(todo)) if workers >= 0 else 1
-            if workers == 1 and parse_executor(executor).kind == "local":
+            in_process = workers == 1 and parse_executor(executor).kind == "local"
+            if in_process:
                 # in this process: map_unordered calls fn directly, no initializer
                 models = _load_models(gnn_run, axis_run, config.device, config.refine)
                 fn = partial(pseudo_label_shape, out=out, models=models, config=config,
@@ -634,8 +636,11 @@ def pseudo_label_dataset(
             else:  # each worker loads the models once (_worker_init)
                 fn = partial(_worker_run, out=str(out), config_json=config.model_dump(mode="json"),
                              cache=None if cache is None else str(cache), root=str(data))
-            stage.map(fn, todo, workers, _worker_failed, initializer=_worker_init,
-                      initargs=(str(gnn_run), str(axis_run), config.device,
-                                config.refine.model_dump(mode="json")), executor=executor)
+            # one torch thread in this process too, as in every worker (_worker_init): torch's
+            # reductions then add in the same order, and -j 1 writes the bytes -j N writes
+            with torch_threads(1 if in_process else 0):
+                stage.map(fn, todo, workers, _worker_failed, initializer=_worker_init,
+                          initargs=(str(gnn_run), str(axis_run), config.device,
+                                    config.refine.model_dump(mode="json")), executor=executor)
     return PseudoLabelResult(out, sorted(stage.results, key=lambda r: r.id), stage.n_skipped,
                              time.perf_counter() - t0)
