@@ -236,27 +236,10 @@ class _Context:
     def train_in_parallel(self, v: _Variant, base: dict[str, Any], trainings: list[_Training],
                           graphs: Callable[[], Any]) -> None:
         """Train ``trainings`` (stages not up to date) and the ranker stage's fold GNNs
-        ``cfg.workers`` at a time (issue 24), on the project's executor
-        (:func:`kinmo.executor.map_unordered`, local process pool).
-
-        Each training runs single-threaded in its worker exactly as its stage would run it
-        in this process (same function, configuration, split and seed), so the models do not
-        depend on ``-j``. A finished stage's marker is written as it completes (an interrupted
-        pool resumes with what is left); its wall and CPU seconds, measured in the worker, are
-        recorded as a :attr:`~kinmo.pipeline.stages.StageTiming.parallel` row, and the pool's
-        own row holds the wall and CPU time of all of them. The stages then find their models
-        trained; the ranker stage finds its folds trained and only fits.
-
-        With one worker, or fewer than two trainings to run, nothing happens here: each
-        stage trains in turn, as before.
-
-        Raises
-        ------
-        KinmoError
-            A training failed (the message names its folder).
-        """
+        ``cfg.workers`` at a time (issue 24; :meth:`run_in_parallel`). The stages then find
+        their models trained; the ranker stage finds its folds trained and only fits."""
         cfg = self.cfg
-        pending = [t for t in trainings if not stage_done(t.folder, t.key)]
+        pending = list(trainings)
         stage = self._ranker_stage(v, base)
         if stage is not None and not stage_done(*stage):
             folder = stage[0]
@@ -266,30 +249,51 @@ class _Context:
             cats = {g.shape_id: g.category for g in rg}
             plan = fold_plan(ids, [cats[i] for i in ids], folder, k=RANKER_FOLDS, preset=cfg.preset,
                              types=RANKER_TYPES, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs)
-            pending += [_Training(f"{v.prefix}train ranker: fold GNN {run_dir.name}", "gnn", run_dir, fcfg, split)
-                        for run_dir, fcfg, split in plan]
-        workers = resolve_workers(cfg.workers, len(pending))
-        if workers < 2:
-            return
+            pending += [_Training(f"{v.prefix}train ranker: fold GNN {run_dir.name}", "gnn", run_dir, fcfg, split,
+                                  None, None) for run_dir, fcfg, split in plan]
         # longest first (the axis network, then the augmented GNNs), so that the last one to
         # finish is a short one
         pending.sort(key=lambda t: (t.kind != "axis", -getattr(t.config, "flatten_prob", 0.0)))
-        data = graphs()
-        name = f"{v.prefix}train {len(pending)} models, {workers} at a time"
-        self.console.print(f"[bold cyan]{name}[/]: " + ", ".join(literal(t.name) for t in pending))
+        chains = [[t] for t in pending if t.key is None or not stage_done(t.folder, t.key)]
+        if len(chains) > 1 and resolve_workers(cfg.workers, len(chains)) > 1:
+            data = graphs()  # loaded once here, sent with each training
+            chains = [[dataclasses.replace(t, graphs=data)] for [t] in chains]
+        self.run_in_parallel(chains, lambda n, w: f"{v.prefix}train {n} models, {w} at a time",
+                             f"{v.prefix}train", "models")
 
-        def done(job: tuple[_Training, Any, bool], timing: tuple[float, float]) -> None:
-            t = job[0]
-            if t.key is not None:
-                mark_done(t.folder, t.key)
-                self.pooled.add(t.name)
-            self.clock.record(t.name, StageTiming(wall_s=round(timing[0], 2), cpu_s=round(timing[1], 2),
-                                                  parallel=True))
+    def run_in_parallel(self, chains: list[list[Any]], name: Callable[[int, int], str], title: str,
+                        unit: str) -> None:
+        """Run chains of trainings (:class:`_Training`, :class:`_AncshStage`) ``cfg.workers``
+        at a time on the project's executor (:func:`kinmo.executor.map_unordered`, local
+        process pool); the trainings of a chain run in order, in one worker.
+
+        Each training runs single-threaded in its worker exactly as its stage would run it in
+        this process (same function, configuration, split and seed), so the models do not
+        depend on ``-j``. A stage's marker is written as it finishes (:func:`_run_chain`); its
+        wall and CPU seconds, measured in the worker, are recorded as a
+        :attr:`~kinmo.pipeline.stages.StageTiming.parallel` row, and the pool's own row (named
+        by ``name(trainings, workers)``) holds the wall and CPU time of all of them. With one
+        worker, or fewer than two chains, nothing happens here: each stage trains in turn.
+
+        Raises
+        ------
+        KinmoError
+            A training failed (the message names it).
+        """
+        workers = resolve_workers(self.cfg.workers, len(chains))
+        if len(chains) < 2 or workers < 2:
+            return
+        pool = name(sum(map(len, chains)), workers)
+        self.console.print(f"[bold cyan]{pool}[/]: " + ", ".join(literal(t.name) for c in chains for t in c))
+
+        def done(chain: list[Any], timings: list[tuple[str, float, float]]) -> None:
+            for stage_name, wall, cpu in timings:
+                self.pooled.add(stage_name)
+                self.clock.record(stage_name, StageTiming(wall_s=round(wall, 2), cpu_s=round(cpu, 2), parallel=True))
             bar.advance()
 
-        with CountingBar(len(pending), self.progress, f"{v.prefix}train", "models", counters={}) as bar:
-            self.clock.run(name, lambda: map_unordered(
-                _train_one, [(t, data, False) for t in pending], workers, done, _training_failed))
+        with CountingBar(len(chains), self.progress, title, unit, counters={}) as bar:
+            self.clock.run(pool, lambda: map_unordered(_run_chain, chains, workers, done, _chain_failed))
 
     def _ranker_stage(self, v: _Variant, base: dict[str, Any]) -> tuple[Path, dict[str, Any]] | None:
         """Folder and key of ``v``'s ranker stage; None when it has none (paper selector,
@@ -346,17 +350,18 @@ class _Context:
                               **({} if cfg.augment_gnn and types == "fine"
                                  else {"flatten_prob": 0.0, "drop_names_prob": 0.0}))
             trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, split_file,
-                                       {**base, "gnn": gcfg.model_dump()}))
+                                       {**base, "gnn": gcfg.model_dump()}, v.graphs))
             gnn_runs[types] = run_dir
         axis_dir = v.reuse.get("axis", out / "axis")
         if "axis" not in v.reuse and cfg.refine:
             acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
                                seed=cfg.seed)
             trainings.append(_Training(f"{v.prefix}train axis", "axis", axis_dir, acfg, split_file,
-                                       {**base, "axis": acfg.model_dump()}))
+                                       {**base, "axis": acfg.model_dump()}, v.graphs))
         self.train_in_parallel(v, base, trainings, graphs)
         for t in trainings:
-            self.stage(t.folder, t.key, lambda t=t: _train_one((t, graphs(), progress)), t.name)
+            self.stage(t.folder, t.key, lambda t=t: dataclasses.replace(t, graphs=graphs()).run(progress, console, False),
+                       t.name)
         res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
         if cfg.refine:
             res.stages[f"{v.prefix}axis"] = [str(axis_dir)]
@@ -431,7 +436,7 @@ class _Context:
 
         # one chain of trainings per category: per structure supervised, then semi (from the
         # supervised weights) and semi-weakly; categories share no object and render into
-        # scans/<Category>/, so with -j N they train N at a time (ancsh_in_parallel)
+        # scans/<Category>/, so with -j N they train N at a time (run_in_parallel)
         shared = _AncshShared(ac, v.labeled, v.unlabeled, pseudo if v.unlabeled is not None else None,
                               split_file, scans)
         chains: dict[str, list[_AncshStage]] = {}
@@ -460,14 +465,17 @@ class _Context:
                         f"{v.prefix}train ancsh {label} ({setting})", run_dir,
                         {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
                          **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
-                        cat, setting, g.structure, init))
+                        cat, setting, g.structure, init, shared))
                     group_runs.append(run_dir)
                 runs += group_runs
             runs_of[cat] = runs
-        self.ancsh_in_parallel([chains[c] for c in res.categories if chains.get(c)], shared)
+        pending = [[a for a in chains[c] if not stage_done(a.folder, a.key)] for c in res.categories if c in chains]
+        pending = [c for c in pending if c]
+        self.run_in_parallel(pending, lambda n, w: f"{v.prefix}train ancsh: {n} models in {len(pending)} chains, "
+                                                   f"{w} at a time", f"{v.prefix}train ancsh", "chains")
         for cat in res.categories:
             for a in chains.get(cat, []):
-                self.stage(a.folder, a.key, lambda a=a: _train_ancsh_stage(a, shared, progress, console), a.name)
+                self.stage(a.folder, a.key, lambda a=a: a.run(progress, console, False), a.name)
             runs = runs_of[cat]
             groups = self.plan[cat]
             res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
@@ -481,44 +489,6 @@ class _Context:
                            seed=cfg.seed, progress=progress, console=console),
                        f"{v.prefix}eval {cat} (Table 2)")
             res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
-
-    def ancsh_in_parallel(self, chains: list[list[_AncshStage]], shared: _AncshShared) -> None:
-        """Train the ANCSH chains (per category: for each structure supervised, semi,
-        semi-weakly, one after the other) ``cfg.workers`` at a time, as
-        :meth:`train_in_parallel` does for the motion models.
-
-        Categories share no object and render into their own ``scans/<Category>/`` (each
-        render folder has its own lock and manifest), so each worker renders and trains its
-        own. Each
-        stage runs in its worker as it would in this process (same function, configuration,
-        seed; rendering with one process, as the worker is one of ``cfg.workers``), writes its
-        marker when done (an interrupted pool resumes), and is recorded with its worker's
-        times as a :attr:`~kinmo.pipeline.stages.StageTiming.parallel` row. With one worker or
-        fewer than two chains to run, nothing happens here.
-
-        Raises
-        ------
-        KinmoError
-            A training failed (the message names the stage).
-        """
-        pending = [[a for a in c if not stage_done(a.folder, a.key)] for c in chains]
-        pending = [c for c in pending if c]
-        workers = resolve_workers(self.cfg.workers, len(pending))
-        if workers < 2:
-            return
-        prefix = pending[0][0].name.split("train ancsh")[0]
-        name = f"{prefix}train ancsh: {sum(map(len, pending))} models in {len(pending)} chains, {workers} at a time"
-        self.console.print(f"[bold cyan]{name}[/]")
-
-        def done(job: tuple[list[_AncshStage], _AncshShared], timings: list[tuple[str, float, float]]) -> None:
-            for stage_name, wall, cpu in timings:
-                self.pooled.add(stage_name)
-                self.clock.record(stage_name, StageTiming(wall_s=round(wall, 2), cpu_s=round(cpu, 2), parallel=True))
-            bar.advance()
-
-        with CountingBar(len(pending), self.progress, f"{prefix}train ancsh", "chains", counters={}) as bar:
-            self.clock.run(name, lambda: map_unordered(
-                _train_ancsh_chain, [(c, shared) for c in pending], workers, done, _ancsh_failed))
 
     def release(self, cache_l: Path, prep: Any) -> Path:
         """The release bundle (``kinmo train all --release``, issue 22) in ``out/release/model/``.
@@ -650,6 +620,8 @@ class _Training:
     split : Path or Split
     key : dict or None
         The stage's key (its ``.done`` marker).
+    graphs : Path or list of PartGraph
+        What it trains on (a cache folder or the graphs).
     """
 
     name: str
@@ -657,31 +629,15 @@ class _Training:
     folder: Path
     config: Any
     split: Any
-    key: dict[str, Any] | None = None
+    key: dict[str, Any] | None
+    graphs: Any
 
-
-def _train_one(job: tuple[_Training, Any, bool]) -> tuple[float, float]:
-    """Train one :class:`_Training` on ``graphs`` (a cache folder or graphs); a worker of
-    :meth:`_Context.train_in_parallel`, and each stage's own run in one process.
-
-    Returns
-    -------
-    (float, float)
-        Wall and CPU seconds of this process.
-    """
-    import time
-
-    t, graphs, progress = job
-    w0, c0 = time.perf_counter(), time.process_time()
-    if t.kind == "axis":
-        train_axis_model(graphs, t.folder, t.config, split=t.split, progress=progress)
-    else:
-        train_gnn(graphs, t.folder, t.config, split=t.split, progress=progress)
-    return time.perf_counter() - w0, time.process_time() - c0
-
-
-def _training_failed(job: tuple[_Training, Any, bool], exc: Exception) -> tuple[float, float]:
-    raise KinmoError(f"{job[0].name} ({job[0].folder}): {exc}") from exc
+    def run(self, progress: bool, console: Any, in_pool: bool) -> None:
+        """Train (``console`` and ``in_pool`` are not used: each is single-threaded already)."""
+        if self.kind == "axis":
+            train_axis_model(self.graphs, self.folder, self.config, split=self.split, progress=progress)
+        else:
+            train_gnn(self.graphs, self.folder, self.config, split=self.split, progress=progress)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -700,8 +656,8 @@ class _AncshShared:
 
 @dataclasses.dataclass(frozen=True)
 class _AncshStage:
-    """One ANCSH training stage: name, run folder, stage key, category, setting, structure and
-    the supervised run it starts from (semi)."""
+    """One ANCSH training stage: name, run folder, stage key, category, setting, structure, the
+    supervised run it starts from (semi) and what the variant's trainings share."""
 
     name: str
     folder: Path
@@ -709,41 +665,42 @@ class _AncshStage:
     category: str
     setting: str
     structure: Any
-    init: Path | None = None
+    init: Path | None
+    shared: _AncshShared
+
+    def run(self, progress: bool, console: Any, in_pool: bool) -> None:
+        """:func:`~kinmo.ancsh.train.train_ancsh` of this stage; in a pool worker, rendering
+        with one process (the worker is one of ``-j``)."""
+        sh = self.shared
+        cfg = sh.config.model_copy(update={"render_workers": 1}) if in_pool else sh.config
+        train_ancsh(self.category, self.setting, self.folder, cfg, data=sh.data, partnet=sh.partnet,
+                    pseudo=sh.pseudo, split=sh.split, scans=sh.scans / self.category, init=self.init,
+                    progress=progress, console=console, structure=self.structure)
 
 
-def _train_ancsh_stage(a: _AncshStage, shared: _AncshShared, progress: bool, console: Any,
-                       config: Any = None) -> None:
-    """:func:`~kinmo.ancsh.train.train_ancsh` of one stage (``config``: instead of the shared one)."""
-    train_ancsh(a.category, a.setting, a.folder, config or shared.config, data=shared.data, partnet=shared.partnet,
-                pseudo=shared.pseudo, split=shared.split, scans=shared.scans / a.category, init=a.init, progress=progress,
-                console=console, structure=a.structure)
-
-
-def _train_ancsh_chain(job: tuple[list[_AncshStage], _AncshShared]) -> list[tuple[str, float, float]]:
-    """Train a chain of ANCSH stages in order, in a worker of :meth:`_Context.ancsh_in_parallel`;
-    each stage's marker is written as it finishes.
+def _run_chain(chain: list[_Training | _AncshStage]) -> list[tuple[str, float, float]]:
+    """Run a chain of trainings in order, in a worker of :meth:`_Context.run_in_parallel`;
+    a stage's marker is written as it finishes (an interrupted pool resumes).
 
     Returns
     -------
     list of (str, float, float)
-        Per stage: its name, wall and CPU seconds of this process.
+        Per training: its name, wall and CPU seconds of this process.
     """
     import time
 
-    chain, shared = job
-    one_renderer = shared.config.model_copy(update={"render_workers": 1})  # this process is one of -j
     out = []
-    for a in chain:
+    for t in chain:
         w0, c0 = time.perf_counter(), time.process_time()
-        _train_ancsh_stage(a, shared, False, None, one_renderer)
-        mark_done(a.folder, a.key)
-        out.append((a.name, time.perf_counter() - w0, time.process_time() - c0))
+        t.run(False, None, True)
+        if t.key is not None:
+            mark_done(t.folder, t.key)
+        out.append((t.name, time.perf_counter() - w0, time.process_time() - c0))
     return out
 
 
-def _ancsh_failed(job: tuple[list[_AncshStage], _AncshShared], exc: Exception) -> list[tuple[str, float, float]]:
-    raise KinmoError(f"train ancsh {job[0][0].category}: {exc}") from exc
+def _chain_failed(chain: list[_Training | _AncshStage], exc: Exception) -> list[tuple[str, float, float]]:
+    raise KinmoError(f"{chain[0].name} ({chain[0].folder}): {exc}") from exc
 
 
 def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path) -> None:
