@@ -16,7 +16,8 @@ Frames: mesh frame (y-up), mesh units.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,7 @@ from kinmo.data.labels import rigid_groups
 from kinmo.data.readers import find_shapes, read_meta, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.render.ancsh_gt import link_meshes
+from kinmo.synth import SynthObject, write_object
 
 __all__ = [
     "CategoryObjects",
@@ -36,6 +38,8 @@ __all__ = [
     "object_parts_of",
     "resolve_category",
     "scan_category",
+    "structure_filter",
+    "synth_structure",
 ]
 
 
@@ -191,6 +195,58 @@ class CategoryObjects:
         if oid in self.fitting:
             return f"{oid}: fits {want}"
         return f"{oid}: structure {p.structure.signature()}, not the category's {want}"
+
+
+def synth_structure(obj: SynthObject) -> KinematicStructure | None:
+    """The ANCSH kinematic structure of a generated object, as a written copy of it reads.
+
+    The object is written in the PartNet-Mobility format to a temporary folder and read back
+    by :func:`object_parts_of`, so the structure (part order included) is the one training
+    and evaluation will see.
+
+    Parameters
+    ----------
+    obj : kinmo.synth.SynthObject
+
+    Returns
+    -------
+    KinematicStructure or None
+        None when ANCSH cannot express the object (e.g. a cylindrical joint).
+    """
+    with tempfile.TemporaryDirectory(prefix="kinmo-structure-") as tmp:
+        folder = write_object(obj, Path(tmp) / "object", "0")
+        parts = object_parts_of(folder)[1]
+    return None if parts is None else parts.structure
+
+
+def structure_filter(signature: str) -> Callable[[SynthObject], bool]:
+    """A ``keep`` predicate for :func:`kinmo.synth.generate_dataset`: objects of one structure.
+
+    Parameters
+    ----------
+    signature : str
+        :meth:`KinematicStructure.signature`, e.g. ``"0<R-1"`` (one revolute child of the
+        base: a laptop, a one-door refrigerator) or ``"0<R-1,0<R-2"``.
+
+    Returns
+    -------
+    callable
+        ``SynthObject -> bool``.
+
+    Raises
+    ------
+    ValueError
+        ``signature`` is not of the form ``p<T-c,...`` with T in R, P.
+    """
+    sig = signature.replace(" ", "")
+    if not re.fullmatch(r"\d+<[RP]-\d+(,\d+<[RP]-\d+)*", sig):
+        raise ValueError(f"structure {signature!r}: expected parent<R|P-child joints, e.g. 0<R-1 or 0<R-1,0<P-2")
+
+    def keep(obj: SynthObject) -> bool:
+        s = synth_structure(obj)
+        return s is not None and s.signature() == sig
+
+    return keep
 
 
 def scan_category(

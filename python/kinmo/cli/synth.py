@@ -26,12 +26,19 @@ def synth(
         help="Categories to generate (repeat the option; default: all). One of StorageFurniture, "
         "Refrigerator, Oven, Microwave, Dishwasher, Laptop, Table, Bucket, KitchenPot, Bottle.",
     ),
+    structure: str | None = typer.Option(
+        None,
+        "--structure",
+        help="Keep only objects of this ANCSH kinematic structure, e.g. 0<R-1 (one revolute child "
+        "of the base: laptops, one-door refrigerators) or 0<R-1,0<R-2.",
+    ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Generate N randomised articulated objects with exact motion ground truth.
 
     Object k goes to OUT/9<seed:05d><k:05d>/, an id no real PartNet object has.
-    OUT/synth-<seed>.json lists the objects and their sampled parameters.
+    OUT/synth-<seed>.json lists the objects and their sampled parameters. With --structure,
+    objects of other structures are drawn and dropped (ids then have gaps).
     """
     from kinmo.cli._errors import cli_errors
     from kinmo.synth import CATEGORIES, generate_dataset
@@ -45,6 +52,14 @@ def synth(
                 f"unknown categories {', '.join(bad)}; choose from {', '.join(CATEGORIES)}",
                 param_hint="--categories",
             )
-    with cli_errors(2):
-        folders = generate_dataset(out, n, seed, categories=cats, partnet=partnet, progress=not quiet)
+    keep = None
+    if structure is not None:
+        from kinmo.ancsh.objects import structure_filter
+
+        try:
+            keep = structure_filter(structure)
+        except ValueError as e:
+            raise typer.BadParameter(str(e), param_hint="--structure") from None
+    with cli_errors(2, also=(ValueError,)):
+        folders = generate_dataset(out, n, seed, categories=cats, partnet=partnet, progress=not quiet, keep=keep)
     typer.echo(f"wrote {len(folders)} objects to {out}")

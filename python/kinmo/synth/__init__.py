@@ -184,6 +184,8 @@ def generate_dataset(
     categories: Sequence[str] | None = None,
     partnet: bool = False,
     progress: bool = True,
+    keep: Callable[[SynthObject], bool] | None = None,
+    max_draws: int | None = None,
 ) -> list[Path]:
     """Generate ``n`` objects into ``out/<id>/`` and a manifest ``out/synth-<seed>.json``.
 
@@ -202,6 +204,13 @@ def generate_dataset(
         Write PartNet folders (``objs/``, no motion) instead of PartNet-Mobility ones.
     progress : bool
         Show a rich progress bar.
+    keep : callable, optional
+        ``SynthObject -> bool``: only objects it accepts are written (e.g. one kinematic
+        structure, ``kinmo synth --structure``). Object ``k`` is still drawn from
+        ``[seed, k]``, so the kept objects keep their ids (with gaps) and the run stays
+        deterministic; indices go on until ``n`` objects are kept.
+    max_draws : int, optional
+        Bound on the objects drawn with ``keep`` (default ``100 * n + 100``).
 
     Returns
     -------
@@ -211,7 +220,8 @@ def generate_dataset(
     Raises
     ------
     ValueError
-        Bad ``n``, ``seed`` or category names.
+        Bad ``n``, ``seed`` or category names; or ``keep`` accepted fewer than ``n`` of
+        ``max_draws`` objects (the message says how many).
     KinmoDataError
         ``out`` exists and is not a folder.
     OSError
@@ -228,15 +238,29 @@ def generate_dataset(
     out = output_dir(out)
     folders: list[Path] = []
     records: list[dict] = []
+    draws = (100 * n + 100 if max_draws is None else max_draws) if keep is not None else n
+    drawn = 0
 
-    def one(k: int) -> None:
-        cat = order[k % len(order)]
-        obj = generate_object(cat, seed, k)
-        oid = synthetic_id(seed, k)
-        folders.append(write_object(obj, out / oid, oid, partnet=partnet))
-        records.append(
-            {"id": oid, "category": cat, "links": len(obj.links) + 1, "params": obj.params}
-        )
+    def one() -> str:
+        # draws objects until one is kept; returns its category
+        nonlocal drawn
+        while True:
+            if drawn >= min(draws, 100000):
+                raise ValueError(
+                    f"only {len(folders)} of the {n} objects asked for passed the filter in {drawn} draws "
+                    f"(categories {', '.join(cats)})"
+                )
+            k, cat = drawn, order[drawn % len(order)]
+            drawn += 1
+            obj = generate_object(cat, seed, k)
+            if keep is not None and not keep(obj):
+                continue
+            oid = synthetic_id(seed, k)
+            folders.append(write_object(obj, out / oid, oid, partnet=partnet))
+            records.append(
+                {"id": oid, "category": cat, "links": len(obj.links) + 1, "params": obj.params}
+            )
+            return cat
 
     if progress:
         from rich.progress import (
@@ -255,13 +279,12 @@ def generate_dataset(
             TextColumn("{task.description}"),
         ) as bar:
             task = bar.add_task("", total=n)
-            for k in range(n):
-                bar.update(task, description=order[k % len(order)])
-                one(k)
+            for _ in range(n):
+                bar.update(task, description=one())
                 bar.advance(task)
     else:
-        for k in range(n):
-            one(k)
+        for _ in range(n):
+            one()
     write_json(
         out / f"synth-{seed}.json",
         {
@@ -269,6 +292,7 @@ def generate_dataset(
             "version": SYNTH_VERSION,
             "seed": seed,
             "n": n,
+            "drawn": drawn,
             "format": "partnet" if partnet else "partnet-mobility",
             "categories": cats,
             "objects": records,
