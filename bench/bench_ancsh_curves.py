@@ -17,7 +17,7 @@ with a rotation error above 30 degrees, and the training seconds. The table goes
 
 Usage::
 
-    nice -n 10 python bench/bench_ancsh_curves.py OUT [--category Laptop] [--objects 4 16 64]
+    nice -n 10 python bench/bench_ancsh_curves.py OUT [--category Laptop] [--structure 0<R-1] [--objects 4 16 64]
         [--epochs 40 160] [--test 8] [--width 16] [--threads 1]
 """
 
@@ -52,6 +52,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path)
     ap.add_argument("--category", default="Laptop")
+    ap.add_argument("--structure", default=None,
+                    help="keep generated objects of this ANCSH structure only (kinmo synth --structure), "
+                         "e.g. 0<R-1 for one-door refrigerators")
     ap.add_argument("--objects", type=int, nargs="+", default=[4, 16, 64])
     ap.add_argument("--epochs", type=int, nargs="+", default=[40, 160])
     ap.add_argument("--test", type=int, default=8)
@@ -61,16 +64,18 @@ def main() -> None:
 
     from kinmo.ancsh.config import preset
     from kinmo.ancsh.evaluate import evaluate_category
+    from kinmo.ancsh.objects import structure_filter
     from kinmo.ancsh.train import train_ancsh
     from kinmo.synth import generate_dataset
 
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     train_dir, test_dir = out / "train", out / "test"
+    keep = structure_filter(args.structure) if args.structure else None
     if not train_dir.is_dir():
-        generate_dataset(train_dir, max(args.objects), seed=1, categories=[args.category], progress=False)
+        generate_dataset(train_dir, max(args.objects), seed=1, categories=[args.category], progress=False, keep=keep)
     if not test_dir.is_dir():
-        generate_dataset(test_dir, args.test, seed=2, categories=[args.category], progress=False)
+        generate_dataset(test_dir, args.test, seed=2, categories=[args.category], progress=False, keep=keep)
     ids = sorted(d.name for d in train_dir.iterdir() if d.is_dir())
     results = []
     for n in args.objects:
