@@ -49,3 +49,12 @@ def test_cli_structure_option(tmp_path: Path) -> None:
     assert len([d for d in (tmp_path / "a").iterdir() if d.is_dir()]) == 2
     r = CliRunner().invoke(app, ["synth", str(tmp_path / "b"), "--n", "1", "--structure", "door"])
     assert r.exit_code == 2 and "0<R-1" in r.output
+
+
+def test_a_filter_on_one_category_keeps_the_round_robin_shares(tmp_path: Path) -> None:
+    only_one_door = structure_filter("0<R-1")
+    folders = generate_dataset(tmp_path, 6, seed=0, categories=["Laptop", "Refrigerator"], progress=False,
+                               keep=lambda o: o.category != "Refrigerator" or only_one_door(o))
+    cats = [json.loads((f / "meta.json").read_text())["model_cat"] for f in folders]
+    assert sorted(cats) == ["Laptop"] * 3 + ["Refrigerator"] * 3
+    assert [int(f.name) for f in folders] == sorted(int(f.name) for f in folders)

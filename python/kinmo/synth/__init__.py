@@ -207,8 +207,9 @@ def generate_dataset(
     keep : callable, optional
         ``SynthObject -> bool``: only objects it accepts are written (e.g. one kinematic
         structure, ``kinmo synth --structure``). Object ``k`` is still drawn from
-        ``[seed, k]``, so the kept objects keep their ids (with gaps) and the run stays
-        deterministic; indices go on until ``n`` objects are kept.
+        ``[seed, k]`` with its round-robin category, so the kept objects are those of an
+        unfiltered run (ids with gaps) and the run stays deterministic; each category keeps
+        its round-robin share of the ``n`` objects.
     max_draws : int, optional
         Bound on the objects drawn with ``keep`` (default ``100 * n + 100``).
 
@@ -240,17 +241,21 @@ def generate_dataset(
     records: list[dict] = []
     draws = (100 * n + 100 if max_draws is None else max_draws) if keep is not None else n
     drawn = 0
+    # next index k of each category: object k is always of category order[k % len(order)]
+    next_k = {c: i for i, c in enumerate(order)}
 
-    def one() -> str:
-        # draws objects until one is kept; returns its category
+    def one(slot: int) -> str:
+        # the slot's category round robin; draws its objects until one is kept
         nonlocal drawn
+        cat = order[slot % len(order)]
         while True:
-            if drawn >= min(draws, 100000):
+            k = next_k[cat]
+            if drawn >= draws or k >= 100000:
                 raise ValueError(
                     f"only {len(folders)} of the {n} objects asked for passed the filter in {drawn} draws "
                     f"(categories {', '.join(cats)})"
                 )
-            k, cat = drawn, order[drawn % len(order)]
+            next_k[cat] += len(order)
             drawn += 1
             obj = generate_object(cat, seed, k)
             if keep is not None and not keep(obj):
@@ -279,12 +284,14 @@ def generate_dataset(
             TextColumn("{task.description}"),
         ) as bar:
             task = bar.add_task("", total=n)
-            for _ in range(n):
-                bar.update(task, description=one())
+            for slot in range(n):
+                bar.update(task, description=one(slot))
                 bar.advance(task)
     else:
-        for _ in range(n):
-            one()
+        for slot in range(n):
+            one(slot)
+    folders.sort(key=lambda f: int(f.name))
+    records.sort(key=lambda r: int(r["id"]))
     write_json(
         out / f"synth-{seed}.json",
         {
