@@ -31,10 +31,17 @@ sees exactly the inputs of a real run. On the same inputs, in the same run, it t
 
 and prints per-stage medians over shapes (kinmo, baseline, ratio) and the total per shape.
 
+``--parsers`` builds and runs the Rust example ``obj_parsers`` of ``kinmo-geometry`` on every
+OBJ file of ``--data``: one thread, median MB/s over ``--repeat`` passes of a plain read,
+kinmo's ``load_obj`` (tobj), tobj alone, and the maintained crates ``obj`` and
+``mesh-loader`` (each with the vertex count it returns: one that de-indexes the faces returns
+more vertices than kinmo's mesh has), all in the same run.
+
 Usage::
 
     python bench/bench_prepare.py [--data DIR] [--workers N] [--n-points 1024] [--limit K]
     python bench/bench_prepare.py --stages [--data DIR] [--limit K] [--repeat R]
+    python bench/bench_prepare.py --parsers [--data DIR] [--repeat R]
 """
 
 from __future__ import annotations
@@ -306,6 +313,19 @@ def _spawn(side: str, data: str, workers: int, n_points: int, seed: int) -> dict
     return json.loads(line[len("BENCH_JSON "):])
 
 
+def run_parsers(data: str, repeat: int) -> None:
+    """Build and run ``examples/obj_parsers.rs`` on every OBJ file under ``data``."""
+    files = sorted(str(p) for p in Path(data).rglob("*.obj"))
+    if not files:
+        raise SystemExit(f"{data}: no .obj file")
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "kinmo-geometry",
+                    "--example", "obj_parsers"], cwd=REPO, check=True)
+    exe = REPO / "target" / "release" / "examples" / "obj_parsers"
+    # one argument per file: the 11,313 paths of the shared data are about 1 MB, under the
+    # 2 MB that Linux allows for the arguments of a command
+    subprocess.run([str(exe), "--repeat", str(repeat), *files], check=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(REPO.parent / "shared" / "data" / "partnet-mobility"))
@@ -315,9 +335,15 @@ def main() -> None:
     ap.add_argument("--child", choices=["kinmo", "baseline"], help=argparse.SUPPRESS)
     ap.add_argument("--stages", action="store_true",
                     help="time the load / OBB / contact stages against trimesh, fcl, plain read")
+    ap.add_argument("--parsers", action="store_true",
+                    help="OBJ parse throughput: kinmo/tobj, obj, mesh-loader, plain read")
     ap.add_argument("--limit", type=int, default=0, help="--stages: first K shapes (0: all)")
-    ap.add_argument("--repeat", type=int, default=3, help="--stages: best of R per shape")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="--stages: best of R per shape; --parsers: median of R passes")
     a = ap.parse_args()
+    if a.parsers:
+        run_parsers(a.data, a.repeat)
+        return
     if a.stages:
         print_stages(run_stages(a.data, a.n_points, a.seed, a.limit, a.repeat), a.repeat)
         return
