@@ -6,7 +6,7 @@ convex-decomposition cache (``KINMO_VHACD_CACHE`` pointing to an empty folder) a
 graph cache, as for a dataset seen for the first time:
 
 - ``pseudo-label``: ``kinmo pseudo-label PARTNET -o OUT -j 2 -q``;
-- ``predict``: ``kinmo predict PARTNET -o OUT -q`` (one process: predict has no worker pool);
+- ``predict``: ``kinmo predict PARTNET -o OUT -j 2 -q``;
 - ``render``: ``kinmo render MOBILITY -o OUT -j 2 -q`` (its defaults: 10 frames of 256 x 256
   per object).
 
@@ -55,7 +55,7 @@ def _command(stage: str, partnet: Path, mobility: Path, out: Path) -> list[str]:
     if stage == "pseudo-label":
         return kinmo + ["pseudo-label", str(partnet), "-o", str(out), "-j", "2", "-q"]
     if stage == "predict":
-        return kinmo + ["predict", str(partnet), "-o", str(out), "-q"]
+        return kinmo + ["predict", str(partnet), "-o", str(out), "-j", "2", "-q"]
     if stage == "render":
         return kinmo + ["render", str(mobility), "-o", str(out), "-j", "2", "-q"]
     raise SystemExit(f"unknown stage {stage}")

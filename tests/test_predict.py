@@ -265,3 +265,32 @@ def test_a_prediction_that_fails_while_written_leaves_no_half_object(real, tmp_p
     rows = predict_dataset(real["data"] / "100028", real["run"], tmp_path / "o", device="cpu", progress=False)
     assert rows[0].status == "failed" and "disk full" in rows[0].error
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["predictions.csv"]
+
+
+def _tree_bytes(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_two_workers_write_the_bytes_one_process_writes(real, tmp_path):
+    """``kinmo predict DIR -j 2`` (issue 24, item 4): the shapes are shared out to two spawned
+    workers, each with the caller's predictor; every file equals the in-process run's, the
+    part-graph cache is used by the workers too, and the rows keep the folders' order."""
+    one = predict_dataset(real["data"], real["run"], tmp_path / "j1", cache=real["cache"],
+                          device="cpu", progress=False, workers=1)
+    two = predict_dataset(real["data"], real["run"], tmp_path / "j2", cache=real["cache"],
+                          device="cpu", progress=False, workers=2)
+    assert [r.id for r in two] == [r.id for r in one] == sorted(OBJECTS)
+    assert [r.status for r in two] == ["ok"] * len(OBJECTS)
+    a, b = _tree_bytes(tmp_path / "j1"), _tree_bytes(tmp_path / "j2")
+    assert sorted(a) == sorted(b) and len(a) > 6 * len(OBJECTS)
+    differing = [k for k in a if a[k] != b[k]]
+    assert differing == []
+
+
+def test_the_cli_takes_workers(real, tmp_path):
+    r = CliRunner().invoke(app, ["predict", str(real["data"]), "-m", str(real["run"]), "-o",
+                                 str(tmp_path / "o"), "--cache", str(real["cache"]), "-q", "-j", "2"])
+    assert r.exit_code == 0, r.output
+    assert f"predicted {len(OBJECTS)} shape(s)" in r.output
+    written = sorted(p.name for p in (tmp_path / "o").iterdir() if not p.name.startswith("."))
+    assert written == sorted(OBJECTS + ["predictions.csv"])  # .lock is the command's lock

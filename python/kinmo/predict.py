@@ -20,6 +20,10 @@ written as ``OUT/<id>/``:
 A summary ``OUT/predictions.csv`` lists every shape with its status (``ok``/``failed``
 with the one-line reason) and the number of predicted moving links.
 
+Shapes are independent: ``workers`` processes (``kinmo predict DIR -j N``, the local
+``spawn`` pool or Ray through :mod:`kinmo.executor`) predict them at once, each with the
+caller's predictor, and write the same files as one process.
+
 Frames: every output coordinate is in the mesh frame of the input OBJ files (y-up), mesh units.
 """
 
@@ -28,9 +32,12 @@ from __future__ import annotations
 import csv
 import json
 import io
+import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -39,6 +46,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.model import PartHierarchy, PartNode, Shape, ShapeFormat
 from kinmo.data.readers import find_shapes, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.executor import map_unordered, parse_executor
 from kinmo.export import DEFAULT_FORMATS, export
 from kinmo.export.collision import DEFAULT_COLLISION
 from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
@@ -46,7 +54,11 @@ from kinmo.inference.predictor import Predictor
 from kinmo.io import atomic_path, check_outputs_apart, output_dir, staged_folder, write_json, write_text
 from kinmo.refine.selector import graph_meshes
 from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
+from kinmo.parallel import resolve_workers
+from kinmo.progress import CountingBar
+from kinmo.stages import worker_error
 from kinmo.train.gnn import Run, load_run
+from kinmo.train.loop import torch_threads
 from kinmo.viz import render_prediction
 
 __all__ = [
@@ -216,6 +228,8 @@ def predict_dataset(
     refine_config=None,
     formats: Sequence[str] | None = None,
     collision: str = DEFAULT_COLLISION,
+    workers: int = 1,
+    executor: str = "local",
 ) -> list[PredictRow]:
     """Predict every shape folder below ``data`` and write ``out/<id>/`` (module docstring).
 
@@ -247,11 +261,19 @@ def predict_dataset(
         Export formats per shape (:func:`write_prediction`).
     collision : str
         Collision geometry of URDF / MJCF (:mod:`kinmo.export.collision`).
+    workers : int
+        Worker processes (1: in this process; 0: one per CPU). Each worker gets the
+        predictor once (pickled: about 1 MB for the pretrained bundle) and runs torch and
+        rayon on one thread, as this process does during the run, so every worker count
+        writes the same files.
+    executor : str
+        ``local``, ``ray``, ``ray:auto`` or ``ray:ADDRESS`` (:mod:`kinmo.executor`).
 
     Returns
     -------
     list of PredictRow
-        Failed shapes are reported, not raised.
+        One per shape folder, in the folders' order; failed shapes (and shapes whose worker
+        died) are reported, not raised.
 
     Raises
     ------
@@ -261,8 +283,6 @@ def predict_dataset(
         ``out`` is, or lies inside, ``data`` or ``cache``, or holds them where it would write
         (:func:`kinmo.io.check_outputs_apart`): outputs never overwrite inputs.
     """
-    from rich.progress import Progress
-
     data = Path(data)
     folders = find_shapes(data)
     check_outputs_apart(out, [data, *([cache] if cache is not None else [])],
@@ -272,36 +292,98 @@ def predict_dataset(
         run, axis_model, refine_config, options, device)
     if not folders:
         raise KinmoDataError(data, "no shape folder found")
-    if cache is not None:
-        from kinmo.data.cache import manifest_rows
+    job = _Job(out, data, None if cache is None else Path(cache), formats, collision, render)
+    # 0: one per CPU; never more processes than shapes
+    workers = resolve_workers(workers, len(folders)) if workers >= 0 else 1
+    in_process = workers == 1 and parse_executor(executor).kind == "local"
+    found: dict[Path, PredictRow] = {}
+    with CountingBar(len(folders), progress, "predict", "shapes") as bar:
+        def record(folder: Path, row: PredictRow) -> None:
+            found[folder] = row
+            bar.advance(failed=int(row.status != "ok"))
 
-        cache_rows = manifest_rows(cache) if Path(cache).is_dir() else None
-    rows: list[PredictRow] = []
-    with Progress(disable=not progress) as bar:
-        task = bar.add_task("predict", total=len(folders))
-        for folder in folders:
-            sid = folder.name
-            try:
-                shape = read_shape(folder)
-                sid = shape.id
-                named = MeshesOnce(shape)  # read once, shared by the graph, selector, exporters
-                graph = _graph_for(folder, data, shape, cache, cache_rows if cache is not None else None,
-                                   named)
-                pred = predictor.predict(graph, lambda g: graph_meshes(g, shape.hierarchy, named()))
-                # written into a temporary sibling, renamed into place whole (issue 21,
-                # finding 12: a reader never sees half an object)
-                with staged_folder(out / sid) as tmp:
-                    paths = write_prediction(pred, tmp, shape, formats, progress, collision, named)
-                    if render:
-                        paths["png"] = render_prediction(pred, tmp / "prediction.png")
-                paths = {k: out / sid / Path(v).relative_to(tmp) for k, v in paths.items()}
-                rows.append(PredictRow(sid, "ok", len(pred.tree.links),
-                                       len(pred.tree.moving_links), "", paths))
-            except KinmoError as e:
-                rows.append(PredictRow(sid, "failed", error=" ".join(str(e).split())))
-            bar.advance(task)
+        # one torch thread and one rayon thread per process, in this process too: torch's
+        # reductions then add in the same order, and -j 1 writes the bytes -j N writes
+        with torch_threads(1):
+            if in_process:
+                _WORKER.update(_worker_state(predictor, job.cache))
+                try:
+                    for folder in folders:
+                        record(folder, _predict_one(folder, job, progress))
+                finally:
+                    _WORKER.clear()
+            else:
+                map_unordered(partial(_predict_one, job=job, progress=False), folders, workers,
+                              record, _worker_failed, initializer=_worker_init,
+                              initargs=(predictor, None if cache is None else str(cache)),
+                              executor=executor)
+    rows = [found[f] for f in folders]  # the folders' order, whatever the completion order
     write_text(out / "predictions.csv", _summary_csv(rows))
     return rows
+
+
+@dataclass(frozen=True)
+class _Job:
+    """What every shape of one :func:`predict_dataset` run shares (picklable)."""
+
+    out: Path
+    root: Path
+    cache: Path | None
+    formats: Sequence[str] | None
+    collision: str
+    render: bool
+
+
+#: The predictor (and the part-graph cache's manifest rows) of this process: set by
+#: :func:`_worker_init` in a worker, around the loop when the run is in process.
+_WORKER: dict[str, Any] = {}
+
+
+def _worker_state(predictor: Predictor, cache: str | Path | None) -> dict[str, Any]:
+    rows = None
+    if cache is not None and Path(cache).is_dir():
+        from kinmo.data.cache import manifest_rows
+
+        rows = manifest_rows(cache)
+    return {"predictor": predictor, "cache_rows": rows}
+
+
+def _worker_init(predictor: Predictor, cache: str | None) -> None:
+    """A worker's start: one thread for torch and rayon, the predictor (sent once per
+    worker, so every worker predicts with the same weights as the caller's)."""
+    import torch
+
+    torch.set_num_threads(1)
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    _WORKER.update(_worker_state(predictor, cache))
+
+
+def _worker_failed(folder: Path, e: Exception) -> PredictRow:
+    # the worker raised or died (e.g. killed for memory)
+    return PredictRow(folder.name, "failed", error=worker_error(folder, e))
+
+
+def _predict_one(folder: Path, job: _Job, progress: bool) -> PredictRow:
+    """Predict one shape folder and write ``job.out/<id>/`` (a staged folder, renamed into
+    place whole); a :class:`~kinmo.errors.KinmoError` becomes a failed row."""
+    predictor: Predictor = _WORKER["predictor"]
+    sid = folder.name
+    try:
+        shape = read_shape(folder)
+        sid = shape.id
+        named = MeshesOnce(shape)  # read once, shared by the graph, selector, exporters
+        graph = _graph_for(folder, job.root, shape, job.cache, _WORKER["cache_rows"], named)
+        pred = predictor.predict(graph, lambda g: graph_meshes(g, shape.hierarchy, named()))
+        # written into a temporary sibling, renamed into place whole (issue 21,
+        # finding 12: a reader never sees half an object)
+        with staged_folder(job.out / sid) as tmp:
+            paths = write_prediction(pred, tmp, shape, job.formats, progress, job.collision, named)
+            if job.render:
+                paths["png"] = render_prediction(pred, tmp / "prediction.png")
+        paths = {k: job.out / sid / Path(v).relative_to(tmp) for k, v in paths.items()}
+        return PredictRow(sid, "ok", len(pred.tree.links), len(pred.tree.moving_links), "", paths)
+    except KinmoError as e:
+        return PredictRow(sid, "failed", error=" ".join(str(e).split()))
 
 
 def _graph_for(folder: Path, root: Path, shape: Shape, cache: str | Path | None,

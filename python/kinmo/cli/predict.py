@@ -10,6 +10,7 @@ import typer
 import kinmo.cli._values as _values
 
 from kinmo.cli._apps import app
+from kinmo.cli._executor import EXECUTOR
 from kinmo.cli.export import COLLISION_HELP, FORMAT_HELP, _locked, check_formats
 from kinmo.cli._refine import REFINE, RefineOptions, model_or_pretrained, with_refine_options
 
@@ -31,6 +32,8 @@ def predict_cmd(
     up: Optional[str] = typer.Option(None, "--up", callback=_values.up_axis, help="Up axis of FILE, y or z. Default: by its format (glTF, OBJ, a mesh folder: y; URDF: z, as ROS; a URDF kinmo wrote: y). Outputs stay in FILE's frame and units."),  # noqa: UP007
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
     collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
+    workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes for a DIR of shapes (0: one per CPU, 1: no pool); every count writes the same files."),
+    executor: str = EXECUTOR,
 ) -> None:
     """Predict the motion of every shape under DIR (or of FILE); write PartNet-Mobility files and URDFs.
 
@@ -69,7 +72,8 @@ def predict_cmd(
         if is_user_input(data):
             rows = predict_user_input(data, predictor, out, formats=fmt or None, up=up, **kw)
         else:
-            rows = predict_dataset(data, predictor, out, cache=cache, formats=fmt or None, **kw)
+            rows = predict_dataset(data, predictor, out, cache=cache, formats=fmt or None,
+                                   workers=workers, executor=executor, **kw)
     ok = [r for r in rows if r.status == "ok"]
     bad = [r for r in rows if r.status != "ok"]
     console.print(f"predicted {len(ok)} shape(s), {sum(r.n_moving for r in ok)} moving link(s) -> {literal(out)}")
