@@ -53,6 +53,8 @@ STAGES = [
     ("meshes", "kinmo.refine.selector", "shape_meshes"),
     ("features", "kinmo.refine.selector", "candidate_features"),
     ("sweep", "kinmo.geometry", "sweep_collisions"),
+    ("sweep", "kinmo.geometry", "SweepObstacle.__init__"),
+    ("sweep", "kinmo.geometry", "SweepObstacle.sweep"),
     ("sweep", "kinmo.geometry", "line_mesh_distance"),
     ("axis_net", "kinmo.refine.refine", "_network_feasibility"),
     ("tree", "kinmo.mobility_tree", "build_mobility_tree"),

@@ -143,6 +143,30 @@ def sweep_collisions(
     obstacle mesh (``F = 0``: all free). Rule: :mod:`kinmo.geometry.sweep`. ``ValueError``
     on bad input (``P = 0``, ``C = 0``, zero direction, bad kind/range/parameters)."""
 
+class SweepObstacle:
+    """An obstacle mesh (``vertices (V, 3)`` float64, ``faces (F, 3)`` int64, ``F = 0``
+    valid) with its parry BVH built once, for many swept tests. ``ValueError`` on bad
+    input."""
+
+    def __init__(self, vertices: F64, faces: I64) -> None: ...
+    @property
+    def n_faces(self) -> int:
+        """Number of obstacle triangles."""
+    def sweep(
+        self,
+        moving_points: F64,
+        origins: F64,
+        directions: F64,
+        kinds: I64,
+        ranges: F64,
+        n_steps: int = 16,
+        skin: float = 0.005,
+        hit_tolerance: float = 0.02,
+        skip_inside: bool = True,
+    ) -> tuple[F64, F64]:
+        """``sweep_collisions`` of ``moving_points`` against this obstacle: the same
+        results, the BVH not rebuilt."""
+
 def line_mesh_distance(origins: F64, directions: F64, vertices: F64, faces: I64) -> F64:
     """``(C,)`` float64: distance from each infinite line to the mesh surface (exact, by
     projecting the mesh along the line).

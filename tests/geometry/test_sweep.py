@@ -18,7 +18,13 @@ from kinmo import _core
 from kinmo.data.labels import rigid_groups
 from kinmo.data.readers import read_shape
 from kinmo.geometry import load_objs, sample_surface
-from kinmo.geometry.sweep import PRISMATIC, REVOLUTE, line_mesh_distance, sweep_collisions
+from kinmo.geometry.sweep import (
+    PRISMATIC,
+    REVOLUTE,
+    SweepObstacle,
+    line_mesh_distance,
+    sweep_collisions,
+)
 
 
 def _box(lo, hi) -> trimesh.Trimesh:
@@ -194,6 +200,36 @@ def test_core_binding_defaults_and_dtypes():
     )
     assert free.shape == (1, 2) and coll.dtype == np.float64
     assert free[0, 0] == 1.0
+
+
+def test_a_prepared_obstacle_gives_the_results_of_sweep_collisions_call_after_call():
+    """:class:`SweepObstacle` builds the BVH once; every later sweep against it (other
+    points, other candidates, a given skin or the default one) equals the one-shot call."""
+    door, (v, f) = _door_and_body()
+    rng = np.random.default_rng(5)
+    obstacle = SweepObstacle(v, f)
+    assert obstacle.n_faces == len(f)
+    hit = 0.0
+    for trial in range(4):
+        pts = door[rng.choice(len(door), 200 + 50 * trial, replace=False)]
+        o = rng.uniform(-0.5, 1.5, size=(8, 3))
+        d = rng.normal(size=(8, 3))
+        k = np.tile([REVOLUTE, PRISMATIC], 4)
+        r = np.where(k == REVOLUTE, 1.5, 0.6)
+        skin = None if trial % 2 == 0 else 0.01
+        want = sweep_collisions(pts, v, f, o, d, k, r, n_steps=12, skin=skin)
+        got = obstacle.sweep(pts, o, d, k, r, n_steps=12, skin=skin)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+        hit = max(hit, float(want[1].max()))
+    assert hit > 0.1  # some candidates run into the body: a comparison that can fail
+    empty = SweepObstacle(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+    free, coll = empty.sweep(door, np.zeros((1, 3)), np.eye(3)[:1], [0], [1.0])
+    assert empty.n_faces == 0 and free.tolist() == [[1.0, 1.0]] and coll.tolist() == [[0.0, 0.0]]
+    with pytest.raises(ValueError, match="obstacle faces"):
+        SweepObstacle(v, np.array([[0, 1, 99]]))
+    with pytest.raises(ValueError, match=r"kinds\[0\]"):
+        obstacle.sweep(door, np.zeros((1, 3)), np.eye(3)[:1], [7], [1.0])
 
 
 def test_line_mesh_distance_matches_dense_samples_of_the_line():

@@ -311,7 +311,7 @@ def test_sweeps_of_a_shape_are_computed_once_per_line_with_the_same_results(monk
     import trimesh
 
     import kinmo.refine.selector
-    from kinmo.geometry import sweep_collisions
+    from kinmo.geometry import SweepObstacle, sweep_collisions
     from kinmo.refine.selector import ShapeMeshes
 
     box = trimesh.creation.box((1.0, 1.0, 1.0))
@@ -326,10 +326,18 @@ def test_sweeps_of_a_shape_are_computed_once_per_line_with_the_same_results(monk
     ranges = np.array([1.5, 1.5, 1.5, 0.5, 0.5, 0.5])
     ov, of = meshes.union([1])
     want = sweep_collisions(pts, ov, of, o, d, kinds, ranges, n_steps=8)
-    calls = []
-    real = sweep_collisions
-    monkeypatch.setattr(kinmo.refine.selector, "sweep_collisions",
-                        lambda p, v, f, oo, *a, **k: calls.append(len(oo)) or real(p, v, f, oo, *a, **k))
+    calls, built = [], []
+
+    class Counting(SweepObstacle):
+        def __init__(self, v, f):
+            built.append(len(f))
+            super().__init__(v, f)
+
+        def sweep(self, p, oo, *a, **k):
+            calls.append(len(oo))
+            return super().sweep(p, oo, *a, **k)
+
+    monkeypatch.setattr(kinmo.refine.selector, "SweepObstacle", Counting)
     first = meshes.sweep(2, np.array([1]), pts, o[:4], d[:4], kinds[:4], ranges[:4], 8)
     again = meshes.sweep(2, np.array([1]), pts, o, d, kinds, ranges, 8)  # two new lines
     assert calls == [4, 2]
@@ -339,3 +347,4 @@ def test_sweeps_of_a_shape_are_computed_once_per_line_with_the_same_results(monk
     assert 0 < want[1].max() and want[0].min() < 1  # the wall is hit: a check that can fail
     meshes.sweep(2, np.array([1]), pts[:32], o[:1], d[:1], kinds[:1], ranges[:1], 8)
     assert calls == [4, 2, 1]  # other points of the part: not the same key
+    assert built == [len(of)]  # ... but the same obstacle: its BVH was built once

@@ -19,11 +19,12 @@ from kinmo.geometry.mesh import load_obj, load_objs
 from kinmo.geometry.motion import apply_motions, motion_transforms
 from kinmo.geometry.obb import OBB, fit_obb, fit_obb_batch
 from kinmo.geometry.sampling import sample_surface, sample_surface_groups
-from kinmo.geometry.sweep import line_mesh_distance, sweep_collisions
+from kinmo.geometry.sweep import SweepObstacle, line_mesh_distance, sweep_collisions
 
 __all__ = [
     "OBB",
     "InteractionRegion",
+    "SweepObstacle",
     "apply_motions",
     "contact_pairs",
     "fit_obb",

@@ -173,6 +173,78 @@ def sweep_collisions(
     )
 
 
+class SweepObstacle:
+    """One obstacle mesh prepared for many swept tests: its parry BVH is built once.
+
+    :func:`sweep_collisions` builds the BVH on every call; the edges of one moving part
+    (one per sibling it may move against) sweep against the same obstacle, so the refinement
+    keeps one of these per obstacle (:class:`kinmo.refine.selector.ShapeMeshes`).
+    :meth:`sweep` returns exactly what :func:`sweep_collisions` returns for the same
+    vertices, faces and arguments (the same BVH, built from the same mesh).
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+        Every part not rigidly attached to the moving part, concatenated (mesh frame, mesh
+        units); ``F = 0`` is valid (everything free).
+
+    Raises
+    ------
+    ValueError
+        Wrong shapes, NaN/inf, face indices out of range, or a coordinate beyond 1e12.
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray) -> None:
+        v = _f64(vertices)
+        if v.size == 0:
+            v = v.reshape(0, 3)
+        self._vertices = v  # for the default skin, which also spans the obstacle
+        self._core = _core.SweepObstacle(v, _faces(faces))
+
+    @property
+    def n_faces(self) -> int:
+        """Number of obstacle triangles."""
+        return self._core.n_faces
+
+    def sweep(
+        self,
+        moving_points: np.ndarray,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        kinds: np.ndarray,
+        ranges: np.ndarray,
+        n_steps: int = 16,
+        skin: float | None = None,
+        hit_tolerance: float = 0.02,
+        skip_inside: bool = True,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`sweep_collisions` of ``moving_points`` against this obstacle.
+
+        Parameters and returns are those of :func:`sweep_collisions` without the obstacle
+        (``skin=None``: :func:`default_skin` of the points and this obstacle's vertices).
+
+        Raises
+        ------
+        ValueError
+            As :func:`sweep_collisions`.
+        """
+        p = _f64(moving_points)
+        if skin is None:
+            skin = default_skin(p, self._vertices)
+        return self._core.sweep(
+            p,
+            _f64(origins),
+            _f64(directions),
+            np.ascontiguousarray(kinds, dtype=np.int64),
+            _f64(ranges),
+            n_steps=int(n_steps),
+            skin=float(skin),
+            hit_tolerance=float(hit_tolerance),
+            skip_inside=bool(skip_inside),
+        )
+
+
 def line_mesh_distance(
     origins: np.ndarray, directions: np.ndarray, vertices: np.ndarray, faces: np.ndarray
 ) -> np.ndarray:

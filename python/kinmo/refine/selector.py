@@ -56,7 +56,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.labels import VERTICAL_COS, pivots_are_central
 from kinmo.data.model import FINE_TYPES
 from kinmo.errors import KinmoError
-from kinmo.geometry import line_mesh_distance, sweep_collisions
+from kinmo.geometry import SweepObstacle, line_mesh_distance
 from kinmo.metrics.axis import line_distance
 from kinmo.refine.candidates import (
     Candidates,
@@ -312,13 +312,12 @@ class ShapeMeshes:
                  float(ranges[k]), int(n_steps)) for k in range(len(origins))]
         todo = [k for k, key in enumerate(keys) if key not in self._sweeps]
         if todo:
-            if part[:2] not in self._obstacles:
-                self._obstacles[part[:2]] = self.union(static_leaves)
-            ov, of = self._obstacles[part[:2]]
+            if part[:2] not in self._obstacles:  # one BVH per obstacle, not per call
+                self._obstacles[part[:2]] = SweepObstacle(*self.union(static_leaves))
             t = np.asarray(todo)
-            free, coll = sweep_collisions(points, ov, of, np.ascontiguousarray(origins[t]),
-                                          np.ascontiguousarray(directions[t]), kinds[t], ranges[t],
-                                          n_steps=n_steps)
+            free, coll = self._obstacles[part[:2]].sweep(
+                points, np.ascontiguousarray(origins[t]), np.ascontiguousarray(directions[t]),
+                kinds[t], ranges[t], n_steps=n_steps)
             for n, k in enumerate(todo):
                 self._sweeps[keys[k]] = (free[n], coll[n])
         got = [self._sweeps[key] for key in keys]

@@ -1,4 +1,4 @@
-//! Bindings of `kinmo_geometry::sweep`: `sweep_collisions`, `line_mesh_distance`.
+//! Bindings of `kinmo_geometry::sweep`: `sweep_collisions`, `SweepObstacle`, `line_mesh_distance`.
 
 use kinmo_geometry::sweep::{self, MotionKind, SweepCandidate, SweepParams};
 use kinmo_geometry::GeometryError;
@@ -11,6 +11,70 @@ use crate::convert::{
 use crate::errors::{detach, to_py};
 
 type Fractions<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// The candidates and parameters of one swept test, checked.
+#[allow(clippy::too_many_arguments)]
+fn sweep_inputs(
+    origins: &PyReadonlyArray2<'_, f64>,
+    directions: &PyReadonlyArray2<'_, f64>,
+    kinds: &PyReadonlyArray1<'_, i64>,
+    ranges: &PyReadonlyArray1<'_, f64>,
+    n_steps: i64,
+    skin: f64,
+    hit_tolerance: f64,
+    skip_inside: bool,
+) -> PyResult<(Vec<SweepCandidate>, SweepParams)> {
+    let o = points_from_array(origins, "origins")?;
+    let c = o.len();
+    let d = directions_from_array(directions, c, "directions")?;
+    let kind_view = kinds.as_array();
+    if kind_view.len() != c {
+        return Err(to_py(GeometryError::Shape {
+            what: "kinds".to_string(),
+            expected: format!("({c},)"),
+            got: format!("({},)", kind_view.len()),
+        }));
+    }
+    let kinds: Vec<MotionKind> = kind_view
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| MotionKind::from_code(k, i))
+        .collect::<Result<_, _>>()
+        .map_err(to_py)?;
+    let r = floats_from_array(ranges, Some(c), "ranges")?;
+    let n_steps = usize::try_from(n_steps)
+        .ok()
+        .filter(|&n| n > 0 && n <= sweep::MAX_STEPS)
+        .ok_or_else(|| {
+            to_py(GeometryError::Invalid(format!(
+                "n_steps: {n_steps} is outside 1..={}",
+                sweep::MAX_STEPS
+            )))
+        })?;
+    let candidates: Vec<SweepCandidate> = (0..c)
+        .map(|i| SweepCandidate {
+            origin: o[i],
+            direction: d[i],
+            kind: kinds[i],
+            range: r[i],
+        })
+        .collect();
+    let params = SweepParams {
+        n_steps,
+        skin,
+        hit_tolerance,
+        skip_inside,
+    };
+    Ok((candidates, params))
+}
+
+/// The `(free (C, 2), colliding (C, 2))` arrays of sweep results.
+fn fractions<'py>(py: Python<'py>, results: &[sweep::SweepResult]) -> Fractions<'py> {
+    let c = results.len();
+    let free: Vec<f64> = results.iter().flat_map(|x| x.free_fraction).collect();
+    let colliding: Vec<f64> = results.iter().flat_map(|x| x.colliding_fraction).collect();
+    (array2(py, free, c, 2), array2(py, colliding, c, 2))
+}
 
 /// Swept-collision feasibility of C candidate motions of one moving part, both signs.
 ///
@@ -39,53 +103,87 @@ fn sweep_collisions<'py>(
 ) -> PyResult<Fractions<'py>> {
     let points = points_from_array(&moving_points, "moving_points")?;
     let obstacle = mesh_from_arrays(&obstacle_vertices, &obstacle_faces, "obstacle")?;
-    let o = points_from_array(&origins, "origins")?;
-    let c = o.len();
-    let d = directions_from_array(&directions, c, "directions")?;
-    let kind_view = kinds.as_array();
-    if kind_view.len() != c {
-        return Err(to_py(GeometryError::Shape {
-            what: "kinds".to_string(),
-            expected: format!("({c},)"),
-            got: format!("({},)", kind_view.len()),
-        }));
-    }
-    let kinds: Vec<MotionKind> = kind_view
-        .iter()
-        .enumerate()
-        .map(|(i, &k)| MotionKind::from_code(k, i))
-        .collect::<Result<_, _>>()
-        .map_err(to_py)?;
-    let r = floats_from_array(&ranges, Some(c), "ranges")?;
-    let n_steps = usize::try_from(n_steps)
-        .ok()
-        .filter(|&n| n > 0 && n <= sweep::MAX_STEPS)
-        .ok_or_else(|| {
-            to_py(GeometryError::Invalid(format!(
-                "n_steps: {n_steps} is outside 1..={}",
-                sweep::MAX_STEPS
-            )))
-        })?;
-    let candidates: Vec<SweepCandidate> = (0..c)
-        .map(|i| SweepCandidate {
-            origin: o[i],
-            direction: d[i],
-            kind: kinds[i],
-            range: r[i],
-        })
-        .collect();
-    let params = SweepParams {
+    let (candidates, params) = sweep_inputs(
+        &origins,
+        &directions,
+        &kinds,
+        &ranges,
         n_steps,
         skin,
         hit_tolerance,
         skip_inside,
-    };
+    )?;
     let results = detach(py, "sweep_collisions", || {
         sweep::sweep_collisions(&points, &obstacle, &candidates, &params)
     })?;
-    let free: Vec<f64> = results.iter().flat_map(|x| x.free_fraction).collect();
-    let colliding: Vec<f64> = results.iter().flat_map(|x| x.colliding_fraction).collect();
-    Ok((array2(py, free, c, 2), array2(py, colliding, c, 2)))
+    Ok(fractions(py, &results))
+}
+
+/// An obstacle mesh prepared once (its BVH built) for many swept tests.
+///
+/// `SweepObstacle(vertices (V, 3) float64, faces (F, 3) int64)`; `F = 0` is a valid, empty
+/// obstacle. `ValueError` on bad input.
+#[pyclass(frozen, module = "kinmo._core")]
+struct SweepObstacle {
+    inner: sweep::SweepObstacle,
+}
+
+#[pymethods]
+impl SweepObstacle {
+    #[new]
+    fn new(
+        py: Python<'_>,
+        vertices: PyReadonlyArray2<'_, f64>,
+        faces: PyReadonlyArray2<'_, i64>,
+    ) -> PyResult<Self> {
+        let mesh = mesh_from_arrays(&vertices, &faces, "obstacle")?;
+        let inner = detach(py, "SweepObstacle", || sweep::SweepObstacle::new(&mesh))?;
+        Ok(Self { inner })
+    }
+
+    /// Number of obstacle triangles.
+    #[getter]
+    fn n_faces(&self) -> usize {
+        self.inner.n_faces()
+    }
+
+    /// `sweep_collisions` of `moving_points` against this obstacle: the same results, the
+    /// BVH not rebuilt.
+    #[pyo3(signature = (
+        moving_points, origins, directions, kinds, ranges,
+        n_steps=16, skin=0.005, hit_tolerance=0.02, skip_inside=true
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn sweep<'py>(
+        &self,
+        py: Python<'py>,
+        moving_points: PyReadonlyArray2<'py, f64>,
+        origins: PyReadonlyArray2<'py, f64>,
+        directions: PyReadonlyArray2<'py, f64>,
+        kinds: PyReadonlyArray1<'py, i64>,
+        ranges: PyReadonlyArray1<'py, f64>,
+        n_steps: i64,
+        skin: f64,
+        hit_tolerance: f64,
+        skip_inside: bool,
+    ) -> PyResult<Fractions<'py>> {
+        let points = points_from_array(&moving_points, "moving_points")?;
+        let (candidates, params) = sweep_inputs(
+            &origins,
+            &directions,
+            &kinds,
+            &ranges,
+            n_steps,
+            skin,
+            hit_tolerance,
+            skip_inside,
+        )?;
+        let obstacle = &self.inner;
+        let results = detach(py, "SweepObstacle.sweep", || {
+            obstacle.sweep(&points, &candidates, &params)
+        })?;
+        Ok(fractions(py, &results))
+    }
 }
 
 /// Distance `(C,)` float64 from each infinite line to the surface of a mesh.
@@ -111,6 +209,7 @@ fn line_mesh_distance<'py>(
 /// Register this module's functions on `kinmo._core`.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sweep_collisions, m)?)?;
+    m.add_class::<SweepObstacle>()?;
     m.add_function(wrap_pyfunction!(line_mesh_distance, m)?)?;
     Ok(())
 }
