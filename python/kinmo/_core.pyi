@@ -80,6 +80,14 @@ def fit_obb_batch(
     """``(centers (B, 3), axes (B, 3, 3), half_extents (B, 3))``, parallel; set ``i`` is
     named ``point_sets[i]`` in errors."""
 
+# --- hull (rust/kinmo-py/src/hull.rs) ----------------------------------------------------
+
+def convex_hull(points: F64) -> tuple[I64, I64] | None:
+    """The exact convex hull of ``points (N, 3)``: ``(vertices (H,) int64, faces (F, 3)
+    int64)``, indices into ``points``, faces counter-clockwise seen from outside; None when
+    it has no volume (fewer than 4 points, or all on a plane). ``ValueError`` on a bad shape
+    or NaN/inf."""
+
 # --- contact (rust/kinmo-py/src/contact.rs) ----------------------------------------------
 
 def contact_pairs(meshes: Sequence[Mesh], tolerance: float) -> tuple[I64, F64]:

@@ -8,7 +8,9 @@ and units). The methods (``kinmo export/predict/pseudo-label --collision NAME``)
 
 - ``hull`` (default): the exact convex hull of every leaf mesh of the link (its PartNet
   ``textured_objs/*.obj`` parts, which are panels, handles, knobs: mostly convex already),
-  by qhull (``scipy.spatial.ConvexHull``). A flat or too-small leaf becomes the thin slab of
+  kinmo's exact hull (:func:`kinmo.geometry.convex_hull`, the one the OBB fit uses; it
+  replaced qhull, ``scipy.spatial.ConvexHull``, in issue 24 at a quarter of the time). A
+  flat or too-small leaf becomes the thin slab of
   :func:`kinmo.export.kinematics.simulator_safe`; a zero-area leaf has no piece. This is the
   collision geometry PartNet-Mobility's own URDFs give in PyBullet (one hull per leaf OBJ),
   at milliseconds per object.
@@ -41,6 +43,7 @@ import numpy as np
 
 from kinmo.errors import KinmoDataError, KinmoUsageError
 from kinmo.export.kinematics import LinkMesh, simulator_safe, write_obj
+from kinmo.geometry import convex_hull
 from kinmo.io import atomic_path
 
 __all__ = ["COLLISION_METHODS", "DEFAULT_COLLISION", "CollisionMethod", "collision_pieces",
@@ -120,25 +123,17 @@ def check_collision_method(name: str) -> CollisionMethod:
 
 
 def _hull(vertices: np.ndarray) -> Piece | None:
-    """qhull's convex hull of ``vertices``; None without volume (flat, collinear, < 4)."""
-    from scipy.spatial import ConvexHull, QhullError
-
-    if len(vertices) < 4:
+    """The exact convex hull of ``vertices`` (:func:`kinmo.geometry.convex_hull`, faces
+    outwards); None without volume, or as flat as :func:`simulator_safe` counts flat (the
+    smallest singular value of the centred hull vertices at most 1e-9 of the largest), which
+    then gets its slab."""
+    hull = convex_hull(vertices)
+    if hull is None:
         return None
-    try:
-        h = ConvexHull(vertices)
-    except (QhullError, ValueError):
+    v, f = hull
+    sv = np.linalg.svd(v - v.mean(axis=0), compute_uv=False)
+    if not sv[-1] > 1e-9 * sv[0]:
         return None
-    # qhull's facets are triangles with arbitrary winding: orient each outwards
-    used = np.unique(h.simplices)
-    remap = np.full(len(vertices), -1, dtype=np.int64)
-    remap[used] = np.arange(len(used))
-    v = vertices[used]
-    f = remap[h.simplices].astype(np.int64)
-    centre = v.mean(axis=0)
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), a - centre) < 0
-    f[flip] = f[flip][:, ::-1]
     return v, f
 
 
@@ -180,7 +175,7 @@ def leaf_hulls(mesh: LinkMesh) -> list[Piece]:
     return out
 
 
-_register(CollisionMethod("hull", "exact convex hull of every leaf mesh (qhull; milliseconds)",
+_register(CollisionMethod("hull", "exact convex hull of every leaf mesh (milliseconds)",
                           leaf_hulls))
 
 

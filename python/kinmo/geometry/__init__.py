@@ -7,6 +7,7 @@ the GIL released. Frames are those of the input; PartNet objects are y-up.
 - :mod:`kinmo.geometry.mesh`: OBJ loading.
 - :mod:`kinmo.geometry.sampling`: area-weighted surface sampling.
 - :mod:`kinmo.geometry.obb`: oriented bounding boxes.
+- :mod:`kinmo.geometry.hull`: exact convex hulls.
 - :mod:`kinmo.geometry.contact`: contact adjacency and mesh distances.
 - :mod:`kinmo.geometry.interaction`: interaction regions between two parts.
 - :mod:`kinmo.geometry.motion`: batched candidate motions.
@@ -14,6 +15,7 @@ the GIL released. Frames are those of the input; PartNet objects are y-up.
 """
 
 from kinmo.geometry.contact import contact_pairs, mesh_distance
+from kinmo.geometry.hull import convex_hull
 from kinmo.geometry.interaction import InteractionRegion, interaction_region
 from kinmo.geometry.mesh import load_obj, load_objs
 from kinmo.geometry.motion import apply_motions, motion_transforms
@@ -27,6 +29,7 @@ __all__ = [
     "SweepObstacle",
     "apply_motions",
     "contact_pairs",
+    "convex_hull",
     "fit_obb",
     "fit_obb_batch",
     "interaction_region",

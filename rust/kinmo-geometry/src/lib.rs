@@ -8,6 +8,7 @@
 
 pub mod contact;
 pub mod error;
+pub mod hull;
 pub mod interaction;
 pub mod mesh;
 pub mod motion;

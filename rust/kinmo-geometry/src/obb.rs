@@ -72,7 +72,7 @@
 //! points give the plane normal (last row) with a zero half-extent along it and the
 //! in-plane rectangle chosen as for flat sets.
 
-mod hull;
+pub(crate) mod hull;
 mod rect;
 mod symmetry;
 #[cfg(test)]

@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 mod contact;
 mod convert;
 mod errors;
+mod hull;
 mod interaction;
 mod mesh;
 mod motion;
@@ -23,6 +24,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     mesh::register(m)?;
     sampling::register(m)?;
     obb::register(m)?;
+    hull::register(m)?;
     contact::register(m)?;
     interaction::register(m)?;
     motion::register(m)?;
