@@ -284,7 +284,7 @@ def candidate_axes(
 
     def add(o: np.ndarray, d: np.ndarray, kind: str) -> None:
         origins.append(np.asarray(o, dtype=np.float64))
-        directions.append(canonical_direction(d))
+        directions.append(np.asarray(d, dtype=np.float64))  # made canonical below, at once
         kinds.append(kind)
 
     if motion == "R":
@@ -309,7 +309,9 @@ def candidate_axes(
         for k in ks:
             add(box.center, box.axes[k], "axis")
 
-    o, d, kinds_t = _dedupe(origins, directions, kinds, dedupe_tol * max(diag, 1e-12))
+    # one call on all rows: row by row the same arithmetic as one call per line
+    canonical = canonical_direction(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+    o, d, kinds_t = _dedupe(origins, list(canonical), kinds, dedupe_tol * max(diag, 1e-12))
     return Candidates(o, d, kinds_t, str(fine_type))
 
 
