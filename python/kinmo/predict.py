@@ -302,7 +302,7 @@ def predict_dataset(
             found[folder] = row
             bar.advance(failed=int(row.status != "ok"))
 
-        # one torch thread and one rayon thread per process, in this process too: torch's
+        # one torch thread in this process too, as in every worker (_worker_init): torch's
         # reductions then add in the same order, and -j 1 writes the bytes -j N writes
         with torch_threads(1):
             if in_process:
