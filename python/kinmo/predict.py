@@ -264,8 +264,8 @@ def predict_dataset(
     workers : int
         Worker processes (1: in this process; 0: one per CPU). Each worker gets the
         predictor once (pickled: about 1 MB for the pretrained bundle) and runs torch and
-        rayon on one thread, as this process does during the run, so every worker count
-        writes the same files.
+        rayon on one thread; this process runs torch on one thread during the run too, so
+        every worker count writes the same files.
     executor : str
         ``local``, ``ray``, ``ray:auto`` or ``ray:ADDRESS`` (:mod:`kinmo.executor`).
 
