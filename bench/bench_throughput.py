@@ -10,6 +10,10 @@ graph cache, as for a dataset seen for the first time:
 - ``render``: ``kinmo render MOBILITY -o OUT -j 2 -q`` (its defaults: 10 frames of 256 x 256
   per object).
 
+``-j 2`` unless ``--jobs`` says otherwise: ``--jobs 1,2`` runs each stage with one process
+and with two workers, alternating within each repeat, and gives the speed-up of each over
+the first.
+
 Reported per stage: shapes, wall seconds, shapes per second on this machine, CPU seconds
 (user + system of the command and every process it started, from ``RUSAGE_CHILDREN``) per
 shape, and the 1-minute load average before and after (anything above ~0 besides the stage
@@ -20,7 +24,7 @@ Usage::
 
     python bench/bench_throughput.py [--partnet ../shared/data/partnet]
         [--mobility ../shared/data/partnet-mobility] [--stages pseudo-label,predict,render]
-        [--repeats 1]
+        [--repeats 1] [--jobs 2]      # --jobs 1,2: one process against two workers
 
 Prints a Markdown table and writes ``bench/results/throughput.csv``; ``docs/results/scaling.md``
 extrapolates the CPU seconds per shape to PartNet's 26,671 shapes.
@@ -50,14 +54,15 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def _command(stage: str, partnet: Path, mobility: Path, out: Path) -> list[str]:
+def _command(stage: str, partnet: Path, mobility: Path, out: Path, jobs: int = 2) -> list[str]:
     kinmo = [sys.executable, "-m", "kinmo"]
+    j = ["-j", str(jobs)]
     if stage == "pseudo-label":
-        return kinmo + ["pseudo-label", str(partnet), "-o", str(out), "-j", "2", "-q"]
+        return kinmo + ["pseudo-label", str(partnet), "-o", str(out), *j, "-q"]
     if stage == "predict":
-        return kinmo + ["predict", str(partnet), "-o", str(out), "-j", "2", "-q"]
+        return kinmo + ["predict", str(partnet), "-o", str(out), *j, "-q"]
     if stage == "render":
-        return kinmo + ["render", str(mobility), "-o", str(out), "-j", "2", "-q"]
+        return kinmo + ["render", str(mobility), "-o", str(out), *j, "-q"]
     raise SystemExit(f"unknown stage {stage}")
 
 
@@ -67,21 +72,21 @@ def _count(stage: str, partnet: Path, mobility: Path) -> int:
     return len(find_shapes(mobility if stage == "render" else partnet))
 
 
-def run_stage(stage: str, partnet: Path, mobility: Path) -> dict:
-    """One cold run of ``stage``: its row (module docstring)."""
+def run_stage(stage: str, partnet: Path, mobility: Path, jobs: int = 2) -> dict:
+    """One cold run of ``stage`` with ``-j jobs``: its row (module docstring)."""
     n = _count(stage, partnet, mobility)
     with tempfile.TemporaryDirectory(prefix=f"kinmo-throughput-{stage}-") as tmp:
         env = dict(os.environ, KINMO_VHACD_CACHE=str(Path(tmp) / "collision-cache"))
         load0 = os.getloadavg()[0]
         c0, t0 = _children_cpu(), time.perf_counter()
-        r = subprocess.run(_command(stage, partnet, mobility, Path(tmp) / "out"), env=env,
+        r = subprocess.run(_command(stage, partnet, mobility, Path(tmp) / "out", jobs), env=env,
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
         load1 = os.getloadavg()[0]
         if r.returncode not in (0, 1):  # 1: some shapes failed (reported), the rest done
             raise SystemExit(f"{stage} failed ({r.returncode}):\n{r.stdout[-2000:]}")
         shutil.rmtree(Path(tmp) / "out", ignore_errors=True)
-    return dict(stage=stage, shapes=n, wall_s=round(wall, 2), shapes_per_s=round(n / wall, 3),
+    return dict(stage=stage, jobs=jobs, shapes=n, wall_s=round(wall, 2), shapes_per_s=round(n / wall, 3),
                 cpu_s_per_shape=round(cpu / n, 4), load_before=round(load0, 2),
                 load_after=round(load1, 2), exit_code=r.returncode)
 
@@ -92,28 +97,38 @@ def main() -> None:
     ap.add_argument("--mobility", type=Path, default=SHARED / "partnet-mobility")
     ap.add_argument("--stages", default="pseudo-label,predict,render")
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--jobs", default="2",
+                    help="comma-separated -j values, e.g. 1,2: each stage runs at each, "
+                         "alternating within a repeat, and the table gives the speed-up "
+                         "over the first")
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
+    jobs = [int(j) for j in args.jobs.split(",")]
     rows = []
     for stage in args.stages.split(","):
         for k in range(args.repeats):
-            row = run_stage(stage, args.partnet, args.mobility)
-            print(f"{stage} #{k + 1}: {row}", file=sys.stderr, flush=True)
-            rows.append(row)
+            for j in jobs:
+                row = run_stage(stage, args.partnet, args.mobility, j)
+                print(f"{stage} -j {j} #{k + 1}: {row}", file=sys.stderr, flush=True)
+                rows.append(row)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    print("| stage | shapes | runs | wall s (median) | shapes/s | CPU s per shape | load before / after |")
-    print("|---|---:|---:|---:|---:|---:|---|")
+    print("| stage | -j | shapes | runs | wall s (median) | shapes/s | vs first -j | "
+          "CPU s per shape | load before / after |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---|")
     for stage in dict.fromkeys(r["stage"] for r in rows):
-        rs = [r for r in rows if r["stage"] == stage]
-        med = lambda k: statistics.median(r[k] for r in rs)  # noqa: E731
-        loads = ", ".join(f"{r['load_before']:.2f} / {r['load_after']:.2f}" for r in rs)
-        print(f"| {stage} | {rs[0]['shapes']} | {len(rs)} | {med('wall_s'):.1f} | "
-              f"{med('shapes_per_s'):.2f} | {med('cpu_s_per_shape'):.3f} | "
-              f"{loads} |")
+        base = None
+        for j in jobs:
+            rs = [r for r in rows if r["stage"] == stage and r["jobs"] == j]
+            med = lambda k: statistics.median(r[k] for r in rs)  # noqa: E731, B023
+            base = base or med("wall_s")
+            loads = ", ".join(f"{r['load_before']:.2f} / {r['load_after']:.2f}" for r in rs)
+            print(f"| {stage} | {j} | {rs[0]['shapes']} | {len(rs)} | {med('wall_s'):.1f} | "
+                  f"{med('shapes_per_s'):.2f} | {base / med('wall_s'):.2f}x | "
+                  f"{med('cpu_s_per_shape'):.3f} | {loads} |")
     print(f"\nrows: {args.out}")
 
 
