@@ -32,7 +32,6 @@ from __future__ import annotations
 import csv
 import json
 import io
-import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
@@ -58,7 +57,7 @@ from kinmo.parallel import resolve_workers
 from kinmo.progress import CountingBar
 from kinmo.stages import worker_error
 from kinmo.train.gnn import Run, load_run
-from kinmo.train.loop import torch_threads
+from kinmo.train.loop import single_threaded_worker, torch_threads
 from kinmo.viz import render_prediction
 
 __all__ = [
@@ -306,12 +305,9 @@ def predict_dataset(
         # reductions then add in the same order, and -j 1 writes the bytes -j N writes
         with torch_threads(1):
             if in_process:
-                _WORKER.update(_worker_state(predictor, job.cache))
-                try:
-                    for folder in folders:
-                        record(folder, _predict_one(folder, job, progress))
-                finally:
-                    _WORKER.clear()
+                state = _worker_state(predictor, job.cache)
+                for folder in folders:
+                    record(folder, _predict_one(folder, job, progress, state))
             else:
                 map_unordered(partial(_predict_one, job=job, progress=False), folders, workers,
                               record, _worker_failed, initializer=_worker_init,
@@ -334,8 +330,8 @@ class _Job:
     render: bool
 
 
-#: The predictor (and the part-graph cache's manifest rows) of this process: set by
-#: :func:`_worker_init` in a worker, around the loop when the run is in process.
+#: The predictor (and the part-graph cache's manifest rows) of a worker process, set by
+#: :func:`_worker_init`; a run in the calling process passes its own to :func:`_predict_one`.
 _WORKER: dict[str, Any] = {}
 
 
@@ -351,10 +347,7 @@ def _worker_state(predictor: Predictor, cache: str | Path | None) -> dict[str, A
 def _worker_init(predictor: Predictor, cache: str | None) -> None:
     """A worker's start: one thread for torch and rayon, the predictor (sent once per
     worker, so every worker predicts with the same weights as the caller's)."""
-    import torch
-
-    torch.set_num_threads(1)
-    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    single_threaded_worker()
     _WORKER.update(_worker_state(predictor, cache))
 
 
@@ -363,16 +356,19 @@ def _worker_failed(folder: Path, e: Exception) -> PredictRow:
     return PredictRow(folder.name, "failed", error=worker_error(folder, e))
 
 
-def _predict_one(folder: Path, job: _Job, progress: bool) -> PredictRow:
+def _predict_one(folder: Path, job: _Job, progress: bool,
+                 state: Mapping[str, Any] | None = None) -> PredictRow:
     """Predict one shape folder and write ``job.out/<id>/`` (a staged folder, renamed into
-    place whole); a :class:`~kinmo.errors.KinmoError` becomes a failed row."""
-    predictor: Predictor = _WORKER["predictor"]
+    place whole); a :class:`~kinmo.errors.KinmoError` becomes a failed row. ``state``: the
+    predictor and cache rows (:func:`_worker_state`); default this worker's."""
+    state = _WORKER if state is None else state
+    predictor: Predictor = state["predictor"]
     sid = folder.name
     try:
         shape = read_shape(folder)
         sid = shape.id
         named = MeshesOnce(shape)  # read once, shared by the graph, selector, exporters
-        graph = _graph_for(folder, job.root, shape, job.cache, _WORKER["cache_rows"], named)
+        graph = _graph_for(folder, job.root, shape, job.cache, state["cache_rows"], named)
         pred = predictor.predict(graph, lambda g: graph_meshes(g, shape.hierarchy, named()))
         # written into a temporary sibling, renamed into place whole (issue 21,
         # finding 12: a reader never sees half an object)

@@ -88,7 +88,7 @@ from kinmo.parallel import resolve_workers
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.selector import graph_meshes
 from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
-from kinmo.train.loop import torch_threads
+from kinmo.train.loop import single_threaded_worker, torch_threads
 
 logger = logging.getLogger(__name__)
 
@@ -472,10 +472,7 @@ def _record_from_json(d: dict[str, Any]) -> ShapeRecord:
 
 
 def _worker_init(gnn_run: str, axis_run: str, device: str, refine_json: dict | None = None) -> None:
-    import torch
-
-    torch.set_num_threads(1)
-    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    single_threaded_worker()
     global _WORKER_MODELS
     from kinmo.refine.config import RefineConfig
 

@@ -42,7 +42,7 @@ from typing import Callable
 import numpy as np
 
 from kinmo.errors import KinmoDataError, KinmoUsageError
-from kinmo.export.kinematics import LinkMesh, simulator_safe, write_obj
+from kinmo.export.kinematics import FLAT_RELATIVE, LinkMesh, simulator_safe, write_obj
 from kinmo.geometry import convex_hull
 from kinmo.io import atomic_path
 
@@ -124,15 +124,14 @@ def check_collision_method(name: str) -> CollisionMethod:
 
 def _hull(vertices: np.ndarray) -> Piece | None:
     """The exact convex hull of ``vertices`` (:func:`kinmo.geometry.convex_hull`, faces
-    outwards); None without volume, or as flat as :func:`simulator_safe` counts flat (the
-    smallest singular value of the centred hull vertices at most 1e-9 of the largest), which
-    then gets its slab."""
+    outwards); None without volume, or as flat as :func:`simulator_safe` counts flat
+    (:data:`~kinmo.export.kinematics.FLAT_RELATIVE`), which then gets its slab."""
     hull = convex_hull(vertices)
     if hull is None:
         return None
     v, f = hull
     sv = np.linalg.svd(v - v.mean(axis=0), compute_uv=False)
-    if not sv[-1] > 1e-9 * sv[0]:
+    if not sv[-1] > FLAT_RELATIVE * sv[0]:
         return None
     return v, f
 

@@ -225,6 +225,10 @@ def link_meshes(shape: Shape, links: Sequence[Link] | None = None,
 #: Thickness of the slab substituted for a flat part, relative to its largest extent.
 SLAB_THICKNESS = 1e-3
 
+#: A point set is flat when the smallest singular value of its centred coordinates is at
+#: most this fraction of the largest (:func:`simulator_safe`; the ``hull`` collision pieces).
+FLAT_RELATIVE = 1e-9
+
 
 def simulator_safe(vertices: np.ndarray, faces: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
     """A link mesh every simulator loads (issue 21, finding 9).
@@ -235,9 +239,9 @@ def simulator_safe(vertices: np.ndarray, faces: np.ndarray, where: str) -> tuple
 
     - zero surface area (a point, a segment, degenerate triangles): refused;
     - fewer than 4 distinct vertices, or all of them on one plane (rank < 3 of the centred
-      vertices, relative tolerance 1e-9): replaced by a thin box (slab) on the part's
-      principal axes, as large as the part in its plane and :data:`SLAB_THICKNESS` times its
-      largest extent thick;
+      vertices, relative tolerance :data:`FLAT_RELATIVE`): replaced by a thin box (slab) on
+      the part's principal axes, as large as the part in its plane and
+      :data:`SLAB_THICKNESS` times its largest extent thick;
     - anything else: unchanged.
 
     Parameters
@@ -268,7 +272,7 @@ def simulator_safe(vertices: np.ndarray, faces: np.ndarray, where: str) -> tuple
     used = v[np.unique(f)]
     centre = used.mean(0)
     _, sv, axes = np.linalg.svd(used - centre, full_matrices=False)
-    if len(used) >= 4 and sv[-1] > 1e-9 * sv[0]:
+    if len(used) >= 4 and sv[-1] > FLAT_RELATIVE * sv[0]:
         return v, f
     local = (used - centre) @ axes.T
     lo, hi = local.min(0), local.max(0)

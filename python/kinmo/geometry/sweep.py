@@ -152,35 +152,18 @@ def sweep_collisions(
         coordinate beyond 1e12 in magnitude, or more than 2**34 casts; the message names the
         argument.
     """
-    p = _f64(moving_points)
-    v = _f64(obstacle_vertices)
-    if v.size == 0:
-        v = v.reshape(0, 3)
-    if skin is None:
-        skin = default_skin(p, v)
-    return _core.sweep_collisions(
-        p,
-        v,
-        _faces(obstacle_faces),
-        _f64(origins),
-        _f64(directions),
-        np.ascontiguousarray(kinds, dtype=np.int64),
-        _f64(ranges),
-        n_steps=int(n_steps),
-        skin=float(skin),
-        hit_tolerance=float(hit_tolerance),
-        skip_inside=bool(skip_inside),
-    )
+    return SweepObstacle(obstacle_vertices, obstacle_faces).sweep(
+        moving_points, origins, directions, kinds, ranges, n_steps=n_steps, skin=skin,
+        hit_tolerance=hit_tolerance, skip_inside=skip_inside)
 
 
 class SweepObstacle:
     """One obstacle mesh prepared for many swept tests: its parry BVH is built once.
 
-    :func:`sweep_collisions` builds the BVH on every call; the edges of one moving part
-    (one per sibling it may move against) sweep against the same obstacle, so the refinement
-    keeps one of these per obstacle (:class:`kinmo.refine.selector.ShapeMeshes`).
-    :meth:`sweep` returns exactly what :func:`sweep_collisions` returns for the same
-    vertices, faces and arguments (the same BVH, built from the same mesh).
+    :func:`sweep_collisions` is one of these, used once; the edges of one moving part (one
+    per sibling it may move against) sweep against the same obstacle, so the refinement
+    keeps one of these per obstacle (:class:`kinmo.refine.selector.ShapeMeshes`) and its
+    BVH is built once for all of them.
 
     Parameters
     ----------

@@ -199,7 +199,7 @@ def _axis_groups(axes: np.ndarray, orientation: str | None) -> list[int]:
 
 
 def _dedupe(
-    origins: list[np.ndarray], directions: list[np.ndarray], kinds: list[str], tol: float
+    origins: list[np.ndarray], directions: np.ndarray, kinds: list[str], tol: float
 ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """Drop lines that coincide with an earlier kept one (parallel and within ``tol``)."""
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
@@ -311,7 +311,7 @@ def candidate_axes(
 
     # one call on all rows: row by row the same arithmetic as one call per line
     canonical = canonical_direction(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
-    o, d, kinds_t = _dedupe(origins, list(canonical), kinds, dedupe_tol * max(diag, 1e-12))
+    o, d, kinds_t = _dedupe(origins, canonical, kinds, dedupe_tol * max(diag, 1e-12))
     return Candidates(o, d, kinds_t, str(fine_type))
 
 

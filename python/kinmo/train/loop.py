@@ -32,6 +32,7 @@ import copy
 import csv
 import io
 import math
+import os
 import random
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -140,6 +141,16 @@ def resolve_device(device: str) -> torch.device:
     if dev.type == "cuda" and not torch.cuda.is_available():
         raise ValueError(f"device {device!r} requested but CUDA is not available")
     return dev
+
+
+def single_threaded_worker() -> None:
+    """Start a worker process of a per-shape pool on one thread: torch's (set now) and
+    rayon's (``RAYON_NUM_THREADS``, read when the Rust core first runs a parallel loop,
+    unless the environment already sets it). The caller runs torch on one thread too
+    (:func:`torch_threads`), so every worker count adds in the same order and writes the
+    same bytes."""
+    torch.set_num_threads(1)
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
 
 
 @contextmanager
