@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from kinmo.data.build import MeshesOnce, build_graph
+from kinmo.data.cache import cached_graph, manifest_rows
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import PartHierarchy, PartNode, Shape, ShapeFormat
 from kinmo.data.readers import find_shapes, read_shape
@@ -55,7 +56,7 @@ from kinmo.refine.selector import graph_meshes
 from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
 from kinmo.parallel import resolve_workers
 from kinmo.progress import CountingBar
-from kinmo.stages import worker_error
+from kinmo.stages import cache_key, worker_error
 from kinmo.train.gnn import Run, load_run
 from kinmo.train.loop import single_threaded_worker, torch_threads
 from kinmo.viz import render_prediction
@@ -338,8 +339,6 @@ _WORKER: dict[str, Any] = {}
 def _worker_state(predictor: Predictor, cache: str | Path | None) -> dict[str, Any]:
     rows = None
     if cache is not None and Path(cache).is_dir():
-        from kinmo.data.cache import manifest_rows
-
         rows = manifest_rows(cache)
     return {"predictor": predictor, "cache_rows": rows}
 
@@ -387,9 +386,6 @@ def _graph_for(folder: Path, root: Path, shape: Shape, cache: str | Path | None,
     """The shape's graph: from ``cache`` when its entry is current
     (:func:`kinmo.data.cache.cached_graph`: a stale or mismatched entry is rebuilt), else built."""
     if cache is not None:
-        from kinmo.data.cache import cached_graph
-        from kinmo.stages import cache_key
-
         graph = cached_graph(cache, cache_key(folder, root), folder, rows)
         if graph is not None:
             return graph
