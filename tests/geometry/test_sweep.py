@@ -22,6 +22,7 @@ from kinmo.geometry.sweep import (
     PRISMATIC,
     REVOLUTE,
     SweepObstacle,
+    default_skin,
     line_mesh_distance,
     sweep_collisions,
 )
@@ -204,7 +205,8 @@ def test_core_binding_defaults_and_dtypes():
 
 def test_a_prepared_obstacle_gives_the_results_of_sweep_collisions_call_after_call():
     """:class:`SweepObstacle` builds the BVH once; every later sweep against it (other
-    points, other candidates, a given skin or the default one) equals the one-shot call."""
+    points, other candidates, a given skin or the default one) equals the one-shot call of
+    the binding (``_core.sweep_collisions``), as does :func:`sweep_collisions`."""
     door, (v, f) = _door_and_body()
     rng = np.random.default_rng(5)
     obstacle = SweepObstacle(v, f)
@@ -217,7 +219,12 @@ def test_a_prepared_obstacle_gives_the_results_of_sweep_collisions_call_after_ca
         k = np.tile([REVOLUTE, PRISMATIC], 4)
         r = np.where(k == REVOLUTE, 1.5, 0.6)
         skin = None if trial % 2 == 0 else 0.01
-        want = sweep_collisions(pts, v, f, o, d, k, r, n_steps=12, skin=skin)
+        # the reference: the binding's one-shot path, which builds its own BVH
+        s = default_skin(pts, v) if skin is None else skin
+        want = _core.sweep_collisions(pts, v, f.astype(np.int64), o, d, k.astype(np.int64), r,
+                                      n_steps=12, skin=s)
+        one_shot = sweep_collisions(pts, v, f, o, d, k, r, n_steps=12, skin=skin)
+        np.testing.assert_array_equal(one_shot[0], want[0])
         got = obstacle.sweep(pts, o, d, k, r, n_steps=12, skin=skin)
         np.testing.assert_array_equal(got[0], want[0])
         np.testing.assert_array_equal(got[1], want[1])
