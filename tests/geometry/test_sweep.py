@@ -205,8 +205,9 @@ def test_core_binding_defaults_and_dtypes():
 
 def test_a_prepared_obstacle_gives_the_results_of_sweep_collisions_call_after_call():
     """:class:`SweepObstacle` builds the BVH once; every later sweep against it (other
-    points, other candidates, a given skin or the default one) equals the one-shot call of
-    the binding (``_core.sweep_collisions``), as does :func:`sweep_collisions`."""
+    points, other candidates, a given skin or the default one; the same points again, whose
+    rest states it reuses) equals the one-shot call of the binding
+    (``_core.sweep_collisions``), as does :func:`sweep_collisions`."""
     door, (v, f) = _door_and_body()
     rng = np.random.default_rng(5)
     obstacle = SweepObstacle(v, f)
@@ -228,6 +229,18 @@ def test_a_prepared_obstacle_gives_the_results_of_sweep_collisions_call_after_ca
         got = obstacle.sweep(pts, o, d, k, r, n_steps=12, skin=skin)
         np.testing.assert_array_equal(got[0], want[0])
         np.testing.assert_array_equal(got[1], want[1])
+        # the same points again, other candidates: the obstacle reuses their rest states
+        for part in (slice(0, 3), slice(3, 8)):
+            again = obstacle.sweep(pts, o[part], d[part], k[part], r[part], n_steps=12, skin=skin)
+            np.testing.assert_array_equal(again[0], want[0][part])
+            np.testing.assert_array_equal(again[1], want[1][part])
+        # ... but not under another skin (the contact rule depends on it)
+        other = (default_skin(pts, v) if skin is not None else 0.01) * 3.0
+        want_other = _core.sweep_collisions(pts, v, f.astype(np.int64), o, d, k.astype(np.int64),
+                                            r, n_steps=12, skin=other)
+        got_other = obstacle.sweep(pts, o, d, k, r, n_steps=12, skin=other)
+        np.testing.assert_array_equal(got_other[0], want_other[0])
+        np.testing.assert_array_equal(got_other[1], want_other[1])
         hit = max(hit, float(want[1].max()))
     assert hit > 0.1  # some candidates run into the body: a comparison that can fail
     empty = SweepObstacle(np.zeros((0, 3)), np.zeros((0, 3), np.int64))

@@ -17,6 +17,7 @@ from kinmo.refine.selector import (
     candidate_labels,
     edge_candidates,
     fit_ranker,
+    _point_line,
     load_ranker,
 )
 from kinmo.evaluate.settings import failure_kind
@@ -348,3 +349,21 @@ def test_sweeps_of_a_shape_are_computed_once_per_line_with_the_same_results(monk
     meshes.sweep(2, np.array([1]), pts[:32], o[:1], d[:1], kinds[:1], ranges[:1], 8)
     assert calls == [4, 2, 1]  # other points of the part: not the same key
     assert built == [len(of)]  # ... but the same obstacle: its BVH was built once
+
+
+def test_point_line_distance_is_the_norm_of_the_cross_product_bit_for_bit():
+    # the written-out cross product gives the bytes np.cross + np.linalg.norm gave (the
+    # ranker's features must not move when the code gets faster)
+    rng = np.random.default_rng(3)
+    for n_points, n_lines in [(1, 1), (7, 3), (500, 12), (2048, 20)]:
+        pts = rng.normal(size=(n_points, 3)) * rng.uniform(0.01, 10.0)
+        o = rng.normal(size=(n_lines, 3))
+        d = rng.normal(size=(n_lines, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        w = pts[None] - o[:, None]
+        expected = np.linalg.norm(np.cross(w, d[:, None]), axis=2).min(axis=1)
+        assert np.array_equal(_point_line(pts, o, d), expected)
+    # a point on the line is at distance 0; no points: infinitely far
+    assert _point_line(np.array([[1.0, 2.0, 3.0]]), np.array([[0.0, 2.0, 3.0]]),
+                       np.array([[1.0, 0.0, 0.0]]))[0] == 0.0
+    assert _point_line(np.zeros((0, 3)), o, d).tolist() == [np.inf] * len(o)

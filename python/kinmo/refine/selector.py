@@ -395,11 +395,21 @@ def graph_meshes(graph: PartGraph, hierarchy, named) -> ShapeMeshes:
 
 
 def _point_line(points: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """``(C,)`` minimum distance from each line to the points."""
+    """``(C,)`` minimum distance from each line to the points (``directions`` unit).
+
+    ``|w x d|`` with the cross product written out and one square root per line: the same
+    arithmetic as ``np.linalg.norm(np.cross(w, d), axis=2).min(axis=1)``, bit for bit (the
+    square root is monotonic), about 3x faster (issue 24)."""
     if points.shape[0] == 0:
         return np.full(origins.shape[0], np.inf)
     w = points[None, :, :] - origins[:, None, :]
-    return np.linalg.norm(np.cross(w, directions[:, None, :]), axis=2).min(axis=1)
+    w0, w1, w2 = w[..., 0], w[..., 1], w[..., 2]
+    d = directions[:, None, :]
+    d0, d1, d2 = d[..., 0], d[..., 1], d[..., 2]
+    c0 = w1 * d2 - w2 * d1
+    c1 = w2 * d0 - w0 * d2
+    c2 = w0 * d1 - w1 * d0
+    return np.sqrt((c0 * c0 + c1 * c1 + c2 * c2).min(axis=1))
 
 
 def candidate_features(

@@ -58,12 +58,16 @@
 //! An empty obstacle mesh (no faces) is valid: every motion is free.
 //!
 //! ## Cost
-//! One parry BVH per call (shared by the rayon tasks: candidates x signs x blocks of points)
-//! and one closest-point query per point. Steps that end within a point's rest distance to
-//! the obstacle are not cast (the path so far is shorter than that distance, so no crossing
-//! is possible: exact). A ray running exactly along a triangle edge (a moving face flush
+//! One parry BVH per obstacle (shared by the rayon tasks: candidates x signs x blocks of
+//! points) and one closest-point query per point, its *rest state*
+//! ([`SweepObstacle::rest_states`]), which later sweeps of the same points with other
+//! candidates reuse ([`SweepObstacle::sweep_from_rest`]). Steps that end within a point's
+//! rest distance to the obstacle are not cast (the path so far is shorter than that
+//! distance, so no crossing is possible: exact). A ray running exactly along a triangle edge (a moving face flush
 //! with an obstacle face) is not a crossing for parry; trimesh's inclusive test counts it
 //! (`bench/bench_sweep.py` measures both).
+
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use nalgebra::{Point3, Unit, Vector3};
 use parry3d_f64::math::Isometry;
@@ -186,6 +190,38 @@ struct Contact {
     normal: Option<Unit<Vector3<f64>>>,
 }
 
+/// The rest states of a moving part's points against one [`SweepObstacle`]
+/// ([`SweepObstacle::rest_states`]), for [`SweepObstacle::sweep_from_rest`].
+#[derive(Debug, Clone)]
+pub struct RestStates {
+    obstacle: u64,
+    points: Vec<Point3<f64>>,
+    skin: f64,
+    skip_inside: bool,
+    rests: Vec<Rest>,
+}
+
+impl RestStates {
+    /// The points these states are of.
+    pub fn points(&self) -> &[Point3<f64>] {
+        &self.points
+    }
+
+    /// True when these are the states of exactly `points` (bit for bit) under `params`' skin
+    /// and inside rule.
+    pub fn matches(&self, points: &[Point3<f64>], params: &SweepParams) -> bool {
+        self.skin.to_bits() == params.skin.to_bits()
+            && self.skip_inside == params.skip_inside
+            && self.points.len() == points.len()
+            && self.points.iter().zip(points).all(|(a, b)| {
+                a.coords
+                    .iter()
+                    .zip(b.coords.iter())
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+            })
+    }
+}
+
 /// An obstacle mesh prepared once (parry BVH) for many swept tests and line distances.
 ///
 /// Build it once per obstacle and reuse it for every candidate of a moving part; it is
@@ -195,7 +231,13 @@ pub struct SweepObstacle {
     mesh: Option<ParryMesh>,
     /// Diagonal of the obstacle's bounding box (0 when empty).
     diagonal: f64,
+    /// Distinct per [`SweepObstacle::new`] (clones share it, and their mesh): the rest states
+    /// of one obstacle are refused by another.
+    id: u64,
 }
+
+/// Source of [`SweepObstacle`] ids.
+static NEXT_OBSTACLE: AtomicU64 = AtomicU64::new(0);
 
 impl std::fmt::Debug for SweepObstacle {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -218,6 +260,7 @@ impl SweepObstacle {
             return Ok(Self {
                 mesh: None,
                 diagonal: 0.0,
+                id: NEXT_OBSTACLE.fetch_add(1, Ordering::Relaxed),
             });
         }
         let diagonal = mesh
@@ -232,7 +275,11 @@ impl SweepObstacle {
             .map(crate::mesh::flush_tiny)
             .collect();
         let mesh = ParryMesh::new(flushed, mesh.faces().to_vec()).ok();
-        Ok(Self { mesh, diagonal })
+        Ok(Self {
+            mesh,
+            diagonal,
+            id: NEXT_OBSTACLE.fetch_add(1, Ordering::Relaxed),
+        })
     }
 
     /// Number of obstacle triangles.
@@ -246,7 +293,8 @@ impl SweepObstacle {
     }
 
     /// Swept test of C candidates (see the module documentation), parallel over candidates,
-    /// signs and blocks of points.
+    /// signs and blocks of points: [`Self::rest_states`] of the points, then
+    /// [`Self::sweep_from_rest`].
     ///
     /// # Errors
     /// [`GeometryError::Degenerate`] for `P = 0`, `C = 0` or a zero-length direction;
@@ -260,7 +308,87 @@ impl SweepObstacle {
         candidates: &[SweepCandidate],
         params: &SweepParams,
     ) -> Result<Vec<SweepResult>> {
+        self.check(points, candidates, params)?;
+        let rest = self.rest_states(points, params)?;
+        self.sweep_from_rest(&rest, candidates, params)
+    }
+
+    /// Validate the inputs of [`Self::sweep`] without sweeping (cheap: before paying for
+    /// [`Self::rest_states`]).
+    ///
+    /// # Errors
+    /// As [`Self::sweep`].
+    pub fn check(
+        &self,
+        points: &[Point3<f64>],
+        candidates: &[SweepCandidate],
+        params: &SweepParams,
+    ) -> Result<()> {
         check_params(points, candidates, params)?;
+        candidate_axes(candidates).map(|_| ())
+    }
+
+    /// The rest state of every point against this obstacle (its clearance, its contact within
+    /// the skin, and rule 4's inside test): the part of a sweep that depends on the points and
+    /// on `params.skin` / `params.skip_inside`, not on the candidates. One closest-point query
+    /// and, outside the skin, five parity rays per point; parallel over points.
+    ///
+    /// # Errors
+    /// [`GeometryError::Degenerate`] for `P = 0`; [`GeometryError::NonFinite`] for NaN/inf
+    /// points; [`GeometryError::Invalid`] for a coordinate beyond [`MAX_COORDINATE`] or a
+    /// negative/non-finite skin.
+    pub fn rest_states(&self, points: &[Point3<f64>], params: &SweepParams) -> Result<RestStates> {
+        check_points(points, params)?;
+        let skin = params.skin;
+        let rests = match &self.mesh {
+            None => Vec::new(),
+            Some(mesh) => points
+                .par_iter()
+                .map(|p| {
+                    let mut rest = rest_state(mesh, p, skin);
+                    rest.inside = params.skip_inside
+                        && rest.clearance > skin
+                        && inside_by_parity(mesh, p, self.diagonal);
+                    rest
+                })
+                .collect(),
+        };
+        Ok(RestStates {
+            obstacle: self.id,
+            points: points.to_vec(),
+            skin,
+            skip_inside: params.skip_inside,
+            rests,
+        })
+    }
+
+    /// [`Self::sweep`] of the points of `rest` (computed by [`Self::rest_states`] of this
+    /// obstacle): the same results, without recomputing the rest states. The refinement sweeps
+    /// one moving part against one obstacle once per edge, each time with other candidates.
+    ///
+    /// # Errors
+    /// As [`Self::sweep`]; [`GeometryError::Invalid`] when `params` has another skin or
+    /// inside rule than `rest` was computed with, or `rest` is of another obstacle.
+    pub fn sweep_from_rest(
+        &self,
+        rest: &RestStates,
+        candidates: &[SweepCandidate],
+        params: &SweepParams,
+    ) -> Result<Vec<SweepResult>> {
+        let points = &rest.points[..];
+        check_params(points, candidates, params)?;
+        if rest.obstacle != self.id {
+            return Err(GeometryError::Invalid(
+                "sweep_from_rest: the rest states are of another obstacle".to_string(),
+            ));
+        }
+        if rest.skin.to_bits() != params.skin.to_bits() || rest.skip_inside != params.skip_inside {
+            return Err(GeometryError::Invalid(format!(
+                "sweep_from_rest: the rest states were computed with skin {} / skip_inside {}, \
+                 not {} / {}",
+                rest.skin, rest.skip_inside, params.skin, params.skip_inside
+            )));
+        }
         let axes = candidate_axes(candidates)?;
         let Some(mesh) = &self.mesh else {
             return Ok(vec![
@@ -272,17 +400,7 @@ impl SweepObstacle {
             ]);
         };
         let skin = params.skin;
-        // Rest clearances and contacts, once per call, shared by every candidate.
-        let rests: Vec<Rest> = points
-            .par_iter()
-            .map(|p| {
-                let mut rest = rest_state(mesh, p, skin);
-                rest.inside = params.skip_inside
-                    && rest.clearance > skin
-                    && inside_by_parity(mesh, p, self.diagonal);
-                rest
-            })
-            .collect();
+        let rests = &rest.rests;
         let eps = 1e-9 * self.diagonal.max(1e-12);
         let tasks: Vec<(usize, usize)> = (0..candidates.len())
             .flat_map(|c| [(c, 0), (c, 1)])
@@ -726,17 +844,42 @@ fn inside_by_parity(mesh: &ParryMesh, p: &Point3<f64>, diagonal: f64) -> bool {
     votes > 0 && 2 * odd > votes
 }
 
+/// `P = 0` is an error (moving points).
+fn check_some_points(points: &[Point3<f64>]) -> Result<()> {
+    if points.is_empty() {
+        return Err(GeometryError::Degenerate(
+            "moving_points: no points (P = 0)".to_string(),
+        ));
+    }
+    Ok(())
+}
+
+/// The skin is finite and `>= 0`.
+fn check_skin(params: &SweepParams) -> Result<()> {
+    if !(params.skin.is_finite() && params.skin >= 0.0) {
+        return Err(GeometryError::Invalid(format!(
+            "skin: {} must be finite and >= 0",
+            params.skin
+        )));
+    }
+    Ok(())
+}
+
+/// Validate the points and the skin of a sweep's rest states.
+fn check_points(points: &[Point3<f64>], params: &SweepParams) -> Result<()> {
+    check_some_points(points)?;
+    crate::mesh::check_finite(points, "moving_points")?;
+    check_magnitude(points, "moving_points")?;
+    check_skin(params)
+}
+
 /// Validate the points, candidates and parameters of a sweep.
 fn check_params(
     points: &[Point3<f64>],
     candidates: &[SweepCandidate],
     params: &SweepParams,
 ) -> Result<()> {
-    if points.is_empty() {
-        return Err(GeometryError::Degenerate(
-            "moving_points: no points (P = 0)".to_string(),
-        ));
-    }
+    check_some_points(points)?;
     if candidates.is_empty() {
         return Err(GeometryError::Degenerate(
             "origins: no candidate motions (C = 0)".to_string(),
@@ -750,12 +893,7 @@ fn check_params(
             params.n_steps
         )));
     }
-    if !(params.skin.is_finite() && params.skin >= 0.0) {
-        return Err(GeometryError::Invalid(format!(
-            "skin: {} must be finite and >= 0",
-            params.skin
-        )));
-    }
+    check_skin(params)?;
     if !(params.hit_tolerance >= 0.0 && params.hit_tolerance < 1.0) {
         return Err(GeometryError::Invalid(format!(
             "hit_tolerance: {} must be in [0, 1)",
@@ -1018,6 +1156,56 @@ mod tests {
     /// An open carcass (bottom, top, sides, back) around `[0, 1] x [0, 1] x [-0.45, 0]` and a
     /// drawer `[0, 1] x [0, 1] x [-0.4, 0]` touching its bottom, top and sides, grown by
     /// `grow` (> 0: interpenetrating the walls).
+    #[test]
+    fn rest_states_are_reused_with_the_same_results_and_refused_elsewhere() {
+        let (door, body) = door_and_body();
+        let obstacle = SweepObstacle::new(&body).unwrap();
+        let params = SweepParams::default();
+        let batches = [
+            vec![revolute([0.0, 0.0, 0.02], [0.0, -1.0, 0.0], FRAC_PI_2)],
+            vec![
+                revolute([1.0, 0.0, 0.02], [0.0, -1.0, 0.0], FRAC_PI_2),
+                prismatic([0.0, 0.0, 1.0], 0.5),
+                prismatic([1.0, 0.0, 0.0], 0.5),
+            ],
+        ];
+        let rest = obstacle.rest_states(&door, &params).unwrap();
+        assert!(rest.matches(&door, &params));
+        for cands in &batches {
+            assert_eq!(
+                obstacle.sweep_from_rest(&rest, cands, &params).unwrap(),
+                obstacle.sweep(&door, cands, &params).unwrap()
+            );
+        }
+        // other points, another skin or inside rule: not these states
+        let mut moved = door.clone();
+        moved[3].x = f64::from_bits(moved[3].x.to_bits() + 1);
+        assert!(!rest.matches(&moved, &params));
+        let thicker = SweepParams {
+            skin: params.skin * 2.0,
+            ..params
+        };
+        assert!(!rest.matches(&door, &thicker));
+        let err = obstacle.sweep_from_rest(&rest, &batches[0], &thicker);
+        assert!(matches!(err, Err(GeometryError::Invalid(m)) if m.contains("skin")));
+        let all = SweepParams {
+            skip_inside: false,
+            ..params
+        };
+        assert!(!rest.matches(&door, &all));
+        // another obstacle, even of the same mesh, refuses them
+        let twin = SweepObstacle::new(&body).unwrap();
+        let err = twin.sweep_from_rest(&rest, &batches[0], &params);
+        assert!(matches!(err, Err(GeometryError::Invalid(m)) if m.contains("another obstacle")));
+        // an empty obstacle's states: every motion free
+        let empty = SweepObstacle::new(&mesh_of(&[])).unwrap();
+        let free = empty.rest_states(&door, &params).unwrap();
+        let r = empty.sweep_from_rest(&free, &batches[1], &params).unwrap();
+        assert!(r.iter().all(|x| x.free_fraction == [1.0; 2]));
+        // bad points are refused before any work
+        assert!(obstacle.rest_states(&[], &params).is_err());
+    }
+
     fn drawer_and_frame(grow: f64) -> (Vec<Point3<f64>>, TriMesh) {
         let t = 0.05;
         let frame = mesh_of(&[

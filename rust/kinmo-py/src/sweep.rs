@@ -1,6 +1,8 @@
 //! Bindings of `kinmo_geometry::sweep`: `sweep_collisions`, `SweepObstacle`, `line_mesh_distance`.
 
-use kinmo_geometry::sweep::{self, MotionKind, SweepCandidate, SweepParams};
+use std::sync::{Arc, Mutex};
+
+use kinmo_geometry::sweep::{self, MotionKind, RestStates, SweepCandidate, SweepParams};
 use kinmo_geometry::GeometryError;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -122,10 +124,12 @@ fn sweep_collisions<'py>(
 /// An obstacle mesh prepared once (its BVH built) for many swept tests.
 ///
 /// `SweepObstacle(vertices (V, 3) float64, faces (F, 3) int64)`; `F = 0` is a valid, empty
-/// obstacle. `ValueError` on bad input.
+/// obstacle. `ValueError` on bad input. It keeps the rest states of the last moving points
+/// it swept: a call with the same points (bit for bit), skin and inside rule reuses them.
 #[pyclass(frozen, module = "kinmo._core")]
 struct SweepObstacle {
     inner: sweep::SweepObstacle,
+    last_rest: Mutex<Option<Arc<RestStates>>>,
 }
 
 #[pymethods]
@@ -138,7 +142,10 @@ impl SweepObstacle {
     ) -> PyResult<Self> {
         let mesh = mesh_from_arrays(&vertices, &faces, "obstacle")?;
         let inner = detach(py, "SweepObstacle", || sweep::SweepObstacle::new(&mesh))?;
-        Ok(Self { inner })
+        Ok(Self {
+            inner,
+            last_rest: Mutex::new(None),
+        })
     }
 
     /// Number of obstacle triangles.
@@ -179,9 +186,27 @@ impl SweepObstacle {
             skip_inside,
         )?;
         let obstacle = &self.inner;
-        let results = detach(py, "SweepObstacle.sweep", || {
-            obstacle.sweep(&points, &candidates, &params)
+        // a poisoned lock only loses the memo (a panic is an error to Python either way)
+        let reused = self
+            .last_rest
+            .lock()
+            .ok()
+            .and_then(|last| last.clone())
+            .filter(|rest| rest.matches(&points, &params));
+        let (results, rest) = detach(py, "SweepObstacle.sweep", || {
+            let rest = match reused {
+                Some(rest) => rest,
+                None => {
+                    // candidates checked before the rest states are paid for
+                    obstacle.check(&points, &candidates, &params)?;
+                    Arc::new(obstacle.rest_states(&points, &params)?)
+                }
+            };
+            Ok((obstacle.sweep_from_rest(&rest, &candidates, &params)?, rest))
         })?;
+        if let Ok(mut last) = self.last_rest.lock() {
+            *last = Some(rest);
+        }
         Ok(fractions(py, &results))
     }
 }
