@@ -154,7 +154,9 @@ def sweep_collisions(
 class SweepObstacle:
     """An obstacle mesh (``vertices (V, 3)`` float64, ``faces (F, 3)`` int64, ``F = 0``
     valid) with its parry BVH built once, for many swept tests. ``ValueError`` on bad
-    input."""
+    input. It keeps the rest states (clearance, contact, inside test) of the last moving
+    points it swept: a sweep of the same points (bit for bit) with the same ``skin`` and
+    ``skip_inside`` reuses them, with the same results."""
 
     def __init__(self, vertices: F64, faces: I64) -> None: ...
     @property

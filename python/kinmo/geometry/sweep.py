@@ -163,7 +163,11 @@ class SweepObstacle:
     :func:`sweep_collisions` is one of these, used once; the edges of one moving part (one
     per sibling it may move against) sweep against the same obstacle, so the refinement
     keeps one of these per obstacle (:class:`kinmo.refine.selector.ShapeMeshes`) and its
-    BVH is built once for all of them.
+    BVH is built once for all of them. It also keeps the rest states (clearance, contact,
+    inside test: one closest-point query and up to five parity rays per point) of the last
+    moving points it swept, which the next sweep of the same points (bit for bit), skin and
+    ``skip_inside`` reuses: same results, about 10% less sweep time in the refinement
+    (issue 24).
 
     Parameters
     ----------
