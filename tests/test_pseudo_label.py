@@ -5,6 +5,8 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -340,3 +342,19 @@ def test_one_worker_writes_the_bytes_two_workers_write(partnet_root, tmp_path):
     for s in kept:
         for name in ("mobility_v2.json", "scores.json", "mobility.urdf"):
             assert (tmp_path / "j1" / s / name).read_bytes() == (tmp_path / "j2" / s / name).read_bytes(), (s, name)
+
+
+def test_the_process_that_hands_out_shapes_does_not_import_torch():
+    """``kinmo pseudo-label -j N``: the coordinating process reads no model (each worker
+    loads them), so it starts the workers without torch's import (issue 24); the in-process
+    run (``-j 1``) and every worker load torch with the models."""
+    code = ("import sys\n"
+            "import kinmo.cli.pseudo_label, kinmo.pseudo_label\n"
+            "from kinmo.parallel import torch_threads\n"
+            "with torch_threads(0):\n"
+            "    pass\n"
+            "print('torch' in sys.modules)\n"
+            "with torch_threads(1):\n"
+            "    print('torch' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True"]

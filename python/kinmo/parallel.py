@@ -51,6 +51,7 @@ Ray; nothing here needs changing for that but the executor.
 
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import sys
@@ -64,6 +65,7 @@ from typing import Any, TypeVar
 
 __all__ = [
     "IN_FLIGHT_PER_WORKER", "available_cpus", "map_unordered", "resolve_workers", "sigterm_raises",
+    "single_threaded_worker", "torch_threads",
 ]
 
 T = TypeVar("T")
@@ -110,6 +112,40 @@ def resolve_workers(workers: int, n_items: int) -> int:
 
 #: Seconds between two parent checks of a worker's watch thread.
 PARENT_POLL_S = 0.5
+
+
+def single_threaded_worker() -> None:
+    """Start a worker process of a per-shape pool on one thread: torch's (set now) and
+    rayon's (``RAYON_NUM_THREADS``, read when the Rust core first runs a parallel loop,
+    unless the environment already sets it). The caller runs torch on one thread too
+    (:func:`torch_threads`), so every worker count adds in the same order and writes the
+    same bytes."""
+    import torch  # the workers run the models; the process that starts them need not
+
+    torch.set_num_threads(1)
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+
+
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """torch's CPU threads set to ``n`` (0: unchanged) for the duration, then restored.
+
+    With ``n <= 0`` in a process that has not imported torch there is nothing to set or
+    restore, and torch is not imported: the process that only hands shapes to a pool of
+    workers (``kinmo pseudo-label -j N``) starts them without paying torch's import (about
+    2 s).
+    """
+    torch = importlib.import_module("torch") if n > 0 else sys.modules.get("torch")
+    if torch is None:
+        yield
+        return
+    old = torch.get_num_threads()
+    if n > 0:
+        torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)
 
 
 def _exit_with_parent(parent_pid: int) -> None:

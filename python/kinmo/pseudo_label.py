@@ -80,15 +80,12 @@ from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.executor import parse_executor
 from kinmo.export import export
 from kinmo.export.collision import COLLISION_METHODS, DEFAULT_COLLISION
-from kinmo.inference.gnn import predict_graphs
-from kinmo.inference.predictor import Predictor
 from kinmo.io import check_outputs_apart, write_json, write_text
 from kinmo.mobility_tree import TreeOptions
-from kinmo.parallel import resolve_workers
+from kinmo.parallel import resolve_workers, single_threaded_worker, torch_threads
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.selector import graph_meshes
 from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
-from kinmo.train.loop import single_threaded_worker, torch_threads
 
 logger = logging.getLogger(__name__)
 
@@ -267,6 +264,11 @@ _WORKER_MODELS: _Models | None = None
 
 
 def _load_models(gnn_run: Path, axis_run: Path, device: str, refine: Any = None) -> _Models:
+    """The models of one process that judges shapes (this one with ``-j 1``, else each
+    worker): the only place this module reaches torch, so that the process which hands the
+    shapes to a pool of workers starts them without importing it (issue 24)."""
+    from kinmo.inference.predictor import Predictor  # torch: in the processes that run models
+
     fp = _models_fingerprint(gnn_run, axis_run)
     return _Models(Predictor.from_parts(gnn_run, axis_run, refine, device=device), fp,
                    str(gnn_run), str(axis_run))
@@ -389,7 +391,7 @@ def pseudo_label_shape(
             graph = build_graph(shape, meshes=named())
         predictor = models.predictor
         options = TreeOptions(tuple(config.hinge_limit), config.slider_fraction)
-        gnn = predict_graphs(predictor.run, [graph], options, consistent=config.consistent)[0]
+        gnn = predictor.gnn_predictions([graph], options, consistent=config.consistent)[0]
         sp, refined = predictor.refine_with_details(
             gnn, meshes=lambda g: graph_meshes(g, shape.hierarchy, named()), options=options)
         tree, tree_pred, type_names = sp.tree, sp.edges, refined.type_names

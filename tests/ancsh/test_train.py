@@ -20,7 +20,7 @@ from kinmo.ancsh.inference import build_model, load_run, predict_scans, save_che
 from kinmo.ancsh.scans import render_objects
 from kinmo.ancsh.train import _labeled_subset, train_ancsh
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.train.loop import torch_threads
+from kinmo.parallel import torch_threads
 
 LAPTOPS = ["10306", "9968"]
 TINY = dict(n_points=256, cache_points=1024, width=8, n_centers=(64, 16, 4), image_size=96,

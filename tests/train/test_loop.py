@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from kinmo.errors import KinmoDataError
+from kinmo.parallel import torch_threads
 from kinmo.train.loop import (
     build_or_refuse,
     load_checkpoint,
@@ -20,7 +21,6 @@ from kinmo.train.loop import (
     preset_values,
     rows_csv,
     save_checkpoint,
-    torch_threads,
     training_session,
 )
 

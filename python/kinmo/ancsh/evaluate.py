@@ -78,7 +78,8 @@ from kinmo.ancsh.table2 import (
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.io import write_json, write_text
 from kinmo.render.dataset import load_frame
-from kinmo.train.loop import rows_csv, torch_threads
+from kinmo.parallel import torch_threads
+from kinmo.train.loop import rows_csv
 from kinmo.train.split import Split
 
 #: ``table2.csv`` text (:func:`kinmo.ancsh.table2.table2_csv`; this name is kept for the

@@ -25,7 +25,8 @@ from kinmo.ancsh.config import ANCSHConfig
 from kinmo.ancsh.dataset import ANCSHFrames
 from kinmo.ancsh.model import ANCSH, ancsh_loss
 from kinmo.train import distributed
-from kinmo.train.loop import optimizer_step, rows_csv, torch_threads, training_bar
+from kinmo.parallel import torch_threads
+from kinmo.train.loop import optimizer_step, rows_csv, training_bar
 
 __all__ = ["METRIC_COLUMNS", "fit", "lr_at", "metrics_csv"]
 

@@ -198,10 +198,18 @@ class Predictor:
         """:meth:`refine_with_details` without the details."""
         return self.refine_with_details(pred, meshes)[0]
 
+    def gnn_predictions(self, graphs: list[PartGraph], options: TreeOptions | None = None,
+                        consistent: bool = True, batch_size: int = 8) -> list[ShapePrediction]:
+        """The motion GNN's predictions of part graphs, before refinement
+        (:func:`kinmo.inference.gnn.predict_graphs` of this predictor's run; ``options``:
+        this predictor's by default), for :meth:`refine_with_details`."""
+        return predict_graphs(self.run, graphs, options or self.options, batch_size,
+                              consistent=consistent)
+
     def predict_many(self, graphs: list[PartGraph], meshes: MeshSource = None,
                      batch_size: int = 8) -> list[ShapePrediction]:
         """:meth:`predict` of several graphs, the GNN batched."""
-        preds = predict_graphs(self.run, graphs, self.options, batch_size)
+        preds = self.gnn_predictions(graphs, batch_size=batch_size)
         return [self.refine_prediction(p, meshes) for p in preds]
 
     def predict(self, graph: PartGraph, meshes: MeshSource = None) -> ShapePrediction:

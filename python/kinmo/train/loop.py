@@ -9,7 +9,7 @@ losses, not in how a run is set up and written. This module holds that common pa
 - **device**: :func:`resolve_device` (``"auto"`` -> CUDA when available, else CPU);
 - **session**: :func:`training_session` joins ``torch.distributed`` when run under
   ``torchrun`` (:func:`kinmo.train.distributed.setup`), sets torch's CPU threads
-  (:func:`torch_threads`), optionally switches on deterministic algorithms, seeds torch,
+  (:func:`kinmo.parallel.torch_threads`), optionally switches on deterministic algorithms, seeds torch,
   ``random`` and numpy's global generator, and restores the previous settings afterwards;
 - **optimisation step**: :func:`optimizer_step` (zero the gradients, back-propagate the
   rank-weighted loss, average gradients over ranks when asked, clip, step);
@@ -44,6 +44,7 @@ import torch
 
 from kinmo.errors import KinmoDataError, KinmoTrainingError
 from kinmo.io import atomic_path, read_checkpoint
+from kinmo.parallel import torch_threads
 from kinmo.progress import TrainingBar
 import kinmo.train.distributed as distributed
 
@@ -56,7 +57,6 @@ __all__ = [
     "resolve_device",
     "rows_csv",
     "save_checkpoint",
-    "torch_threads",
     "training_bar",
     "training_session",
 ]
@@ -141,28 +141,6 @@ def resolve_device(device: str) -> torch.device:
     if dev.type == "cuda" and not torch.cuda.is_available():
         raise ValueError(f"device {device!r} requested but CUDA is not available")
     return dev
-
-
-def single_threaded_worker() -> None:
-    """Start a worker process of a per-shape pool on one thread: torch's (set now) and
-    rayon's (``RAYON_NUM_THREADS``, read when the Rust core first runs a parallel loop,
-    unless the environment already sets it). The caller runs torch on one thread too
-    (:func:`torch_threads`), so every worker count adds in the same order and writes the
-    same bytes."""
-    torch.set_num_threads(1)
-    os.environ.setdefault("RAYON_NUM_THREADS", "1")
-
-
-@contextmanager
-def torch_threads(n: int) -> Iterator[None]:
-    """torch's CPU threads set to ``n`` (0: unchanged) for the duration, then restored."""
-    old = torch.get_num_threads()
-    if n > 0:
-        torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
 
 
 @contextmanager
