@@ -37,7 +37,10 @@ shape is independent. :func:`map_unordered` is the loop they share:
 
 What stays in the stages: which items to run (resume / skip logic), how a result is recorded
 (manifests, progress bar, counters), what a failed item's row looks like (``on_error``), and
-per-worker set-up (``initializer``: thread counts, loading models once per worker).
+per-worker set-up (``initializer``: thread counts, loading models once per worker). The
+thread-count helpers the stages share are here (:func:`single_threaded_worker`,
+:func:`torch_threads`); they import torch only where they set its threads, so a process that
+only hands items to workers never loads it.
 
 Scaling out: the unit of work is a plain picklable function of one item (a module-level
 function, or a :func:`functools.partial` of one with picklable arguments) returning a

@@ -9,8 +9,9 @@ losses, not in how a run is set up and written. This module holds that common pa
 - **device**: :func:`resolve_device` (``"auto"`` -> CUDA when available, else CPU);
 - **session**: :func:`training_session` joins ``torch.distributed`` when run under
   ``torchrun`` (:func:`kinmo.train.distributed.setup`), sets torch's CPU threads
-  (:func:`kinmo.parallel.torch_threads`), optionally switches on deterministic algorithms, seeds torch,
-  ``random`` and numpy's global generator, and restores the previous settings afterwards;
+  (:func:`kinmo.parallel.torch_threads`), optionally switches on deterministic algorithms,
+  seeds torch, ``random`` and numpy's global generator, and restores the previous settings
+  afterwards;
 - **optimisation step**: :func:`optimizer_step` (zero the gradients, back-propagate the
   rank-weighted loss, average gradients over ranks when asked, clip, step);
 - **progress**: :func:`training_bar`, the one rich bar of the epoch loops
