@@ -63,9 +63,9 @@
 //! ([`SweepObstacle::rest_states`]), which later sweeps of the same points with other
 //! candidates reuse ([`SweepObstacle::sweep_from_rest`]). Steps that end within a point's
 //! rest distance to the obstacle are not cast (the path so far is shorter than that
-//! distance, so no crossing is possible: exact). A ray running exactly along a triangle edge (a moving face flush
-//! with an obstacle face) is not a crossing for parry; trimesh's inclusive test counts it
-//! (`bench/bench_sweep.py` measures both).
+//! distance, so no crossing is possible: exact). A ray running exactly along a triangle edge
+//! (a moving face flush with an obstacle face) is not a crossing for parry; trimesh's
+//! inclusive test counts it (`bench/bench_sweep.py` measures both).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -202,11 +202,6 @@ pub struct RestStates {
 }
 
 impl RestStates {
-    /// The points these states are of.
-    pub fn points(&self) -> &[Point3<f64>] {
-        &self.points
-    }
-
     /// True when these are the states of exactly `points` (bit for bit) under `params`' skin
     /// and inside rule.
     pub fn matches(&self, points: &[Point3<f64>], params: &SweepParams) -> bool {
