@@ -4,8 +4,18 @@
 #
 #   ./scripts/test.sh            # everything
 #   ./scripts/test.sh -k obb     # extra arguments go to pytest
+#
+# The tests that read the shared real objects (pytest marker `realdata`) run when $KINMO_DATA,
+# or ../shared/data beside the checkout, holds partnet-mobility/ and partnet/; without them they
+# are skipped and the run ends by saying how many. The report and viewer tests run when a
+# Chromium is on PATH. KINMO_REQUIRE_DATA=1 (CI: .ci/run) requires both and fails here at once,
+# before the build, without them; KINMO_REQUIRE_BROWSER=1 requires the browser only.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=require.sh
+. "$root/scripts/require.sh"
+kinmo_require_data "$root"
+kinmo_require_browser
 # shellcheck source=env.sh
 . "$root/scripts/env.sh"
 cd "$root"
@@ -19,7 +29,5 @@ echo "== cargo test"
 # rust/kinmo-geometry/proptest-regressions/ and tests/*.proptest-regressions).
 export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261122}"
 cargo test -p kinmo-geometry --release -q 2>&1 | grep -v "^$"
-# the report tests open the HTML in a headless Chromium: install it on a fresh machine
-command -v chromium >/dev/null || { [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null && (apt-get update -qq && apt-get install -y -qq chromium >/dev/null); } || true
 echo "== pytest"
 python -m pytest -q -p no:cacheprovider "$@"

@@ -1,4 +1,4 @@
-"""A real browser for the tests: headless Chromium, found on PATH or installed with apt-get.
+"""A real browser for the tests: headless Chromium, found on PATH (the ``chromium`` fixture).
 
 The report's page counts its decoded images into ``data-images-loaded`` / ``data-images-total``
 on ``<body>`` (:mod:`kinmo.report.build`); :func:`images_loaded` reads them from a DOM dump.
@@ -6,38 +6,23 @@ on ``<body>`` (:mod:`kinmo.report.build`); :func:`images_loaded` reads them from
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess
 from pathlib import Path
 
-import pytest
+#: The executables looked for on PATH, in this order (the same as ``scripts/require.sh``).
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
-_BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
-
-def _find_browser() -> str | None:
-    for name in _BROWSERS:
+def find_browser() -> str | None:
+    """A headless-capable Chromium on PATH, or None (nothing is installed here: see the
+    README's tests; the ``chromium`` fixture skips or fails)."""
+    for name in BROWSERS:
         exe = shutil.which(name)
         if exe:
             return exe
     return None
-
-
-def find_chromium() -> str:
-    """A headless-capable Chromium: found on PATH, or installed with apt-get when root."""
-    exe = _find_browser()
-    if exe is None and hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("apt-get"):
-        env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
-        subprocess.run(["apt-get", "update", "-qq"], env=env, capture_output=True, timeout=900)
-        subprocess.run(["apt-get", "install", "-y", "-qq", "chromium"], env=env,
-                       capture_output=True, timeout=1800)
-        exe = _find_browser()
-    if exe is None:
-        pytest.fail("no Chromium found (looked for " + ", ".join(_BROWSERS) + "); install it, "
-                    "e.g. `apt-get install -y chromium` (Debian) as root")
-    return exe
 
 
 def headless(exe: str, tmp: Path, *args: str) -> subprocess.CompletedProcess:

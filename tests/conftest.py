@@ -1,7 +1,15 @@
-"""Shared fixtures.
+"""Shared fixtures, and the two tiers of tests.
 
-The real objects live in ``../shared/data`` next to the checkout (or ``$KINMO_DATA``). Tests
-that need them fail, never skip, when they are absent: CI always has them.
+The real objects live in ``../shared/data`` next to the checkout (or ``$KINMO_DATA``) and are
+never part of the repository. Every test that reads them carries the ``realdata`` marker (added
+here to each test whose fixtures include ``shared_data``); without the data those tests are
+skipped, the rest run, and the run ends with one line saying how many did not run. With
+``KINMO_REQUIRE_DATA=1`` (CI) a missing dataset stops the run before any test: no real-data
+test is ever skipped there. Tests that assert facts of our exact set of objects (235 + 141; an
+object id, a count the data's README does not state) also carry ``exactdata``.
+
+The browser tests (the ``chromium`` fixture) are skipped when no Chromium is installed, and
+required under ``KINMO_REQUIRE_BROWSER=1`` or ``KINMO_REQUIRE_DATA=1``.
 """
 
 from __future__ import annotations
@@ -14,21 +22,100 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
+#: How to run the real-data tests, for the skip reason and the closing line.
+ENABLE_DATA = "set KINMO_DATA=/path/to/data holding partnet-mobility/ and partnet/"
+
 
 def data_root() -> Path:
     """The shared dataset folder (``$KINMO_DATA`` or ``<repo>/../shared/data``)."""
-    return Path(os.environ.get("KINMO_DATA", REPO.parent / "shared" / "data"))
+    return Path(os.environ.get("KINMO_DATA") or REPO.parent / "shared" / "data")
+
+
+def data_missing() -> str | None:
+    """Why the shared dataset cannot be read (one line), or None when it can."""
+    root = data_root()
+    absent = [d for d in ("partnet-mobility", "partnet") if not (root / d).is_dir()]
+    if len(absent) == 2:
+        return f"no shared dataset at {root}"
+    return f"{root} has no {absent[0]}/" if absent else None
+
+
+def required(name: str) -> bool:
+    """Whether the environment variable ``name`` is set to something other than empty or 0."""
+    return os.environ.get(name, "") not in ("", "0")
+
+
+def _browser_flag() -> str:
+    """The variable that requires the browser, as ``NAME=value`` for messages."""
+    name = "KINMO_REQUIRE_BROWSER" if required("KINMO_REQUIRE_BROWSER") else "KINMO_REQUIRE_DATA"
+    return f"{name}={os.environ.get(name)}"
+
+
+def browser_required() -> bool:
+    """CI (``KINMO_REQUIRE_DATA=1``) and ``KINMO_REQUIRE_BROWSER=1`` fail without a Chromium."""
+    return required("KINMO_REQUIRE_BROWSER") or required("KINMO_REQUIRE_DATA")
+
+
+#: The shared data's absence (:func:`data_missing`), read once when the run starts.
+_MISSING = pytest.StashKey["str | None"]()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Stop at once, in one line, when a required dataset or browser is missing (as
+    ``scripts/require.sh`` does before ``scripts/test.sh`` builds anything)."""
+    why = data_missing()
+    config.stash[_MISSING] = why
+    if why and required("KINMO_REQUIRE_DATA"):
+        flag = f"KINMO_REQUIRE_DATA={os.environ['KINMO_REQUIRE_DATA']}"
+        raise pytest.UsageError(f"{flag} but {why}: {ENABLE_DATA}")
+    if browser_required():
+        from browser import BROWSERS, find_browser
+
+        if find_browser() is None:
+            names = ", ".join(BROWSERS)
+            raise pytest.UsageError(f"{_browser_flag()} but no Chromium on PATH (looked for "
+                                    f"{names}): install one, see the README's tests")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark every test that reads the shared data ``realdata`` (``exactdata`` implies it)."""
+    for item in items:
+        reads = "shared_data" in getattr(item, "fixturenames", ()) or item.get_closest_marker("exactdata")
+        if reads and item.get_closest_marker("realdata") is None:
+            item.add_marker(pytest.mark.realdata)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Skip a real-data test, before its fixtures, when the shared data is missing.
+
+    Raised here rather than by a skip marker so that pytest's summary folds them into one line.
+    """
+    if item.get_closest_marker("realdata") and item.config.stash[_MISSING]:
+        pytest.skip(f"real-data test, no shared dataset: {ENABLE_DATA} to run it")
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_terminal_summary(terminalreporter, exitstatus, config: pytest.Config):
+    """After pytest's short summary: one line on the real-data tests that did not run."""
+    result = yield
+    why = config.stash[_MISSING]
+    n = sum(1 for r in terminalreporter.stats.get("skipped", ()) if "realdata" in r.keywords)
+    if why and n:
+        terminalreporter.write_line(
+            f"kinmo: {n} real-data tests did not run ({why}): {ENABLE_DATA} to run them",
+            yellow=True, bold=True)
+    return result
 
 
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
-    root = data_root()
-    if not (root / "partnet-mobility").is_dir():
-        raise FileNotFoundError(
-            f"{root}: the shared dataset is missing (set KINMO_DATA to the folder holding "
-            "partnet-mobility/ and partnet/)"
-        )
-    return root
+    """The shared dataset folder; every test that uses it (directly or through another
+    fixture) is a ``realdata`` test."""
+    why = data_missing()
+    if why:
+        raise FileNotFoundError(f"{why}: {ENABLE_DATA}")
+    return data_root()
 
 
 @pytest.fixture(scope="session")
@@ -150,10 +237,21 @@ def cabinet(tmp_path: Path) -> Path:
 
 @pytest.fixture(scope="session")
 def chromium() -> str:
-    """Path of a headless Chromium (`browser.find_chromium`); fails when none."""
-    from browser import find_chromium
+    """Path of a headless Chromium (:func:`browser.find_browser`).
 
-    return find_chromium()
+    None installed: the test is skipped, or fails under ``KINMO_REQUIRE_BROWSER=1`` /
+    ``KINMO_REQUIRE_DATA=1`` (the README says how to install one).
+    """
+    from browser import BROWSERS, find_browser
+
+    exe = find_browser()
+    if exe is None:
+        why = (f"no Chromium on PATH (looked for {', '.join(BROWSERS)}): install one, see the "
+               "README's tests")
+        if browser_required():
+            pytest.fail(why)
+        pytest.skip(why)
+    return exe
 
 
 @pytest.fixture(scope="session")

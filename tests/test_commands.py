@@ -6,6 +6,7 @@ import csv
 import json
 import shutil
 
+import pytest
 from typer.testing import CliRunner
 
 from kinmo.cli import app
@@ -21,6 +22,7 @@ def _copy(src, dst, ids):
         shutil.copytree(src / i, dst / i)
 
 
+@pytest.mark.exactdata
 def test_prepare_train_all_eval_category_as_written(tmp_path, monkeypatch, mobility_root, partnet_root):
     _copy(mobility_root, tmp_path / "partnet-mobility", LABELED)
     _copy(partnet_root, tmp_path / "partnet", UNLABELED)
@@ -129,6 +131,7 @@ def test_find_data_rule(tmp_path):
     assert find_data(empty, {}).labeled is None and find_data(empty, {}).unlabeled is None
 
 
+@pytest.mark.exactdata
 def test_split_by_structure_gives_refrigerator_a_model(mobility_root, tmp_path):
     """On the shared data, a category-stratified split leaves no test refrigerator of a structure
     with training objects; the split by category and structure does, so it gets a model."""

@@ -100,6 +100,7 @@ def _npz(path: Path) -> dict[str, np.ndarray]:
         return {k: z[k] for k in z.files}
 
 
+@pytest.mark.exactdata
 def test_prepare_on_ray_matches_local_and_resumes(local_ray, mobility_root: Path, tmp_path: Path):
     from kinmo.prepare import PrepareConfig, prepare_dataset
 
@@ -125,6 +126,7 @@ def test_prepare_on_ray_matches_local_and_resumes(local_ray, mobility_root: Path
     assert again.count("skipped") == 2 and again.count("ok") == 0
 
 
+@pytest.mark.exactdata
 def test_render_on_ray(local_ray, mobility_root: Path, tmp_path: Path):
     from kinmo.render.dataset import RenderConfig, render_dataset
 

@@ -167,6 +167,7 @@ def test_coarse_probs_and_validation():
         build_mobility_tree(g, bad)
 
 
+@pytest.mark.exactdata
 def test_oracle_recovers_the_real_objects_links(mobility_root):
     """Ground-truth edge labels of real objects give back (nearly) all their moving links."""
     from kinmo.data.build import build_graph

@@ -62,6 +62,7 @@ def bullet():
     p.disconnect(cid)
 
 
+@pytest.mark.exactdata
 def test_training_on_real_objects_lowers_the_loss(real):
     h = real["result"].history
     assert len(h) == 25
@@ -69,6 +70,7 @@ def test_training_on_real_objects_lowers_the_loss(real):
     assert h[-1]["train_acc"] > h[0]["train_acc"]
 
 
+@pytest.mark.exactdata
 def test_predict_writes_well_formed_outputs(real):
     out = real["root"] / "out"
     rows = predict_dataset(real["data"], real["run"], out, cache=real["cache"], device="cpu",
@@ -117,6 +119,7 @@ def _world_vertices(body, cid, link_index, verts):
     return out
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", ["10849", "101593", "100028"])
 def test_urdf_of_a_predicted_tree_moves_the_right_links(mobility_root, tmp_path, bullet, oid):
     shape = read_shape(mobility_root / oid)
@@ -168,6 +171,7 @@ def test_urdf_of_a_predicted_tree_moves_the_right_links(mobility_root, tmp_path,
         p.removeBody(body, physicsClientId=bullet)
 
 
+@pytest.mark.exactdata
 def test_evaluation_and_cli(real):
     from kinmo.evaluate.pre_segmented import METRICS, run_evaluation
 
@@ -208,6 +212,7 @@ def test_evaluation_and_cli(real):
     assert r.exit_code == 1 and "does not" in r.output and "kinmo prepare" in r.output
 
 
+@pytest.mark.exactdata
 def test_outputs_never_overwrite_the_inputs(real, tmp_path):
     """Finding 2 of the hostile-input issue: `kinmo predict DIR -o DIR` replaced the ground
     truth (mobility_v2.json, semantics.txt) of labelled objects. Every form of it is refused
@@ -252,6 +257,7 @@ def test_edges_json_is_streamed_with_the_same_document(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["edges.json"]  # no temporary left
 
 
+@pytest.mark.exactdata
 def test_a_prediction_that_fails_while_written_leaves_no_half_object(real, tmp_path, monkeypatch):
     """Issue 21 finding 12: each object is written into a temporary sibling and renamed into
     place whole; a failure half-way leaves nothing of it."""
@@ -271,6 +277,7 @@ def _tree_bytes(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
+@pytest.mark.exactdata
 def test_two_workers_write_the_bytes_one_process_writes(real, tmp_path):
     """``kinmo predict DIR -j 2`` (issue 24, item 4): the shapes are shared out to two spawned
     workers, each with the caller's predictor; every file equals the in-process run's, the
@@ -287,6 +294,7 @@ def test_two_workers_write_the_bytes_one_process_writes(real, tmp_path):
     assert differing == []
 
 
+@pytest.mark.exactdata
 def test_the_cli_takes_workers(real, tmp_path):
     r = CliRunner().invoke(app, ["predict", str(real["data"]), "-m", str(real["run"]), "-o",
                                  str(tmp_path / "o"), "--cache", str(real["cache"]), "-q", "-j", "2"])

@@ -195,6 +195,7 @@ def test_one_run_per_cache(tmp_path: Path) -> None:
             prepare_dataset(tmp_path / "data", out, CFG, workers=1, progress=False)
 
 
+@pytest.mark.exactdata
 def test_real_shapes_both_formats(mobility_root: Path, partnet_root: Path, tmp_path: Path) -> None:
     root = tmp_path / "mix"
     root.mkdir()

@@ -69,6 +69,7 @@ def _hinge_on_largest_leaf(monkeypatch):
     monkeypatch.setattr(kinmo.inference.gnn, "infer_edges_with_priors", fake_with_priors)
 
 
+@pytest.mark.exactdata
 def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path, monkeypatch):
     _hinge_on_largest_leaf(monkeypatch)
     out = tmp_path / "out"
@@ -110,6 +111,7 @@ def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path,
     assert res2.n_skipped == len(SHAPES) and res2.count("kept") == len(SHAPES)
 
 
+@pytest.mark.exactdata
 def test_threshold_rejects_and_failures_are_reported(data, runs, tmp_path, monkeypatch):
     _hinge_on_largest_leaf(monkeypatch)
     out = tmp_path / "out"
@@ -131,6 +133,7 @@ def test_threshold_rejects_and_failures_are_reported(data, runs, tmp_path, monke
     assert rows["broken"]["status"] == "failed" and rows[SHAPES[1]]["status"] == "below_threshold"
 
 
+@pytest.mark.exactdata
 def test_end_to_end_with_the_real_predictor(data, runs, tmp_path):
     """The untrained GNN and axis network through the real pipeline, two worker processes:
     every shape gets a status; kept ones are valid objects."""
@@ -150,6 +153,7 @@ def test_end_to_end_with_the_real_predictor(data, runs, tmp_path):
     assert int(counts["kept"]) + int(counts["no_moving_joint"]) == len(SHAPES)
 
 
+@pytest.mark.exactdata
 def test_cli(data, runs, tmp_path, monkeypatch):
     from typer.testing import CliRunner
 
@@ -175,6 +179,7 @@ def test_cli(data, runs, tmp_path, monkeypatch):
     assert bad.exit_code == 2 and "missing" in bad.output
 
 
+@pytest.mark.exactdata
 def test_cli_refinement_options_reach_the_scores(data, runs, tmp_path, monkeypatch):
     from typer.testing import CliRunner
 
@@ -214,6 +219,7 @@ def test_cli_refinement_options_reach_the_scores(data, runs, tmp_path, monkeypat
     assert bad.exit_code == 2
 
 
+@pytest.mark.exactdata
 def test_one_run_per_output_folder(data, runs, tmp_path):
     """A second pseudo-label run on the same OUT fails at once and touches nothing."""
     import fcntl
@@ -230,6 +236,7 @@ def test_one_run_per_output_folder(data, runs, tmp_path):
     assert (out / ".staging").is_dir() and not (out / "shapes.csv").exists()
 
 
+@pytest.mark.exactdata
 def test_ray_executor_gives_the_same_records(data, runs, tmp_path):
     """``executor="ray"``: a local Ray of 2 CPUs is started for the call, each worker loads the
     models once (the initializer), and the records are those of the in-process run."""
@@ -245,6 +252,7 @@ def test_ray_executor_gives_the_same_records(data, runs, tmp_path):
     assert sorted(p.name for p in (tmp_path / "b").iterdir()) == sorted(p.name for p in (tmp_path / "a").iterdir())
 
 
+@pytest.mark.exactdata
 def test_symlink_mode_links_to_the_source(data, runs, tmp_path, monkeypatch):
     _hinge_on_largest_leaf(monkeypatch)
     out = tmp_path / "out"
@@ -263,6 +271,7 @@ def test_symlink_mode_links_to_the_source(data, runs, tmp_path, monkeypatch):
     assert read_shape(out / SHAPES[0], external_links=True).links
 
 
+@pytest.mark.exactdata
 def test_hostile_mesh_name_writes_nothing_outside_out(data, runs, tmp_path, monkeypatch):
     """Finding 1 of the hostile-input issue: a mesh name in result.json was used as a path,
     and pseudo-label overwrote (or created a link at) a file outside its output folder."""
@@ -298,6 +307,7 @@ def test_hostile_mesh_name_writes_nothing_outside_out(data, runs, tmp_path, monk
     assert sorted(p.name for p in victim_dir.iterdir()) == ["victim.obj"]
 
 
+@pytest.mark.exactdata
 def test_each_shape_s_meshes_are_read_once(data, tmp_path, monkeypatch):
     """One path per data flow: the part graph, the learned selector's sweep and the URDF
     export of a kept shape share one read of its meshes (they read them three times before)."""

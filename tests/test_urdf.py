@@ -61,6 +61,7 @@ def _world_vertices(body: int, cid: int, link_index: int, verts: np.ndarray) -> 
     return out
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", OBJECTS)
 def test_joints_move_meshes_like_mobility(mobility_root: Path, tmp_path: Path, bullet: int, oid: str) -> None:
     shape = read_shape(mobility_root / oid)
@@ -111,6 +112,7 @@ def test_joints_move_meshes_like_mobility(mobility_root: Path, tmp_path: Path, b
         p.removeBody(body, physicsClientId=bullet)
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", OBJECTS)
 def test_limits_and_types(mobility_root: Path, tmp_path: Path, bullet: int, oid: str) -> None:
     shape = read_shape(mobility_root / oid)
@@ -143,6 +145,7 @@ def test_limits_and_types(mobility_root: Path, tmp_path: Path, bullet: int, oid:
         p.removeBody(body, physicsClientId=bullet)
 
 
+@pytest.mark.exactdata
 def test_mesh_paths_relative_to_object_folder(mobility_root: Path) -> None:
     shape = read_shape(mobility_root / "10849")
     root = ET.fromstring(urdf_string(shape))
@@ -171,6 +174,7 @@ def test_hinge_limits_rad() -> None:
     assert hinge_limits_rad(-360, 0) is None  # a full turn: continuous
 
 
+@pytest.mark.exactdata
 def test_bad_links(mobility_root: Path) -> None:
     shape = read_shape(mobility_root / "10849")
     shape.links = None

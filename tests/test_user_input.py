@@ -80,6 +80,7 @@ def inputs(mobility_root: Path, tmp_path_factory):
             "run": root / "run"}
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("kind,n_parts", [("glb", 4), ("obj", 4), ("folder", 4), ("urdf", 2)])
 def test_parts_keep_the_geometry(inputs, kind, n_parts):
     parts = read_parts(inputs[kind])
@@ -93,6 +94,7 @@ def test_parts_keep_the_geometry(inputs, kind, n_parts):
         assert sorted(n for n, _, _ in parts) == sorted(n for n, _, _ in inputs["leaves"])
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("kind", ["glb", "obj", "folder", "urdf"])
 def test_predict_on_own_asset_writes_a_partnet_mobility_folder(inputs, kind, tmp_path):
     out = tmp_path / "out"
@@ -120,6 +122,7 @@ def test_predict_on_own_asset_writes_a_partnet_mobility_folder(inputs, kind, tmp
         p.disconnect(cid)
 
 
+@pytest.mark.exactdata
 def test_unsegmented_mesh_gets_a_clear_error(inputs, tmp_path):
     with pytest.raises(KinmoDataError, match="unsegmented.*kinmo needs the object split"):
         read_parts(inputs["single"])
@@ -144,6 +147,7 @@ def _write_obj_groups(path: Path, leaves) -> Path:
 _TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
+@pytest.mark.exactdata
 def test_a_z_up_asset_in_centimetres_gets_the_joints_of_the_y_up_one_in_its_own_frame(inputs, tmp_path):
     """Issue 22 part 4: the same object turned z-up, in centimetres and moved off the origin,
     predicted with --up z, gets the y-up prediction's joints mapped into its own frame."""
@@ -192,6 +196,7 @@ def sy_scale(inputs) -> float:
     return 2.0 / float(np.linalg.norm(allv.max(0) - allv.min(0)))
 
 
+@pytest.mark.exactdata
 def test_up_axis_defaults_follow_the_format(inputs, tmp_path):
     from kinmo.user_input import asset_up
 
@@ -204,6 +209,7 @@ def test_up_axis_defaults_follow_the_format(inputs, tmp_path):
     assert asset_up(ros) == "z"
 
 
+@pytest.mark.exactdata
 def test_up_is_refused_for_a_dataset_folder_and_for_other_axes(inputs, mobility_root, tmp_path):
     r = CliRunner().invoke(app, ["predict", str(mobility_root / OBJECT), "--model", str(inputs["run"]),
                                  "--out", str(tmp_path / "o"), "--up", "z", "--quiet"])
@@ -213,6 +219,7 @@ def test_up_is_refused_for_a_dataset_folder_and_for_other_axes(inputs, mobility_
     assert r.exit_code == 2 and "must be y or z" in r.output
 
 
+@pytest.mark.exactdata
 def test_an_asset_that_stands_on_another_axis_is_warned_about(inputs, mobility_root, tmp_path, caplog):
     from kinmo.inference.predictor import Predictor
     from kinmo.user_input import predict_user_input

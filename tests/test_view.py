@@ -37,6 +37,7 @@ def _classes(img: np.ndarray) -> np.ndarray:
     return np.where((lo > 235) & (sat < 40), 0, out)
 
 
+@pytest.mark.exactdata
 def test_view_page_is_self_contained(mobility_root: Path, tmp_path: Path):
     out = tmp_path / "v.html"
     r = CliRunner().invoke(app, ["view", str(mobility_root / OBJECT), "--out", str(out)])
@@ -47,6 +48,7 @@ def test_view_page_is_self_contained(mobility_root: Path, tmp_path: Path):
     assert '"name":"joint_0"' in page
 
 
+@pytest.mark.exactdata
 def test_page_moves_links_as_mobility_v2_says(mobility_root: Path, tmp_path: Path, chromium: str):
     """The page's own kinematics (JavaScript) against kinmo.export.kinematics, for a hinge and
     a cylindrical joint (two sliders)."""
@@ -73,6 +75,7 @@ def test_page_moves_links_as_mobility_v2_says(mobility_root: Path, tmp_path: Pat
         assert any(not np.allclose(T, np.eye(4)) for T in want.values())
 
 
+@pytest.mark.exactdata
 def test_moving_a_joint_changes_the_view_only_where_the_part_is(
         mobility_root: Path, tmp_path: Path, chromium: str):
     out = tmp_path / "v.html"

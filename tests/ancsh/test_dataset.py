@@ -57,6 +57,7 @@ def test_category_names_match_any_spelling():
         resolve_category("toaster", cats)
 
 
+@pytest.mark.exactdata
 def test_scan_category_finds_the_structure_and_the_misfits(laptops, mobility_root):
     assert laptops.category == "Laptop"
     assert laptops.structure.signature() == "0<R-1"
@@ -67,6 +68,7 @@ def test_scan_category_finds_the_structure_and_the_misfits(laptops, mobility_roo
         scan_category(mobility_root, "spaceship")
 
 
+@pytest.mark.exactdata
 def test_samples_are_consistent_with_the_rendered_ground_truth(rendered, laptops):
     st = laptops.structure
     parts = laptops.parts[LAPTOP]
@@ -102,6 +104,7 @@ def test_samples_are_consistent_with_the_rendered_ground_truth(rendered, laptops
         assert (s.heatmap[~assoc] == 0).all() and (s.joint[~assoc] == 0).all()
 
 
+@pytest.mark.exactdata
 def test_items_are_normalised_fixed_size_and_reproducible(rendered, laptops):
     samples, skipped = load_samples(rendered[LAPTOP], {LAPTOP: laptops.parts[LAPTOP]}, laptops.structure,
                                     cache_points=800)
@@ -130,6 +133,7 @@ def test_items_are_normalised_fixed_size_and_reproducible(rendered, laptops):
     assert s == 1.0
 
 
+@pytest.mark.exactdata
 def test_frames_of_another_structure_are_rejected(rendered, laptops, mobility_root):
     # the structures are read from the data (StorageFurniture's most common one changes as
     # the shared data grows)
@@ -151,6 +155,7 @@ def test_frames_of_another_structure_are_rejected(rendered, laptops, mobility_ro
     assert set(np.unique(s.seg)) <= {0, 1, 2} and set(np.unique(s.joint)) <= {0, 1, 2}
 
 
+@pytest.mark.exactdata
 def test_sibling_doors_are_ordered_top_to_bottom_then_left_to_right(mobility_root):
     shape, parts = object_parts_of(mobility_root / CABINET)
     assert parts.structure.signature() == "0<R-1,0<R-2"

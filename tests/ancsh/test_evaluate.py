@@ -53,6 +53,7 @@ def _flip(truth: FrameTruth, j: int, state: bool) -> FrameTruth:
     return est
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", [CABINET, POT])
 def test_ground_truth_as_prediction_scores_zero(frames, oid):
     cat, fr, _ = frames[oid]
@@ -76,6 +77,7 @@ def test_ground_truth_as_prediction_scores_zero(frames, oid):
     assert e3.state[0] == pytest.approx(want, rel=1e-6, abs=1e-9)
 
 
+@pytest.mark.exactdata
 def test_revolute_state_errors_wrap_around(frames):
     cat, fr, _ = frames[CABINET]
     truth = frame_truth(fr, cat.parts[CABINET])
@@ -85,6 +87,7 @@ def test_revolute_state_errors_wrap_around(frames):
     assert frame_errors(est, truth).state[0] == pytest.approx(3.0, abs=1e-6)
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", [CABINET, POT])
 def test_perfect_per_point_predictions_recover_poses_and_joints(frames, oid):
     cat, fr, f = frames[oid]
@@ -100,6 +103,7 @@ def test_perfect_per_point_predictions_recover_poses_and_joints(frames, oid):
     assert e.iou[0] > 0.5
 
 
+@pytest.mark.exactdata
 def test_swapped_cabinet_doors_are_matched_back(frames):
     """The two revolute doors of a real cabinet frame: the perfect estimate with the doors
     swapped has large raw errors and zero permutation-matched ones."""
@@ -121,6 +125,7 @@ def test_swapped_cabinet_doors_are_matched_back(frames):
     assert perm0.tolist() == [0, 1, 2] and m0.translation.max() < 1e-9
 
 
+@pytest.mark.exactdata
 def test_table_rows_and_markdown(frames):
     cat, fr, _ = frames[POT]
     truth = frame_truth(fr, cat.parts[POT])
@@ -132,6 +137,7 @@ def test_table_rows_and_markdown(frames):
     assert "| semi-weakly | 2 | 4 / 6 / 0 |" in md and "KitchenPot" in md and "0<P-1" in md
 
 
+@pytest.mark.exactdata
 def test_train_and_eval_commands_end_to_end(mobility_root, tmp_path, monkeypatch):
     from kinmo.cli import app
 

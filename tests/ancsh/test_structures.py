@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from kinmo.ancsh.config import preset
 from kinmo.ancsh.dataset import scan_category
 from kinmo.ancsh.evaluate import evaluate_category
@@ -26,6 +28,7 @@ def _link(folder: Path, root: Path, ids) -> Path:
     return folder
 
 
+@pytest.mark.exactdata
 def test_structure_groups_count_training_and_test_objects(mobility_root):
     cat = scan_category(mobility_root, "box")
     structures = category_structures(cat.parts)
@@ -40,6 +43,7 @@ def test_structure_groups_count_training_and_test_objects(mobility_root):
     assert structure_slug(sigs["0<R-1,0<R-2,0<R-3,0<R-4"].structure) == "0R1-0R2-0R3-0R4"
 
 
+@pytest.mark.exactdata
 def test_one_model_per_structure_and_new_objects(mobility_root, tmp_path):
     data = _link(tmp_path / "data", mobility_root, ONE_LID + FOUR_FLAPS)
     split = tmp_path / "split.json"

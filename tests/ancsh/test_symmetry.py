@@ -89,6 +89,7 @@ def test_symmetry_ratio_separates_a_cylinder_from_a_box():
     assert symmetry_ratio(box(3000), box(3000), np.array([0.0, 0.0, 1.0])) > 2  # 4-fold only
 
 
+@pytest.mark.exactdata
 def test_bucket_body_is_symmetric_about_up_and_laptop_parts_are_not(mobility_root):
     shape, parts = object_parts_of(mobility_root / "100441")  # bucket: body + handle
     axes = part_symmetry_axes(shape, parts)

@@ -56,6 +56,7 @@ def test_presets_and_overrides():
         ANCSHConfig(setting="unsupervised")
 
 
+@pytest.mark.exactdata
 def test_a_few_steps_lower_the_loss_and_the_checkpoint_reloads(samples, laptops, tmp_path):
     torch.manual_seed(0)
     cfg = preset("quick", epochs=4, steps_per_epoch=5, **TINY).model_copy(update={"category": "Laptop"})
@@ -84,6 +85,7 @@ def test_a_few_steps_lower_the_loss_and_the_checkpoint_reloads(samples, laptops,
         load_run(tmp_path / "bad")
 
 
+@pytest.mark.exactdata
 def test_pseudo_targets_of_perfect_predictions_reproduce_the_labels(samples, laptops):
     s = samples[0]
     pred = ground_truth_predictions(s, laptops.structure)
@@ -111,6 +113,7 @@ def test_pseudo_targets_of_perfect_predictions_reproduce_the_labels(samples, lap
     assert pseudo_sample(s.key, s.frame, s.points, pred, est, laptops.structure).npcs.max() <= 1.0
 
 
+@pytest.mark.exactdata
 def test_unlabeled_partnet_shapes_are_wrapped_motionless(partnet_root, tmp_path):
     from kinmo.data.readers import read_shape
 
@@ -125,6 +128,7 @@ def test_unlabeled_partnet_shapes_are_wrapped_motionless(partnet_root, tmp_path)
         unlabeled_object(tmp_path / "nothing", tmp_path / "x")
 
 
+@pytest.mark.exactdata
 def test_settings_use_only_training_objects(mobility_root, partnet_root, tmp_path):
     """semi and semi-weakly end to end on a tiny budget: test objects are never used, the data
     of each setting is counted, and a missing --pseudo is a clear error."""
@@ -182,6 +186,7 @@ def test_labeled_fraction_picks_nested_seeded_subsets():
     assert len(picks) > 1 and all(len(p) == 6 and set(p) <= set(many) for p in picks)  # the seed matters
 
 
+@pytest.mark.exactdata
 def test_cli_labeled_fraction_reduces_the_labeled_training_objects(mobility_root, tmp_path):
     """`kinmo train ancsh --labeled-fraction 0.5` renders and trains on half of the fitting
     training laptops (rounded), the same ones for the same seed."""

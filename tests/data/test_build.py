@@ -195,6 +195,7 @@ def test_bad_parameters(cabinet: Path) -> None:
 # ---------------------------------------------------------------------------- real shapes
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("shape_id", ["11854", "10849", "102278"])
 def test_real_graph_invariants_and_contact_brute_force(mobility_root: Path, shape_id: str) -> None:
     s = read_shape(mobility_root / shape_id)

@@ -92,6 +92,7 @@ def _real_parts(mobility_root, oid):
     return [load_obj(shape.mesh_path(m)) for n in shape.hierarchy.nodes.values() if n.is_leaf for m in n.objs]
 
 
+@pytest.mark.exactdata
 def test_guess_up_flags_a_real_object_turned_z_up_and_read_as_y_up(mobility_root):
     # a laptop lying on its base: turned z-up ((x, y, z) -> (x, -z, y)) it rests on -z; (the
     # check speaks only in clear cases: GUESS_RATIO's measurement)

@@ -198,6 +198,7 @@ def test_cabinet_edge_labels(cabinet: Path) -> None:
 # --------------------------------------------------------------- hand-checked real objects
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize(
     "shape_id, moving, reference, expected",
     [

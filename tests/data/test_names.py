@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from kinmo.data.names import check_mesh_name, inside, name_problem
-from kinmo.data.readers import read_hierarchy, read_shape
+from kinmo.data.readers import find_shapes, read_hierarchy, read_shape
 from kinmo.errors import KinmoDataError
 
 HOSTILE = ["../../../../probe/victim", "..", ".", "", "a/b", "a\\b", "/etc/passwd", "C:evil",
@@ -49,9 +49,11 @@ def test_inside_resolves_links(tmp_path):
     assert inside(tmp_path / "alias" / "x.obj", tmp_path / "folder")
 
 
-def _shape(tmp_path: Path, partnet_root: Path, sid: str = "7304") -> Path:
-    dst = tmp_path / sid
-    shutil.copytree(partnet_root / sid, dst)
+def _shape(tmp_path: Path, partnet_root: Path) -> Path:
+    """A copy of the data's first PartNet shape with a ``result.json`` (any one will do)."""
+    src = next(f for f in find_shapes(partnet_root) if (f / "result.json").is_file())
+    dst = tmp_path / src.name
+    shutil.copytree(src, dst)
     return dst
 
 

@@ -74,7 +74,7 @@ def test_find_shapes_nested_and_single(
 ) -> None:
     both = find_shapes(shared_data)
     assert len(both) == data_facts["mobility_objects"] + data_facts["partnet_shapes"]
-    one = mobility_root / "100028"
+    one = both[0]  # any shape folder
     assert find_shapes(one) == [one]
     with pytest.raises(KinmoDataError, match="not a folder"):
         find_shapes(shared_data / "no-such-folder")

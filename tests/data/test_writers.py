@@ -54,6 +54,7 @@ def _close(a, b) -> bool:
     return abs(float(a) - float(b)) <= 1e-12 * max(1.0, abs(float(a)))
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", OBJECTS)
 def test_format_matches_released_file(mobility_root: Path, oid: str) -> None:
     shape = read_shape(mobility_root / oid)
@@ -65,6 +66,7 @@ def test_format_matches_released_file(mobility_root: Path, oid: str) -> None:
         assert _close(w, e), (oid, w, e)
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", OBJECTS)
 def test_round_trip_through_reader(mobility_root: Path, tmp_path: Path, oid: str) -> None:
     shape = read_shape(mobility_root / oid)
@@ -86,6 +88,7 @@ def test_round_trip_through_reader(mobility_root: Path, tmp_path: Path, oid: str
     assert list(tmp_path.iterdir()) == [path]  # atomic write left no temporary file
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", ["10849", "3574", "46108", "7619", "20453"])
 def test_semantics_matches_released_file(mobility_root: Path, tmp_path: Path, oid: str) -> None:
     shape = read_shape(mobility_root / oid)
@@ -99,6 +102,7 @@ def test_semantics_matches_released_file(mobility_root: Path, tmp_path: Path, oi
     assert [ln.split()[2] for ln in lines] == [l.name for l in sorted(shape.links, key=lambda l: l.id)]
 
 
+@pytest.mark.exactdata
 def test_generated_links_round_trip(tmp_path: Path, mobility_root: Path) -> None:
     """Links that never came from a file (e.g. predicted): non-unit input direction, open
     rotation limit, unlimited hinge."""

@@ -75,6 +75,7 @@ def _values(links, frac: float):
     return vals
 
 
+@pytest.mark.exactdata
 def test_every_format_is_registered_and_written(exported):
     assert formats()[:3] == ["mobility_v2", "semantics", "urdf"]
     assert {"mjcf", "usd", "gltf"} <= set(formats())
@@ -84,6 +85,7 @@ def test_every_format_is_registered_and_written(exported):
             assert written and all(p.is_file() and p.stat().st_size > 0 for p in written)
 
 
+@pytest.mark.exactdata
 def test_urdf_loads_in_pybullet_with_convex_collision_and_moves_links(exported):
     import pybullet as p
 
@@ -124,6 +126,7 @@ def test_urdf_loads_in_pybullet_with_convex_collision_and_moves_links(exported):
         p.disconnect(cid)
 
 
+@pytest.mark.exactdata
 def test_urdf_round_trip_is_lossless(exported):
     for case, (shape, links, out, files) in exported.items():
         back = read_urdf(out / "mobility.urdf")
@@ -143,6 +146,7 @@ def test_urdf_round_trip_is_lossless(exported):
     assert lid.joint.rotates and lid.joint.rotation_limit == 180
 
 
+@pytest.mark.exactdata
 def test_mjcf_loads_in_mujoco_and_qpos_moves_bodies_about_the_axes(exported):
     import mujoco
 
@@ -171,6 +175,7 @@ def test_mjcf_loads_in_mujoco_and_qpos_moves_bodies_about_the_axes(exported):
         assert len(colliding) == len(list((out / "meshes").glob("link_*_collision_*.obj")))
 
 
+@pytest.mark.exactdata
 def test_usd_stage_has_physics_joints_axes_limits_and_meshes(exported):
     from pxr import Gf, Usd, UsdGeom, UsdPhysics
 
@@ -241,6 +246,7 @@ def _trs(t, q) -> np.ndarray:
     return M
 
 
+@pytest.mark.exactdata
 def test_gltf_animations_move_link_nodes_as_mobility_says(exported):
     import pygltflib
     import trimesh
@@ -278,6 +284,7 @@ def test_gltf_animations_move_link_nodes_as_mobility_says(exported):
                 np.testing.assert_allclose(got[:3, :3], want_R, atol=1e-5, err_msg=case)
 
 
+@pytest.mark.exactdata
 def test_cli_export_writes_formats_and_rejects_unknown(mobility_root: Path, tmp_path: Path):
     r = CliRunner().invoke(app, ["export", str(mobility_root / "3596"), "--format", "mjcf",
                                  "--format", "gltf", "--out", str(tmp_path / "o")])
@@ -293,6 +300,7 @@ def test_cli_export_writes_formats_and_rejects_unknown(mobility_root: Path, tmp_
     assert r.exit_code == 1 and "is not a folder" in r.output and "Traceback" not in r.output
 
 
+@pytest.mark.exactdata
 def test_cli_export_of_a_predicted_folder_needs_its_source(mobility_root: Path, tmp_path: Path):
     pred = tmp_path / "pred"  # what `kinmo predict` writes: links, no meshes
     pred.mkdir()

@@ -227,6 +227,7 @@ def test_mesh_distance_bad_inputs() -> None:
 # ------------------------------------------------------------------------------ real data
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("object_id", PARITY_IDS)
 def test_contact_pairs_match_fcl_on_real_objects(mobility_root: Path, object_id: str) -> None:
     meshes = leaf_meshes(mobility_root / object_id)

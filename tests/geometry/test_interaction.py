@@ -80,6 +80,7 @@ def test_masks_match_scipy_on_random_clouds(radius: float) -> None:
     check_region(interaction_region(a, b, radius), a, b, radius)
 
 
+@pytest.mark.exactdata
 def test_real_parts_in_contact(mobility_root: Path) -> None:
     """Surface samples of the contacting leaves of a real object (keyboard 7619)."""
     meshes = leaf_meshes(mobility_root / "7619")

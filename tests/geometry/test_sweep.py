@@ -290,6 +290,7 @@ def _link_mesh(shape, link_ids) -> tuple[np.ndarray, np.ndarray]:
     return v, f
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize(("shape_id", "link_id"), [("12252", 0), ("45463", 0)])
 def test_real_door_true_axis_free_opposite_edge_blocked(mobility_root: Path, shape_id, link_id):
     shape = read_shape(mobility_root / shape_id)

@@ -259,6 +259,7 @@ def test_per_joint_statistics_weigh_each_moving_part_once():
     assert _joint_stats(g, np.zeros(n, np.int64), joint_weights(g)) == {}
 
 
+@pytest.mark.exactdata
 def test_sweep_terms_on_a_real_door_prefer_the_true_hinge(mobility_root):
     from kinmo.data.build import build_graph
     from kinmo.data.readers import read_shape

@@ -88,6 +88,7 @@ def _frames(out: Path, oid: str) -> list[dict]:
     return [load_frame(p) for p in sorted((out / oid).glob("*.npz"))]
 
 
+@pytest.mark.exactdata
 def test_manifest_and_failures(rendered, root: Path) -> None:
     out, result = rendered
     assert result.n_objects == len(OBJECTS) + 1
@@ -106,12 +107,14 @@ def test_manifest_and_failures(rendered, root: Path) -> None:
     assert meta["complete"] and meta["counts"] == {"ok": len(ok), "skipped": 0, "failed": FRAMES}
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", OBJECTS)
 def test_points_lie_on_their_links(rendered, mobility_root: Path, oid: str) -> None:
     out, _ = rendered
     _check_surface(mobility_root / oid, _frames(out, oid))
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize("oid", OBJECTS)
 def test_ancsh_ground_truth(rendered, mobility_root: Path, oid: str) -> None:
     out, _ = rendered
@@ -238,6 +241,7 @@ def _check_ground_truth(folder: Path, frames: list[dict]) -> None:
                 assert (a != 0.0) == rot
 
 
+@pytest.mark.exactdata
 def test_reproducible_and_resumable(tmp_path: Path, mobility_root: Path) -> None:
     src = mobility_root / "3596"
     a, b = tmp_path / "a", tmp_path / "b"
@@ -274,6 +278,7 @@ def test_reproducible_and_resumable(tmp_path: Path, mobility_root: Path) -> None
     assert not [p for p in (a / "3596").iterdir() if p.name.endswith(".tmp")]
 
 
+@pytest.mark.exactdata
 def test_cli_parallel_matches_serial(tmp_path: Path, mobility_root: Path) -> None:
     from typer.testing import CliRunner
 

@@ -7,6 +7,7 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from browser import headless
 from kinmo.data.readers import read_shape
@@ -16,6 +17,7 @@ from kinmo.view import view_folder, write_view_links
 OBJECTS = ["11700", "3596"]  # dishwasher (hinge), bottle (cylindrical)
 
 
+@pytest.mark.exactdata
 def test_report_writes_an_interactive_gallery(mobility_root: Path, tmp_path: Path, chromium: str):
     run = tmp_path / "run"
     for model in ("GNN_fine", "OBB_fine"):

@@ -76,6 +76,7 @@ def test_gnn_with_torchrun_matches_one_process(tmp_path: Path):
         assert (tmp_path / "two" / name).is_file(), name
 
 
+@pytest.mark.exactdata
 @pytest.mark.parametrize(("trainer", "column", "rtol"), [("ancsh", "loss", 0.03), ("axis", "train_loss", 1e-4)])
 def test_trainer_with_torchrun_matches_one_process(trainer: str, column: str, rtol: float, tmp_path: Path,
                                                    mobility_root: Path):
