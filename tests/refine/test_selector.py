@@ -157,6 +157,37 @@ def test_calibration_matches_frequencies_and_roundtrip(tmp_path):
     assert back.confidence(0.9) == pytest.approx(r.confidence(0.9))
 
 
+def test_calibration_with_the_gnn_direction_prior(tmp_path):
+    """Issue 34: the confidence also reads the GNN's mass on the chosen direction."""
+    import json
+
+    rng = np.random.default_rng(2)
+    p = rng.uniform(0.2, 0.99, size=4000)
+    q = rng.uniform(0.0, 1.0, size=p.size)
+    t = 1.0 * np.log(p / (1 - p)) + 0.8 * np.log(q + 1e-3) + 0.5
+    y = rng.uniform(size=p.size) < 1 / (1 + np.exp(-t))
+    a, b, c = calibrate(p, y, q)
+    assert a == pytest.approx(1.0, abs=0.3) and b == pytest.approx(0.5, abs=0.3)
+    assert c == pytest.approx(0.8, abs=0.15)
+    assert calibrate(np.array([0.5, 0.6]), np.array([True, True]), np.ones(2)) == (1.0, 0.0, 0.0)
+    groups = [(rng.normal(size=(4, len(FEATURES))), np.array([True, False, False, False]))
+              for _ in range(10)]
+    r = fit_ranker(groups)
+    r.platt, r.prior_weight = (a, b), c
+    path = r.save(tmp_path / "ranker.json")
+    back = load_ranker(path)
+    assert back.prior_weight == pytest.approx(c)
+    assert back.confidence(0.9, 0.05) == pytest.approx(r.confidence(0.9, 0.05))
+    assert r.confidence(0.9, 0.05) < r.confidence(0.9, 0.95)  # a GNN-doubted direction: lower
+    # a ranker file of before issue 34 (no prior_weight) reads the winner's probability only
+    d = json.loads(path.read_text())
+    del d["prior_weight"]
+    (tmp_path / "old.json").write_text(json.dumps(d))
+    old = load_ranker(tmp_path / "old.json")
+    assert old.prior_weight == 0.0
+    assert old.confidence(0.9, 0.05) == pytest.approx(old.confidence(0.9, 0.95))
+
+
 def test_selected_axis_repairs_a_flip_and_the_fine_type_follows(tmp_path):
     from kinmo.mobility_tree import EdgePrediction
     from kinmo.predict import consistent_fine
@@ -368,3 +399,58 @@ def test_point_line_distance_is_the_norm_of_the_cross_product_bit_for_bit():
     assert _point_line(np.array([[1.0, 2.0, 3.0]]), np.array([[0.0, 2.0, 3.0]]),
                        np.array([[1.0, 0.0, 0.0]]))[0] == 0.0
     assert _point_line(np.zeros((0, 3)), o, d).tolist() == [np.inf] * len(o)
+
+
+def _groups_of(categories, angles, gnn, joints=None):
+    from kinmo.refine.fit_selector import EdgeGroups
+
+    n = len(categories)
+    return EdgeGroups(
+        x=[np.zeros((2, 1))] * n, y=[np.array([True, False])] * n,
+        angle=[np.array([a, 90.0]) for a in angles], dist=[np.zeros(2)] * n,
+        shape_id=[f"s{k}" for k in range(n)], category=list(categories), edge=list(range(n)),
+        gnn_angle=list(gnn), gnn_dist=[0.0] * n, revolute=[True] * n,
+        joint=joints if joints is not None else [f"s{k}/1/fine" for k in range(n)])
+
+
+def test_category_weights_shrink_large_categories():
+    from kinmo.refine.fit_selector import category_weights
+
+    g = _groups_of(["a", "a", "a", "a", "b"], [0] * 5, [0] * 5)
+    np.testing.assert_allclose(category_weights(g, 0.0), np.ones(5))
+    w = category_weights(g, 0.5)  # a: 4 joints -> 1/2 each; b: 1 joint -> 1
+    np.testing.assert_allclose(w, [0.5, 0.5, 0.5, 0.5, 1.0])
+    w = category_weights(g, 1.0)  # every category weighs one in all
+    assert abs(w[:4].sum() - 1.0) < 1e-12 and w[4] == 1.0
+
+
+def test_selection_error_is_per_category_and_pooled_per_type_set():
+    from kinmo.refine.fit_selector import selection_error
+
+    # fine: a (0, 0, 0) and b (90): pooled 22.5, per category (0 + 90) / 2 = 45;
+    # coarse: a (10): 10 both ways; the type sets are averaged
+    joints = [f"s{k}/1/fine" for k in range(4)] + ["s4/1/coarse"]
+    g = _groups_of(["a", "a", "a", "b", "a"], [0, 0, 0, 90, 10], [0] * 5, joints)
+    e = selection_error(g, np.array([0.0, 0.0, 0.0, 90.0, 10.0]))
+    assert e == {"all": (22.5 + 10) / 2, "mean": (45 + 10) / 2}
+
+
+def test_fit_selector_chooses_its_regularisation_by_cross_validation():
+    from kinmo.refine.fit_selector import CATEGORY_POWERS, L2_GRID, fit_selector
+
+    rng = np.random.default_rng(0)
+    groups = _groups_of(["a", "b", "c"] * 8, [0.0] * 24, [90.0] * 24)
+    # feature 0 marks the right candidate (with noise): any L2 finds it
+    groups.x = [np.column_stack([np.array([1.0, 0.0]) + 0.1 * rng.normal(size=2),
+                                 np.zeros((2, len(FEATURES) - 1))]) for _ in range(24)]
+    ranker, st = fit_selector(groups, features=(FEATURES[0],), k=3)
+    tried = ranker.meta["selection"]
+    assert [(t["l2"], t["category_power"]) for t in tried] == [
+        (lam, p) for p in CATEGORY_POWERS for lam in L2_GRID]
+    assert (ranker.meta["l2"], ranker.meta["category_power"]) in [
+        (t["l2"], t["category_power"]) for t in tried]
+    assert st["oof_cat_angle"] == 0.0 and st["gnn_cat_angle"] == 90.0
+    # given values are used as given
+    ranker, _ = fit_selector(groups, features=(FEATURES[0],), k=3, l2=0.5, category_power=1.0)
+    assert (ranker.meta["l2"], ranker.meta["category_power"]) == (0.5, 1.0)
+    assert len(ranker.meta["selection"]) == 1

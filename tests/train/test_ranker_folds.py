@@ -45,9 +45,22 @@ def test_a_failed_fold_is_named(tmp_path):
                            types=("fine",), epochs=1, workers=2)
 
 
-def test_fold_gnns_train_two_thirds_of_the_preset_epochs():
-    assert ranker.fold_config("quick", "fine").epochs == 40  # of the quick preset's 60
-    assert ranker.fold_config("paper", "fine").epochs == round(2 / 3 * ranker.make_preset("paper").epochs)
+def test_fold_gnns_train_like_the_motion_gnns_of_train_all():
+    """Issue 34: the ranker learns how far to trust GNNs trained like the one it refines."""
+    from kinmo.pipeline.config import PipelineConfig
+    from kinmo.train.config import preset
+
+    # train all's fine GNN is augmented by default, its coarse one never
+    assert PipelineConfig.model_fields["augment_gnn"].default is True
+    for name in ("quick", "paper"):
+        fine, coarse = ranker.fold_config(name, "fine"), ranker.fold_config(name, "coarse")
+        assert fine.epochs == coarse.epochs == preset(name).epochs
+        assert (fine.flatten_prob, fine.drop_names_prob) == (preset(name).flatten_prob,
+                                                             preset(name).drop_names_prob)
+        assert fine.flatten_prob > 0
+        assert (coarse.flatten_prob, coarse.drop_names_prob) == (0.0, 0.0)
+        plain = ranker.fold_config(name, "fine", augment=False)
+        assert (plain.flatten_prob, plain.drop_names_prob) == (0.0, 0.0)
     assert ranker.fold_config("quick", "coarse", epochs=25).epochs == 25  # given: as given
     cfg = ranker.fold_config("quick", "coarse", seed=3)
     assert (cfg.model.types, cfg.seed, cfg.threads, cfg.device) == ("coarse", 3, 1, "auto")

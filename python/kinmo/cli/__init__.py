@@ -24,5 +24,6 @@ from kinmo.cli import view as _view  # noqa: F401,E402
 from kinmo.cli import ranker as _ranker  # noqa: F401,E402
 from kinmo.cli import user_format as _user_format  # noqa: F401,E402
 from kinmo.cli import models as _models  # noqa: F401,E402
+from kinmo.cli import oof as _oof  # noqa: F401,E402
 
 __all__ = ["app", "eval_app", "train_app"]

@@ -39,8 +39,8 @@ class PipelineConfig(BaseModel):
         the axis network and the ranker's fold GNNs; 0: one per core).
     gnn_epochs, axis_epochs, ancsh_epochs, semi_epochs : int or None
         Override the presets' epochs (tiny demo runs; ``gnn_epochs`` also sets the ranker's
-        fold GNNs', which otherwise train :data:`kinmo.train.ranker.FOLD_EPOCH_SHARE` of the
-        preset's).
+        fold GNNs', which otherwise train the preset's, like the motion GNNs:
+        :func:`kinmo.train.ranker.fold_config`).
     frames_per_object : int or None
         Override the rendered scans per object.
     ancsh_steps_per_epoch : int or None

@@ -248,7 +248,8 @@ class _Context:
             ids = sorted({g.shape_id for g in rg})
             cats = {g.shape_id: g.category for g in rg}
             plan = fold_plan(ids, [cats[i] for i in ids], folder, k=RANKER_FOLDS, preset=cfg.preset,
-                             types=RANKER_TYPES, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs)
+                             types=RANKER_TYPES, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
+                             augment=cfg.augment_gnn)
             pending += [_Training(f"{v.prefix}train ranker: fold GNN {run_dir.name}", "gnn", run_dir, fcfg, split,
                                   None, None) for run_dir, fcfg, split in plan]
         # longest first (the axis network, then the augmented GNNs), so that the last one to
@@ -303,7 +304,8 @@ class _Context:
             return None
         epochs = fold_config(cfg.preset, "fine", epochs=cfg.gnn_epochs).epochs
         return v.out / "ranker", {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES),
-                                                     "epochs": epochs}}
+                                                     "epochs": epochs, "augment": cfg.augment_gnn,
+                                                     "fit": "cv-l2-category"}}
 
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
         """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
@@ -708,7 +710,8 @@ def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path) -> None:
     another one (they are trained again)."""
     import shutil
 
-    configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs) for t in RANKER_TYPES}
+    configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
+                              augment=cfg.augment_gnn) for t in RANKER_TYPES}
     stamp = json.loads(json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}))
     if (folder / "folds.json").is_file() and json.loads((folder / "folds.json").read_text()) != stamp:
         shutil.rmtree(folder / "folds", ignore_errors=True)
@@ -727,4 +730,4 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     _ranker_fold_stamp(cfg, folder)
     train_ranker(v.graphs, folder, v.split, folds=RANKER_FOLDS, preset=cfg.preset, types=RANKER_TYPES,
                  seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs,
-                 workers=cfg.workers)
+                 workers=cfg.workers, augment=cfg.augment_gnn)

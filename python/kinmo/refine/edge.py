@@ -268,4 +268,5 @@ def select_edge(
     scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
                              x[:, FEATURES.index("pos_prior")], p, np.asarray(sg, np.int64), b)
     o, d = _chosen_line(graph, i, cands, b, int(sg[b]))
-    return EdgeRefinement(cands, scores, o, d, calibrated=ranker.confidence(float(p[b])))
+    conf = ranker.confidence(float(p[b]), float(x[b, FEATURES.index("dir_prior")]))
+    return EdgeRefinement(cands, scores, o, d, calibrated=conf)

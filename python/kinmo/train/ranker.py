@@ -37,7 +37,7 @@ from kinmo.train.config import TrainConfig, preset as make_preset
 from kinmo.train.gnn import load_run, train_gnn
 from kinmo.train.split import Split
 
-__all__ = ["FOLD_EPOCH_SHARE", "fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_folds", "train_ranker"]
+__all__ = ["fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_folds", "train_ranker"]
 
 
 def _fold_job(job: tuple) -> str:
@@ -51,17 +51,18 @@ def _fold_failed(job: tuple, exc: Exception) -> str:
     raise KinmoError(f"fold GNN {job[1]}: {exc}") from exc
 
 
-#: The fold GNNs train for this share of their preset's epochs (40 of the quick preset's 60)
-#: when no epoch count is given: their held-out folds' accuracy and axis angle are flat from
-#: about epoch 30 of 60 (``ranker/folds/*/metrics.csv`` of ``kinmo train all`` on the shared
-#: data, docs/results/benchmarks.md), and the ranker only needs their out-of-fold
-#: predictions. The motion GNNs of the tables and the bundle keep the preset's epochs.
-FOLD_EPOCH_SHARE = 2 / 3
-
-
 def fold_config(preset: str, types: str, *, seed: int = 0, threads: int = 1,
-                epochs: int | None = None) -> TrainConfig:
-    """The training configuration of a fold GNN (:func:`fold_plan`).
+                epochs: int | None = None, augment: bool = True) -> TrainConfig:
+    """The training configuration of a fold GNN (:func:`fold_plan`): the configuration of
+    ``kinmo train all``'s own motion GNN of ``types``, so that the ranker learns how far to
+    trust GNNs trained like the one it refines at inference (issue 34).
+
+    Until issue 34 the fold GNNs trained 2/3 of the preset's epochs, with the preset's
+    flattened hierarchies and dropped names for the coarse types too (``kinmo train all``'s
+    coarse GNN trains without). On the test split of the shared data their out-of-fold
+    flips were unsure (axis-candidate mass of the flipped line: median 0.69), while the
+    motion GNN's own flips on test objects were sure (median 0.998), and the ranker fit on
+    the former never overruled the latter (docs/results/table1_four_settings.md, issue 34).
 
     Parameters
     ----------
@@ -70,7 +71,13 @@ def fold_config(preset: str, types: str, *, seed: int = 0, threads: int = 1,
     types : {"fine", "coarse"}
     seed, threads
     epochs : int, optional
-        The fold GNN's epochs; by default :data:`FOLD_EPOCH_SHARE` of the preset's (at least 1).
+        The fold GNN's epochs; by default the preset's (``kinmo train all --gnn-epochs N``
+        gives N to every GNN).
+    augment : bool
+        As :attr:`kinmo.pipeline.config.PipelineConfig.augment_gnn`: the fine fold GNNs train
+        with the preset's hierarchy and name augmentations (``flatten_prob``,
+        ``drop_names_prob``); the coarse ones, and every one without ``augment``, train
+        without.
 
     Returns
     -------
@@ -78,9 +85,10 @@ def fold_config(preset: str, types: str, *, seed: int = 0, threads: int = 1,
         On device ``"auto"``: CUDA where there is one (the paper preset's fold GNNs take
         hours on a CPU), the CPU elsewhere, as every other GNN training of kinmo.
     """
-    if epochs is None:
-        epochs = max(1, round(make_preset(preset).epochs * FOLD_EPOCH_SHARE))
-    return make_preset(preset, types=types, seed=seed, threads=threads, device="auto", epochs=epochs)
+    plain = {} if augment and types == "fine" else {"flatten_prob": 0.0, "drop_names_prob": 0.0}
+    extra = {} if epochs is None else {"epochs": epochs}
+    return make_preset(preset, types=types, seed=seed, threads=threads, device="auto", **extra,
+                       **plain)
 
 
 def ranker_graphs(data: str | Path, split: Split) -> list[PartGraph]:
@@ -111,7 +119,8 @@ def ranker_graphs(data: str | Path, split: Split) -> list[PartGraph]:
 
 def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: int = 3,
               preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
-              threads: int = 1, epochs: int | None = None) -> list[tuple[Path, TrainConfig, Split]]:
+              threads: int = 1, epochs: int | None = None,
+              augment: bool = True) -> list[tuple[Path, TrainConfig, Split]]:
     """The fold GNNs of :func:`train_folds` still to train: run folder, configuration, split.
 
     Parameters
@@ -120,7 +129,7 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
         The training objects that have a labelled graph, sorted.
     categories : sequence of str
         Their categories (the folds are stratified by category, :func:`fold_ids`).
-    out, k, preset, types, seed, threads, epochs
+    out, k, preset, types, seed, threads, epochs, augment
         As :func:`train_folds`.
 
     Returns
@@ -142,7 +151,7 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
                 continue
             held = [i for i, ff in zip(ids, folds) if ff == f]
             rest = [i for i, ff in zip(ids, folds) if ff != f]
-            cfg = fold_config(preset, t, seed=seed, threads=threads, epochs=epochs)
+            cfg = fold_config(preset, t, seed=seed, threads=threads, epochs=epochs, augment=augment)
             plan.append((run_dir, cfg, Split(rest, held, cats, seed, 1.0 / k)))
     return plan
 
@@ -150,7 +159,7 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
 def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
                 k: int = 3, preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
                 threads: int = 1, epochs: int | None = None, workers: int = 1,
-                executor: str = "local", progress: bool = False) -> int:
+                executor: str = "local", progress: bool = False, augment: bool = True) -> int:
     """Train the fold GNNs of :func:`oof_predictions` for every type set, ``workers`` at a
     time on the project's executor (:func:`kinmo.executor.map_unordered`: the local process
     pool or Ray); each is one item, trained single-threaded (``threads``) as a sequential
@@ -158,7 +167,7 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
 
     Parameters
     ----------
-    graphs, train_ids, out, k, preset, seed, threads, epochs
+    graphs, train_ids, out, k, preset, seed, threads, epochs, augment
         As :func:`oof_predictions`.
     types : sequence of {"fine", "coarse"}
     workers : int
@@ -181,7 +190,7 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
     by_id = {g.shape_id: g for g in graphs}
     ids = [i for i in sorted(train_ids) if i in by_id]
     plan = fold_plan(ids, [by_id[i].category for i in ids], out, k=k, preset=preset, types=types,
-                     seed=seed, threads=threads, epochs=epochs)
+                     seed=seed, threads=threads, epochs=epochs, augment=augment)
     jobs = [([by_id[i] for i in ids], run_dir, cfg, split) for run_dir, cfg, split in plan]
     if not jobs:
         return 0
@@ -194,8 +203,8 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
 
 def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
                     k: int = 3, preset: str = "quick", types: str = "fine", seed: int = 0,
-                    threads: int = 1, progress: bool = False, epochs: int | None = None
-                    ) -> dict[str, object]:
+                    threads: int = 1, progress: bool = False, epochs: int | None = None,
+                    augment: bool = True) -> dict[str, object]:
     """Out-of-fold predictions of the training objects (module docstring).
 
     Parameters
@@ -211,8 +220,9 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         Folds and the GNN's training options (:func:`kinmo.train.config.preset`).
     progress : bool
     epochs : int, optional
-        The fold GNNs' epochs; by default :data:`FOLD_EPOCH_SHARE` of the preset's
-        (:func:`fold_config`; ``kinmo train all --gnn-epochs N`` gives N to every GNN).
+        The fold GNNs' epochs; by default the preset's (:func:`fold_config`).
+    augment : bool
+        The fine fold GNNs' hierarchy and name augmentations (:func:`fold_config`).
 
     Returns
     -------
@@ -230,7 +240,7 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         run_dir = out / "folds" / f"{types}_{f}"
         if not (run_dir / "model.pt").is_file():
             train_folds(graphs, train_ids, out, k=k, preset=preset, types=(types,), seed=seed,
-                        threads=threads, epochs=epochs, progress=progress)
+                        threads=threads, epochs=epochs, progress=progress, augment=augment)
         # the fold GNN alone (no selector: the ranker is what this fits), through the one
         # prediction path every command uses
         fold = Predictor(load_run(run_dir, "cpu"))
@@ -242,7 +252,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
 def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds: int = 3,
                  preset: str = "quick", types: Sequence[str] = ("fine", "coarse"), seed: int = 0,
                  threads: int = 1, progress: bool = True, epochs: int | None = None,
-                 workers: int = 1, executor: str = "local") -> tuple[Ranker, dict]:
+                 workers: int = 1, executor: str = "local", augment: bool = True,
+                 category_power: float | None = None) -> tuple[Ranker, dict]:
     """``kinmo train ranker``: OOF GNNs on the split's training objects, then the ranker.
 
     Parameters
@@ -256,8 +267,14 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     folds, preset, seed, threads
         OOF folds and the fold GNNs' training options.
     epochs : int, optional
-        The fold GNNs' epochs; by default :data:`FOLD_EPOCH_SHARE` of the preset's
-        (:func:`fold_config`; ``kinmo train all --gnn-epochs N`` gives N to every GNN).
+        The fold GNNs' epochs; by default the preset's (:func:`fold_config`; ``kinmo train
+        all --gnn-epochs N`` gives N to every GNN).
+    augment : bool
+        The fine fold GNNs' hierarchy and name augmentations (:func:`fold_config`), as
+        ``kinmo train all``'s fine GNN.
+    category_power : float, optional
+        How the ranker's fit weighs categories; chosen by cross-validation when not given
+        (:func:`kinmo.refine.fit_selector.fit_selector`).
     types : sequence of {"fine", "coarse"}
         Fold GNNs of these type sets; their groups are pooled (one ranker serves both).
     progress : bool
@@ -280,20 +297,24 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     graphs = ranker_graphs(data, sp)
     semantic = SemanticPrior.from_graphs(graphs)
     train_folds(graphs, sorted(train), out, k=folds, preset=preset, types=types, seed=seed,
-                threads=threads, epochs=epochs, workers=workers, executor=executor, progress=progress)
+                threads=threads, epochs=epochs, workers=workers, executor=executor, progress=progress,
+                augment=augment)
     parts = []
     for t in types:
         preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,
-                                seed=seed, threads=threads, progress=progress, epochs=epochs)
+                                seed=seed, threads=threads, progress=progress, epochs=epochs,
+                                augment=augment)
         parts.append(collect_groups(list(preds.values()), seed=seed, semantic=semantic))
     groups = EdgeGroups(*[[v for p in parts for v in getattr(p, f)]
                           for f in EdgeGroups.__dataclass_fields__])
     if not groups.y:
         raise KinmoDataError(data, "no moving edge predicted moving in the out-of-fold predictions")
-    ranker, stats = fit_selector(groups, features=DEFAULT_FEATURES, k=folds, seed=seed)
+    ranker, stats = fit_selector(groups, features=DEFAULT_FEATURES, k=folds, seed=seed,
+                                 category_power=category_power)
     ranker.semantic = semantic
     ranker.meta["trained_on"] = {"data": str(data), "split": str(split), "types": list(types),
-                                 "preset": preset, "folds": folds}
+                                 "preset": preset, "folds": folds, "augment": augment,
+                                 "epochs": fold_config(preset, "fine", epochs=epochs).epochs}
     groups.save(out / "oof_groups.npz")
     ranker.save(out / "ranker.json")
     write_json(out / "cv.json", {k: v for k, v in stats.items() if not isinstance(v, np.ndarray)})

@@ -1,0 +1,177 @@
+"""Table 1 out of fold on every labelled object (``kinmo eval oof``; issue 34).
+
+The test split of ``kinmo train all`` holds 69 of the 235 shared objects: a per-category effect
+of the refinement is hard to see on it (a selector that stopped changing any axis once passed
+as "within ±0.5° pooled"). This evaluation predicts **every** labelled object with models that
+did not train on it:
+
+1. The objects are cut into ``k`` folds (stratified by category, seeded:
+   :func:`kinmo.refine.fit_selector.fold_ids`).
+2. Per fold and type set (fine, coarse), a motion GNN is trained on the other folds with the
+   configuration of ``kinmo train all``'s own motion GNNs (:func:`kinmo.train.ranker.fold_config`),
+   and predicts the held-out fold: the ``GNN_fine`` / ``GNN_coarse`` rows.
+3. Per fold, the learned selector (:mod:`kinmo.refine.ranker`) is fit on the candidate groups
+   of the *other* folds' out-of-fold predictions (fine and coarse pooled, as
+   :func:`kinmo.train.ranker.train_ranker` pools them; the semantic prior from the other
+   folds' objects) and refines the held-out fold's predictions: the ``OBB_fine`` /
+   ``OBB_coarse`` rows, through :class:`kinmo.inference.predictor.Predictor` as every command.
+
+Caveat, stated in the output: the groups a fold's ranker is fit on were predicted by GNNs
+that trained on that fold's objects (their features, never their labels, depend on them).
+
+Outputs (``OUT/``): ``table1.csv``, ``table1.md`` (:func:`kinmo.evaluate.tables.write_report`:
+per category, the ``mean`` over categories and the pooled ``all`` row), ``oof.json`` (the
+per-category mean and pooled joint axis error of the four settings and the selector's gain),
+``folds/<types>_<f>/`` (the GNN runs, reused when present: an interrupted run resumes) and
+``rankers/ranker_<f>.json``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinmo.data.cache import load_cache
+from kinmo.data.graph import PartGraph
+from kinmo.errors import KinmoDataError
+from kinmo.evaluate.shape_metrics import EvalReport, evaluate_graphs
+from kinmo.evaluate.tables import write_report
+from kinmo.inference.predictor import Predictor
+from kinmo.io import write_json
+from kinmo.refine.config import RefineConfig
+from kinmo.refine.fit_selector import DEFAULT_FEATURES, EdgeGroups, collect_groups, fit_selector, fold_ids
+from kinmo.refine.semantic_prior import SemanticPrior
+from kinmo.train.gnn import load_run
+from kinmo.train.ranker import train_folds
+
+__all__ = ["SETTINGS", "oof_summary", "oof_table1"]
+
+#: The four settings of Table 1, in the paper's column order.
+SETTINGS = ("GNN_coarse", "GNN_fine", "OBB_coarse", "OBB_fine")
+
+
+def _pool(parts: Sequence[EdgeGroups]) -> EdgeGroups:
+    return EdgeGroups(*[[v for p in parts for v in getattr(p, f)]
+                        for f in EdgeGroups.__dataclass_fields__])
+
+
+def _subset(groups: EdgeGroups, keep: set[str]) -> EdgeGroups:
+    idx = [n for n, s in enumerate(groups.shape_id) if s in keep]
+    return EdgeGroups(*[[getattr(groups, f)[n] for n in idx] if len(getattr(groups, f)) else []
+                        for f in EdgeGroups.__dataclass_fields__])
+
+
+def oof_summary(report: EvalReport) -> dict[str, Any]:
+    """Per-category mean and pooled joint axis angle error (degrees) of each setting, and the
+    selector's relative change ``OBB / GNN - 1`` per type set (negative: the selector helps).
+
+    Parameters
+    ----------
+    report : EvalReport
+        With the columns of :data:`SETTINGS` (those present are used).
+
+    Returns
+    -------
+    dict
+        ``{"angle_joint": {setting: {"mean": deg, "all": deg}}, "recall": {...},
+        "gain_fine": {"mean": r, "all": r}, "gain_coarse": {...}}``.
+    """
+    out: dict[str, Any] = {"angle_joint": {}, "recall": {}, "joint_type_acc": {}}
+    for m in report.models:
+        for key in ("angle_joint", "recall", "joint_type_acc"):
+            out[key][m] = {row: float(report.table[(m, row)][key]) for row in ("mean", "all")}
+    for t in ("fine", "coarse"):
+        g, o = out["angle_joint"].get(f"GNN_{t}"), out["angle_joint"].get(f"OBB_{t}")
+        if g and o:
+            out[f"gain_{t}"] = {row: o[row] / g[row] - 1.0 if g[row] > 0 else float("nan")
+                                for row in ("mean", "all")}
+    return out
+
+
+def oof_table1(
+    data: str | Path | Sequence[PartGraph],
+    out: str | Path,
+    *,
+    folds: int = 5,
+    preset: str = "quick",
+    seed: int = 0,
+    workers: int = 1,
+    epochs: int | None = None,
+    augment: bool = True,
+    executor: str = "local",
+    progress: bool = True,
+) -> EvalReport:
+    """Table 1's four settings out of fold on every labelled object (module docstring).
+
+    Parameters
+    ----------
+    data : str, Path or sequence of PartGraph
+        A ``kinmo prepare`` cache of PartNet-Mobility objects (or its graphs); the labelled
+        graphs are used.
+    out : str or Path
+        Output folder (module docstring); an existing one resumes its trained folds.
+    folds : int
+        ``k`` (at least 2).
+    preset, seed, epochs, augment
+        The GNNs' training (:func:`kinmo.train.ranker.fold_config`), as ``kinmo train all``.
+    workers, executor
+        GNNs trained at once, and where (:func:`kinmo.train.ranker.train_folds`).
+    progress : bool
+
+    Returns
+    -------
+    EvalReport
+        Columns :data:`SETTINGS`, rows per category (also written, module docstring).
+
+    Raises
+    ------
+    KinmoDataError
+        Fewer labelled graphs than folds.
+    """
+    out = Path(out)
+    graphs = [g for g in (load_cache(data) if isinstance(data, (str, Path)) else data)
+              if g.has_labels and len(g.sibling_edges)]
+    if len(graphs) < folds:
+        raise KinmoDataError(data if isinstance(data, (str, Path)) else out,
+                             f"{len(graphs)} labelled graphs: fewer than --folds {folds}")
+    graphs.sort(key=lambda g: g.shape_id)
+    ids = [g.shape_id for g in graphs]
+    fold_of = dict(zip(ids, fold_ids(ids, [g.category for g in graphs], folds, seed)))
+    train_folds(graphs, ids, out, k=folds, preset=preset, types=("fine", "coarse"), seed=seed,
+                threads=1, epochs=epochs, workers=workers, executor=executor, progress=progress,
+                augment=augment)
+    gnn: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
+    runs: dict[tuple[str, int], Any] = {}
+    for t in gnn:
+        for f in range(folds):
+            runs[(t, f)] = load_run(out / "folds" / f"{t}_{f}", "cpu")
+            held = [g for g in graphs if fold_of[g.shape_id] == f]
+            for p in Predictor(runs[(t, f)]).gnn_predictions(held):
+                gnn[t][p.shape_id] = p
+    semantic_all = SemanticPrior.from_graphs(graphs)
+    groups = _pool([collect_groups([gnn[t][i] for i in ids], seed=seed, semantic=semantic_all)
+                    for t in ("fine", "coarse")])
+    refined: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
+    (out / "rankers").mkdir(parents=True, exist_ok=True)
+    for f in range(folds):
+        rest = {i for i in ids if fold_of[i] != f}
+        ranker, _ = fit_selector(_subset(groups, rest), features=DEFAULT_FEATURES, k=3, seed=seed)
+        ranker.semantic = SemanticPrior.from_graphs([g for g in graphs if g.shape_id in rest])
+        path = ranker.save(out / "rankers" / f"ranker_{f}.json")
+        cfg = RefineConfig(selector="ranker", ranker=str(path))
+        for t in refined:
+            pr = Predictor(runs[(t, f)], None, cfg)
+            for i in ids:
+                if fold_of[i] == f:
+                    refined[t][i] = pr.refine_prediction(gnn[t][i])
+    preds = {"GNN_coarse": [gnn["coarse"][i] for i in ids], "GNN_fine": [gnn["fine"][i] for i in ids],
+             "OBB_coarse": [refined["coarse"][i] for i in ids],
+             "OBB_fine": [refined["fine"][i] for i in ids]}
+    report = evaluate_graphs(graphs, preds)
+    write_report(report, out)
+    write_json(out / "oof.json", {"folds": folds, "preset": preset, "seed": seed,
+                                  "objects": len(graphs), **oof_summary(report)})
+    return report
