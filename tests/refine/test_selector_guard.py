@@ -19,7 +19,7 @@ import pytest
 
 from kinmo.data.build import build_graph
 from kinmo.data.model import FINE_TYPES
-from kinmo.data.readers import read_shape
+from kinmo.data.readers import find_shapes, read_meta, read_shape
 from kinmo.metrics.axis import axis_angle_deg
 from kinmo.mobility_tree import EdgePrediction, build_mobility_tree
 from kinmo.predict import ShapePrediction
@@ -37,14 +37,9 @@ MARGIN = 0.30
 
 def _objects(mobility_root, per_category: int = 2) -> list:
     """Up to ``per_category`` labelled objects of every category, in id order."""
-    import json
-
     by_cat: dict[str, list] = defaultdict(list)
-    for d in sorted(p for p in mobility_root.iterdir() if p.is_dir()):
-        try:
-            cat = json.loads((d / "meta.json").read_text())["model_cat"]
-        except (OSError, ValueError, KeyError):
-            continue
+    for d in find_shapes(mobility_root):
+        cat, _ = read_meta(d)
         if len(by_cat[cat]) < per_category:
             by_cat[cat].append(d)
     return [d for ds in by_cat.values() for d in ds]

@@ -53,17 +53,6 @@ __all__ = ["SETTINGS", "oof_summary", "oof_table1"]
 SETTINGS = ("GNN_coarse", "GNN_fine", "OBB_coarse", "OBB_fine")
 
 
-def _pool(parts: Sequence[EdgeGroups]) -> EdgeGroups:
-    return EdgeGroups(*[[v for p in parts for v in getattr(p, f)]
-                        for f in EdgeGroups.__dataclass_fields__])
-
-
-def _subset(groups: EdgeGroups, keep: set[str]) -> EdgeGroups:
-    idx = [n for n, s in enumerate(groups.shape_id) if s in keep]
-    return EdgeGroups(*[[getattr(groups, f)[n] for n in idx] if len(getattr(groups, f)) else []
-                        for f in EdgeGroups.__dataclass_fields__])
-
-
 def oof_summary(report: EvalReport) -> dict[str, Any]:
     """Per-category mean and pooled joint axis angle error (degrees) of each setting, and the
     selector's relative change ``OBB / GNN - 1`` per type set (negative: the selector helps).
@@ -152,13 +141,13 @@ def oof_table1(
             for p in Predictor(runs[(t, f)]).gnn_predictions(held):
                 gnn[t][p.shape_id] = p
     semantic_all = SemanticPrior.from_graphs(graphs)
-    groups = _pool([collect_groups([gnn[t][i] for i in ids], seed=seed, semantic=semantic_all)
+    groups = EdgeGroups.concat([collect_groups([gnn[t][i] for i in ids], seed=seed, semantic=semantic_all)
                     for t in ("fine", "coarse")])
     refined: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
     (out / "rankers").mkdir(parents=True, exist_ok=True)
     for f in range(folds):
         rest = {i for i in ids if fold_of[i] != f}
-        ranker, _ = fit_selector(_subset(groups, rest), features=DEFAULT_FEATURES, k=3, seed=seed)
+        ranker, _ = fit_selector(groups.of_shapes(rest), features=DEFAULT_FEATURES, k=3, seed=seed)
         ranker.semantic = SemanticPrior.from_graphs([g for g in graphs if g.shape_id in rest])
         path = ranker.save(out / "rankers" / f"ranker_{f}.json")
         cfg = RefineConfig(selector="ranker", ranker=str(path))

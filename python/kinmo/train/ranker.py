@@ -305,8 +305,7 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
                                 seed=seed, threads=threads, progress=progress, epochs=epochs,
                                 augment=augment)
         parts.append(collect_groups(list(preds.values()), seed=seed, semantic=semantic))
-    groups = EdgeGroups(*[[v for p in parts for v in getattr(p, f)]
-                          for f in EdgeGroups.__dataclass_fields__])
+    groups = EdgeGroups.concat(parts)
     if not groups.y:
         raise KinmoDataError(data, "no moving edge predicted moving in the out-of-fold predictions")
     ranker, stats = fit_selector(groups, features=DEFAULT_FEATURES, k=folds, seed=seed,
