@@ -18,7 +18,8 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     run = out / "run"
     # every stage left its product
     for sub in ("split.json", "cache/labeled/manifest.csv", "cache/unlabeled/manifest.csv", "gnn_fine/model.pt",
-                "gnn_coarse/model.pt", "axis", "ranker/ranker.json", "pseudo/summary.csv",
+                "gnn_coarse/model.pt", "axis", "ranker/ranker.json", "ranges/ranges.json",
+                "model/ranges.json", "pseudo/summary.csv",
                 "eval/pre-segmented-paper/table1.csv",
                 "ancsh/Laptop/supervised/model.pt", "ancsh/Laptop/semi/model.pt",
                 "ancsh/Laptop/semi-weakly/model.pt", "report/index.html", "report/report.md"):
@@ -102,11 +103,11 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     res3 = run_pipeline(cfg.model_copy(update={"release": True}), progress=False)
     assert {k for k, t in res3.timings.items() if t.ran} == {
         "release: prepare pseudo-labels", "release: train gnn (fine)", "release: train axis",
-        "release: model bundle", "report"}
+        "release: fit range prior", "release: model bundle", "report"}
     rb = json.loads((run / "release/model/bundle.json").read_text())
     pseudo_ids = {p.parent.name for p in (run / "pseudo").glob("*/mobility_v2.json")}
     assert pseudo_ids and set(rb["trained_on"]) == set(split["train"]) | set(split["test"]) | pseudo_ids
-    assert (rb["selector"], rb["axis"]) == ("ranker", "axis")
+    assert (rb["selector"], rb["axis"], rb["ranges"]) == ("ranker", "axis", "ranges.json")
     assert json.loads((run / "release/gnn_fine/split.json").read_text())["test"] == []
     # eval leaves a bundle's training objects out: here all of them, so it refuses in one line
     ev = runner.invoke(app, ["eval", "pre-segmented", "--model", str(run / "release/model"), "--data",

@@ -17,6 +17,9 @@ from conftest import write_untrained_models
 from kinmo.data.model import FINE_INDEX, JointType, ShapeFormat
 from kinmo.data.readers import read_shape
 from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
+from kinmo.ranges import RangeEntry, RangePrior
+from kinmo.refine.config import RefineConfig
+from kinmo.render.scene import Scene, sample_joint_state
 
 torch.set_num_threads(1)
 
@@ -69,12 +72,19 @@ def _hinge_on_largest_leaf(monkeypatch):
     monkeypatch.setattr(kinmo.inference.gnn, "infer_edges_with_priors", fake_with_priors)
 
 
+def _hinge_prior(folder: Path) -> Path:
+    """A range prior whose only group is every hinge: 0 to 135 degrees (issue 35)."""
+    f = folder / "ranges.json"
+    RangePrior([RangeEntry("hinge", None, None, 10, 0.0, 0.0, 135.0)]).save(f)
+    return f
+
+
 @pytest.mark.exactdata
 def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path, monkeypatch):
     _hinge_on_largest_leaf(monkeypatch)
     out = tmp_path / "out"
-    res = pseudo_label_dataset(data, *runs, out, PseudoLabelConfig(threshold=0.0),
-                               progress=False)
+    cfg = PseudoLabelConfig(threshold=0.0, refine=RefineConfig(ranges=str(_hinge_prior(tmp_path))))
+    res = pseudo_label_dataset(data, *runs, out, cfg, progress=False)
     assert [r.status for r in res.records] == ["kept"] * len(SHAPES), res.records
     for rec in res.records:
         folder = out / rec.id
@@ -86,7 +96,18 @@ def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path,
         moving = [lk for lk in shape.links if lk.joint.is_moving]
         assert len(moving) == 1 and moving[0].joint.type is JointType.HINGE
         assert abs(moving[0].joint.direction[1]) > 0.7  # a vertical hinge, as predicted
-        assert moving[0].joint.limit == (0.0, 90.0)
+        # the predicted range: the prior's 0-135 degrees, clipped by the sweep where the part
+        # would pass through the rest of the shape; never the old constant 0-90
+        lo, hi = moving[0].joint.limit
+        assert 0.0 <= lo < hi <= 135.0 and (lo, hi) != (0.0, 90.0)
+        # ANCSH's scans of this shape sample states inside that range only
+        with Scene(shape) as scene:
+            rng = np.random.default_rng(0)
+            (j,) = scene.joints
+            sign = float(np.sign(np.dot(j.direction, moving[0].joint.direction)))
+            for _ in range(200):
+                (_, angle), = sample_joint_state(scene.joints, rng).values()
+                assert lo - 1e-6 <= np.degrees(sign * angle) <= hi + 1e-6
         for name in src.hierarchy.mesh_names(src.hierarchy.root):
             p = folder / "textured_objs" / f"{name}.obj"  # self-contained: a hard link or a copy
             assert not p.is_symlink() and p.read_bytes() == src.mesh_path(name).read_bytes()
@@ -106,8 +127,7 @@ def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path,
     assert summary[-1]["category"] == "all" and int(summary[-1]["kept"]) == len(SHAPES)
     assert not (out / ".staging").exists()
     # resume: every record is current, nothing is recomputed
-    res2 = pseudo_label_dataset(data, *runs, out, PseudoLabelConfig(threshold=0.0),
-                                progress=False)
+    res2 = pseudo_label_dataset(data, *runs, out, cfg, progress=False)
     assert res2.n_skipped == len(SHAPES) and res2.count("kept") == len(SHAPES)
 
 

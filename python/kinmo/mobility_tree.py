@@ -76,6 +76,7 @@ __all__ = [
     "build_mobility_tree",
     "coarse_probs",
     "consistent_fine",
+    "opening_direction",
 ]
 
 _P, _R, _PR, _FIXED, _NONE = (COARSE_INDEX[n] for n in ("P", "R", "PR", "Fixed", "None"))
@@ -430,23 +431,52 @@ def build_mobility_tree(
     return tree
 
 
-def _joint(k: int, lab: int, i: int, j: int, pred: EdgePrediction, center: np.ndarray,
-           half: np.ndarray, options: TreeOptions) -> Joint:
-    d = np.asarray(pred.direction[k], dtype=np.float64)
+def opening_direction(revolute: bool, origin: np.ndarray, direction: np.ndarray,
+                      moving_center: np.ndarray, reference_center: np.ndarray) -> np.ndarray:
+    """The sign of a joint axis under which a positive joint value opens the part.
+
+    The rule of the module docstring ("Joints"): a slider opens along ``+d`` when
+    ``d . (c_i - c_j) > 0``; a hinge rotates the moving centre ``c_i`` towards
+    ``c_i - c_j`` (``c_i`` the moving part's centre, ``c_j`` its reference's). The learned
+    range prior (:mod:`kinmo.ranges`) orients the true joints of its training objects by the
+    same rule, so that its ranges and the predicted joints share one sign convention.
+
+    Parameters
+    ----------
+    revolute : bool
+        Hinge (True) or slider (False).
+    origin : (3,) float64
+        A point on the axis (hinges; unused for sliders).
+    direction : (3,) float64
+        The axis direction, any length (a zero or non-finite one becomes ``+y``).
+    moving_center, reference_center : (3,) float64
+        Mesh frame, mesh units.
+
+    Returns
+    -------
+    (3,) float64
+        ``direction`` normalised, negated when the rule says so.
+    """
+    d = np.asarray(direction, dtype=np.float64)
     n = np.linalg.norm(d)
     d = d / n if n > 0 and np.isfinite(n) else np.array([0.0, 1.0, 0.0])
-    away = center[i] - center[j]
+    away = np.asarray(moving_center, float) - np.asarray(reference_center, float)
+    if revolute:
+        r = np.asarray(moving_center, float) - np.asarray(origin, dtype=np.float64)
+        r = r - np.dot(r, d) * d
+        return -d if np.dot(np.cross(d, r), away) < 0 else d
+    return -d if np.dot(d, away) < 0 else d
+
+
+def _joint(k: int, lab: int, i: int, j: int, pred: EdgePrediction, center: np.ndarray,
+           half: np.ndarray, options: TreeOptions) -> Joint:
     if lab == _R:
         o = np.asarray(pred.origin[k], dtype=np.float64)
-        r = center[i] - o
-        r = r - np.dot(r, d) * d
-        if np.dot(np.cross(d, r), away) < 0:
-            d = -d
+        d = opening_direction(True, o, pred.direction[k], center[i], center[j])
         lo, hi = options.hinge_limit
         return Joint(JointType.HINGE, origin=o, direction=d, limit=(float(lo), float(hi)))
     # prismatic (possibly rotating): the axis passes through the part's OBB centre
-    if np.dot(d, away) < 0:
-        d = -d
+    d = opening_direction(False, center[i], pred.direction[k], center[i], center[j])
     o = center[i].copy()
     if lab == _PR:
         o = np.asarray(pred.origin[k], dtype=np.float64)

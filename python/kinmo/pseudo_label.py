@@ -118,9 +118,12 @@ class PseudoLabelConfig(BaseModel):
     refine : RefineConfig
         Candidate, motion and scoring options.
     hinge_limit : (float, float)
-        Limits written for predicted hinges (degrees).
+        Fallback limits of predicted hinges (degrees), used where no range is predicted: the
+        refinement has no range prior (``refine.ranges``), or the prior no group for the
+        joint (issue 35, :mod:`kinmo.ranges`).
     slider_fraction : float
-        Predicted sliders move ``0 .. slider_fraction * size`` (``size``: longest OBB side).
+        Fallback of predicted sliders, likewise: ``0 .. slider_fraction * size`` (``size``:
+        longest OBB side).
     sign : {"tree", "feasibility"}
         Direction of motion of a joint: the mobility tree's rule (away from the reference
         part) or the direction the axis-selection network found feasible.
@@ -412,7 +415,10 @@ def pseudo_label_shape(
                          "position_agreement": float(det.scores.position[b]),
                          "candidate": det.kind, "n_candidates": len(det.candidates)}
                 if config.sign == "feasibility":
-                    links[n] = replace(lk, joint=replace(lk.joint, direction=det.direction.copy()))
+                    lim = lk.joint.limit
+                    if lim is not None and float(np.dot(det.direction, lk.joint.direction)) < 0:
+                        lim = (-lim[1], -lim[0])  # the range follows the axis' sign
+                    links[n] = replace(lk, joint=replace(lk.joint, direction=det.direction.copy(), limit=lim))
             i, j = (int(x) for x in graph.sibling_edges[k])
             joints.append({
                 "link": lk.id, "name": lk.name, "joint": lk.joint.type.value,

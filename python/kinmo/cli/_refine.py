@@ -104,7 +104,7 @@ class RefineOptions:
             The GNN run, the axis folder (None when there is neither an axis network nor a
             ranker; the ranker's folder when there is only a ranker) and the
             refinement configuration (the learned selector when a ranker was found, unless an
-            option of the paper's scoring is set).
+            option of the paper's scoring is set; the bundle's range prior when it has one).
 
         Raises
         ------
@@ -117,6 +117,8 @@ class RefineOptions:
 
         b = resolve_bundle(model, axis_model, self.ranker)
         rc = replace(self, ranker=b.ranker).config(b.axis)
+        if b.ranges is not None:  # the bundle's range prior (issue 35)
+            rc = rc.model_copy(update={"ranges": str(b.ranges)})
         # the learned selector needs no network (then the folder of its ranker.json stands for
         # it); the paper's does (the Predictor names a folder without one)
         axis = b.axis if b.has_axis_network or rc.selector != "ranker" else Path(rc.ranker).parent

@@ -23,8 +23,8 @@ def predict_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
     device: str = typer.Option("auto", "--device", callback=_values.device, help="auto, cpu, cuda ..."),
-    hinge_max: float = typer.Option(90.0, "--hinge-max", callback=_values.angle_deg, help="Upper limit of predicted hinges (degrees)."),
-    slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, callback=_values.finite, help="Slider range as a fraction of the part's size."),
+    hinge_max: float = typer.Option(90.0, "--hinge-max", callback=_values.angle_deg, help="Upper limit of predicted hinges (degrees) where no range is predicted (a model without a range prior, or a joint it has no group for)."),
+    slider_fraction: float = typer.Option(0.3, "--slider-fraction", min=0.0, callback=_values.finite, help="Slider range as a fraction of the part's size, where no range is predicted (as --hinge-max)."),
     render: bool = typer.Option(False, "--render", help="Also write OUT/<id>/prediction.png."),
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis`: refine the predicted axes (paper Sec. 3.3)."),  # noqa: UP007
     refine: RefineOptions = REFINE,

@@ -31,6 +31,14 @@ For every test shape (PartNet-Mobility, ground truth from its part graph) and ev
   point-to-line distance when they are parallel), for matched joints whose true joint
   rotates, divided by the shape's scale.
 
+**Ranges** (kinmo, issue 35; :mod:`kinmo.metrics.motion_range`), for matched joints of the
+right kind whose axis is within 20° of the truth: ``range_iou_hinge`` / ``range_iou_slider``
+(mean range IoU; a continuous prediction of a limited hinge counts as the full turn
+``[-180, 180]``), ``range_ok_*`` (share with IoU >= 0.5), ``range_end_hinge`` (median worst
+end-point error, degrees) and ``range_end_slider`` (the same as a fraction of the true
+travel; cylindrical joints by their translation), ``range_cont_acc`` (hinges: continuous or
+not, as the truth; the only score of a true ``noLimit`` hinge).
+
 Per category, counts are pooled over the category's shapes (accuracies, precision, recall)
 and errors averaged over its edges or joints; the ``mean`` row averages the categories
 (every category weighs the same, as in the paper's table); the ``all`` row pools every test
@@ -49,6 +57,14 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.labels import rigid_groups
 from kinmo.data.model import FINE_TO_COARSE, FINE_TYPES, Joint, JointType, Link
 from kinmo.metrics.axis import axis_angle_deg, line_distance, point_line_distance
+from kinmo.metrics.motion_range import (
+    MAX_AXIS_ANGLE_DEG,
+    continuity_correct,
+    hinge_interval,
+    onto_true_direction,
+    range_iou,
+    worst_endpoint_error,
+)
 from kinmo.mobility_tree import MobilityTree
 
 __all__ = [
@@ -75,7 +91,17 @@ METRICS: tuple[tuple[str, str, bool], ...] = (
     ("dist_edge", "dist edges (/diag)", False),
     ("angle_joint", "angle err joints (deg)", False),
     ("dist_joint", "line dist joints (/diag)", False),
+    ("range_iou_hinge", "hinge range IoU", True),
+    ("range_ok_hinge", "hinge ranges with IoU >= 0.5", True),
+    ("range_end_hinge", "hinge range worst end-point err (deg, median)", False),
+    ("range_iou_slider", "slider range IoU", True),
+    ("range_ok_slider", "slider ranges with IoU >= 0.5", True),
+    ("range_end_slider", "slider range worst end-point err (/travel, median)", False),
+    ("range_cont_acc", "hinge continuous-or-not acc", True),
 )
+
+#: A continuous prediction of a limited hinge is scored as this interval (degrees).
+_FULL_TURN = (-180.0, 180.0)
 
 _MOVING_FINE = np.array([t not in ("Fixed", "None") for t in FINE_TYPES])
 _ROT_FINE = np.array([t.startswith("R") or t.startswith("PR") for t in FINE_TYPES])
@@ -175,6 +201,33 @@ class ShapeEval:
     angle_joint: list[float] = field(default_factory=list)
     dist_joint: list[float] = field(default_factory=list)
     matches: list[tuple[int, int, float]] = field(default_factory=list)
+    range_iou: dict[str, list[float]] = field(default_factory=lambda: {"hinge": [], "slider": []})
+    range_end: dict[str, list[float]] = field(default_factory=lambda: {"hinge": [], "slider": []})
+    range_cont: list[bool] = field(default_factory=list)
+
+
+def _score_range(r: ShapeEval, a: Joint, b: Joint) -> None:
+    """Add the range scores of predicted joint ``a`` matched to true joint ``b`` (module
+    docstring, "Ranges") to ``r``."""
+    if _kind(a) != _kind(b) or a.direction is None or b.direction is None:
+        return
+    if float(axis_angle_deg(a.direction, b.direction)) > MAX_AXIS_ANGLE_DEG:
+        return
+    if b.type is JointType.HINGE:
+        t = None if b.limit is None else hinge_interval(*b.limit)
+        p = None if a.limit is None else hinge_interval(*onto_true_direction(a.limit, a.direction, b.direction))
+        r.range_cont.append(continuity_correct(p is None, t is None))
+        if t is None:
+            return
+        p = p or _FULL_TURN
+        r.range_iou["hinge"].append(range_iou(p, t))
+        r.range_end["hinge"].append(worst_endpoint_error(p, t))
+        return
+    if b.limit is None or a.limit is None:
+        return
+    p = onto_true_direction(a.limit, a.direction, b.direction)
+    r.range_iou["slider"].append(range_iou(p, b.limit))
+    r.range_end["slider"].append(worst_endpoint_error(p, b.limit, relative=True))
 
 
 def evaluate_shape(graph: PartGraph, probs: np.ndarray, direction: np.ndarray,
@@ -240,6 +293,7 @@ def evaluate_shape(graph: PartGraph, probs: np.ndarray, direction: np.ndarray,
         r.angle_joint.append(float(axis_angle_deg(a.direction, b.direction)))
         if _kind(b) in ("R", "PR"):
             r.dist_joint.append(float(line_distance(a.origin, a.direction, b.origin, b.direction)) / scale)
+        _score_range(r, a, b)
     return r
 
 
@@ -268,6 +322,13 @@ def aggregate(rows: Sequence[ShapeEval]) -> dict[str, float]:
         "angle_joint": nanmean([a for r in rows for a in r.angle_joint]),
         "dist_joint": nanmean([a for r in rows for a in r.dist_joint]),
     }
+    for kind in ("hinge", "slider"):
+        ious = [x for r in rows for x in r.range_iou[kind]]
+        ends = [x for r in rows for x in r.range_end[kind] if not math.isnan(x)]
+        out[f"range_iou_{kind}"] = nanmean(ious)
+        out[f"range_ok_{kind}"] = float(np.mean(np.asarray(ious) >= 0.5)) if ious else float("nan")
+        out[f"range_end_{kind}"] = float(np.median(ends)) if ends else float("nan")
+    out["range_cont_acc"] = nanmean([float(c) for r in rows for c in r.range_cont])
     return out
 
 

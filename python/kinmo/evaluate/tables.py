@@ -24,6 +24,9 @@ SHORT = {
     "edge_acc": "acc", "moving_edge_acc": "acc mov", "joint_type_acc": "acc jnt",
     "precision": "prec", "recall": "rec", "angle_edge": "ang e°", "dist_edge": "dist e",
     "angle_joint": "ang j°", "dist_joint": "dist j",
+    "range_iou_hinge": "rIoU h", "range_ok_hinge": "r≥.5 h", "range_end_hinge": "rEnd h°",
+    "range_iou_slider": "rIoU s", "range_ok_slider": "r≥.5 s", "range_end_slider": "rEnd s",
+    "range_cont_acc": "cont",
 }
 
 #: The paper's Table 1 means of its GNN (fine / coarse types): angle error (degrees) and
@@ -40,6 +43,8 @@ def _fmt(key: str, v: float) -> str:
         return "–"
     if key.startswith("angle"):
         return f"{v:.2f}"
+    if key == "range_end_hinge":
+        return f"{v:.1f}"
     if key.startswith("dist"):
         return f"{v:.3f}"
     return f"{v:.3f}"
@@ -127,7 +132,11 @@ def print_report(report: EvalReport, console) -> None:
         t = Table(title=f"{m}: pre-segmented motion prediction (Table 1)",
                   caption="acc: type accuracy over sibling edges / moving edges / matched joints; "
                           "prec, rec: mobile-part detection (IoU >= 0.5); ang: axis angle error "
-                          "(deg); dist: axis distance / bbox diagonal; e: edges, j: joints")
+                          "(deg); dist: axis distance / bbox diagonal; e: edges, j: joints; rIoU: "
+                          "joint range IoU, r≥.5: share of ranges with IoU >= 0.5, rEnd: median "
+                          "worst end-point error (h: hinges, degrees; s: sliders, / true travel), "
+                          "cont: continuous-or-not accuracy of hinges (matched joints of the right "
+                          "type within 20° of the true axis)")
         t.add_column("category", no_wrap=True)
         t.add_column("n", justify="right")
         for key, _, _ in METRICS:

@@ -9,6 +9,8 @@ Layout of a bundle folder (written by :func:`write_bundle`, e.g. ``runs/all/mode
     gnn/             the motion-GNN run (model.pt: weights, config, semantic vocabulary)
     axis/            optional: the axis-selection network run (model.pt ...)
     ranker.json      optional: the learned selector, with its semantic direction prior
+    ranges.json      optional: the range-of-motion prior (issue 35; key "ranges" in
+                     bundle.json, absent in older bundles)
 
 :func:`resolve_bundle` also accepts what users passed before bundles existed: a GNN run
 folder (or ``model.pt``) with ``--axis-model`` / ``--ranker``. A ranker is then looked for
@@ -53,6 +55,8 @@ class ModelBundle:
         Shape ids the models were trained on (empty when unknown).
     root : Path or None
         The bundle folder (None for a GNN run given alone).
+    ranges : Path or None
+        ``ranges.json``, the range-of-motion prior (:class:`kinmo.ranges.RangePrior`), if any.
     """
 
     gnn: Path
@@ -60,6 +64,7 @@ class ModelBundle:
     ranker: Path | None = None
     trained_on: tuple[str, ...] = field(default=())
     root: Path | None = None
+    ranges: Path | None = None
 
     @property
     def has_axis_network(self) -> bool:
@@ -120,7 +125,7 @@ def read_bundle(path: str | Path) -> ModelBundle:
     if not isinstance(ids, list) or not all(isinstance(i, str) for i in ids):
         raise KinmoDataError(f, "malformed model bundle: 'trained_on' must be a list of ids")
     return ModelBundle(part("gnn", True), part("axis", False), part("ranker", False),  # type: ignore[arg-type]
-                       tuple(ids), root)
+                       tuple(ids), root, part("ranges", False))
 
 
 def resolve_bundle(model: str | Path, axis_model: str | Path | None = None,
@@ -156,11 +161,12 @@ def resolve_bundle(model: str | Path, axis_model: str | Path | None = None,
     axis = Path(axis_model) if axis_model is not None else b.axis
     rk = Path(ranker) if ranker is not None else (
         b.ranker if b.ranker is not None and axis_model is None else find_ranker(axis) or b.ranker)
-    return ModelBundle(b.gnn, axis, rk, b.trained_on, b.root)
+    return ModelBundle(b.gnn, axis, rk, b.trained_on, b.root, b.ranges)
 
 
 def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = None,
-                 ranker: str | Path | None = None, trained_on: Sequence[str] = ()) -> ModelBundle:
+                 ranker: str | Path | None = None, trained_on: Sequence[str] = (),
+                 ranges: str | Path | None = None) -> ModelBundle:
     """Write a bundle folder (module docstring) by copying the trained parts into ``out``.
 
     Parameters
@@ -176,6 +182,8 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
         ``ranker.json`` of ``kinmo train ranker``.
     trained_on : sequence of str
         Shape ids the models were trained on (the training split).
+    ranges : str or Path, optional
+        ``ranges.json``, the range-of-motion prior (:meth:`kinmo.ranges.RangePrior.save`).
 
     Returns
     -------
@@ -194,6 +202,8 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
         raise KinmoDataError(gnn_pt, "motion-GNN weights missing (run `kinmo train gnn`)")
     if ranker is not None and not Path(ranker).is_file():
         raise KinmoDataError(Path(ranker), "ranker file missing (run `kinmo train ranker`)")
+    if ranges is not None and not Path(ranges).is_file():
+        raise KinmoDataError(Path(ranges), "range prior missing (run `kinmo train all`)")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.{os.getpid()}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
@@ -216,11 +226,14 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
                 axis = None
         if ranker is not None:
             shutil.copy2(ranker, tmp / "ranker.json")
+        if ranges is not None:
+            shutil.copy2(ranges, tmp / "ranges.json")
         selector = "ranker" if ranker is not None else ("paper" if axis is not None else "none")
         write_json(tmp / BUNDLE_FILE, {
             "format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "gnn": "gnn",
             "axis": "axis" if axis is not None else None,
             "ranker": "ranker.json" if ranker is not None else None,
+            "ranges": "ranges.json" if ranges is not None else None,
             "selector": selector, "trained_on": sorted(str(i) for i in trained_on),
         })
         if out.exists():

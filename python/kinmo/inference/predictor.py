@@ -12,8 +12,13 @@ and call :meth:`Predictor.predict`. The rule of which selector is used lives her
   al. 2023, Sec. 3.3); the ablation switch (``--paper-selector``).
 - ``"none"``: the GNN's axes as predicted.
 
-Meshes: the learned selector's sweep features need the shape's leaf meshes. A caller that
-has them passes them (:class:`kinmo.refine.selector.ShapeMeshes`, or a callable returning
+Ranges (issue 35): with a range prior (the bundle's ``ranges.json``, or
+``RefineConfig.ranges``), every predicted moving joint gets a learned range clipped by a sweep
+of its part (:func:`kinmo.ranges.predict_ranges`), after the selector; without one the tree's
+default ranges (:class:`~kinmo.mobility_tree.TreeOptions`) stay.
+
+Meshes: the learned selector's sweep features and the range sweep need the shape's leaf
+meshes. A caller that has them passes them (:class:`kinmo.refine.selector.ShapeMeshes`, or a callable returning
 them); otherwise they are read from the graph's source folder, and when that fails a
 warning names the shape (never a silent fallback).
 
@@ -33,6 +38,7 @@ from kinmo.errors import KinmoDataError
 from kinmo.inference.bundle import ModelBundle, resolve_bundle
 from kinmo.inference.gnn import predict_graphs
 from kinmo.mobility_tree import ShapePrediction, TreeOptions
+from kinmo.ranges import RangePrior, predict_ranges
 from kinmo.refine.axis_io import load_axis_model
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.ranker import load_ranker
@@ -74,6 +80,8 @@ class Predictor:
         Limits of the mobility tree.
     bundle : ModelBundle or None
         Where the parts came from.
+    ranges : RangePrior or None
+        The range-of-motion prior (issue 35); None: the default ranges of ``options``.
     """
 
     run: Run
@@ -81,6 +89,7 @@ class Predictor:
     refine: RefineConfig | None = None
     options: TreeOptions = TreeOptions()
     bundle: ModelBundle | None = None
+    ranges: RangePrior | None = None
 
     @classmethod
     def from_parts(cls, run: str | Path | Run, axis_model: str | Path | None = None,
@@ -92,6 +101,7 @@ class Predictor:
         The axis network is loaded only when the configuration needs it (the paper
         selector); the learned selector (``refine_config.selector == "ranker"``) uses it
         only when its weights are present. Without ``axis_model`` no refinement is done.
+        ``refine_config.ranges`` names the range prior, loaded here once.
 
         Raises
         ------
@@ -100,17 +110,18 @@ class Predictor:
         """
         r = run if isinstance(run, Run) else load_run(run, device)
         cfg = refine_config or RefineConfig()
+        ranges = RangePrior.load(cfg.ranges) if cfg.ranges else None
         if axis_model is None:
             if refine_config is not None and cfg.selector == "ranker":
-                return cls(r, None, cfg, options)  # the learned selector needs no network
-            return cls(r, None, None, options)
+                return cls(r, None, cfg, options, ranges=ranges)  # the learned selector needs no network
+            return cls(r, None, None, options, ranges=ranges)
         axis = Path(axis_model)
         has_net = _has_net(axis)
         if cfg.selector != "ranker" and not has_net:
             raise KinmoDataError(axis / "model.pt", "no axis network for the paper's scoring; give "
                                  "a run of `kinmo train axis` or a ranker")
         net = load_axis_model(axis, _axis_device(r)) if has_net else None
-        return cls(r, net, cfg, options)
+        return cls(r, net, cfg, options, ranges=ranges)
 
     @classmethod
     def from_bundle(cls, model: str | Path, device: str = "auto", selector: SelectorName = "auto",
@@ -146,8 +157,10 @@ class Predictor:
         if selector == "paper" and not b.has_axis_network:
             raise KinmoDataError(b.root or b.gnn, "no axis network for the paper's selector")
         base = refine_config or RefineConfig()
+        if b.ranges is not None and base.ranges is None:
+            base = base.model_copy(update={"ranges": str(b.ranges)})
         if selector == "none":
-            p = cls.from_parts(b.gnn, None, None, options, device)
+            p = cls.from_parts(b.gnn, None, RefineConfig(ranges=base.ranges), options, device)
         else:
             extra = ({"selector": "ranker", "ranker": str(b.ranker)} if selector == "ranker"
                      else {"selector": "paper", "ranker": None})
@@ -169,17 +182,20 @@ class Predictor:
                "none": "no refinement (GNN axes)"}[self.selector]
         return f"model {src}: motion GNN + {sel}"
 
+    def _ranker_meshes(self) -> bool:
+        return (self.refine is not None and self.refine.selector == "ranker"
+                and ranker_needs_meshes(load_ranker(str(self.refine.ranker))))
+
     def _meshes(self, graph: PartGraph, meshes: MeshSource) -> ShapeMeshes | None:
-        if self.refine is None or self.refine.selector != "ranker":
-            return None
-        if not ranker_needs_meshes(load_ranker(str(self.refine.ranker))):
+        if not self._ranker_meshes() and self.ranges is None:
             return None
         m = meshes(graph) if callable(meshes) else meshes
         if m is None:
             m = shape_meshes(graph)
         if m is None:
             logger.warning("%s: no meshes (source %s unreadable or not matching the graph): the "
-                           "ranker's sweep features use the point proxy", graph.shape_id,
+                           "ranker's sweep features use the point proxy, joint ranges are not swept",
+                           graph.shape_id,
                            graph.meta.get("source", "unknown"))
         return m
 
@@ -187,12 +203,17 @@ class Predictor:
                             options: TreeOptions | None = None
                             ) -> tuple[ShapePrediction, RefinedPredictions | None]:
         """The selector's refinement of a GNN prediction (:func:`kinmo.inference.gnn.predict_graphs`
-        of this predictor's run), its mobility tree rebuilt, with the per-edge details
+        of this predictor's run), its mobility tree rebuilt and its joints given ranges (with a
+        range prior), with the per-edge details
         (:class:`~kinmo.refine.refine.RefinedPredictions`; None without a refinement)."""
-        if self.refine is None:
-            return pred, None
-        return refine_shape_prediction(pred, self.axis_net, self.refine, options or self.options,
-                                       meshes=self._meshes(pred.graph, meshes))
+        m = self._meshes(pred.graph, meshes)
+        det = None
+        if self.refine is not None:
+            pred, det = refine_shape_prediction(pred, self.axis_net, self.refine, options or self.options,
+                                                meshes=m if self._ranker_meshes() else None)
+        if self.ranges is not None:
+            pred = predict_ranges(pred, self.ranges, m, seed=self.refine.seed if self.refine else 0)
+        return pred, det
 
     def refine_prediction(self, pred: ShapePrediction, meshes: MeshSource = None) -> ShapePrediction:
         """:meth:`refine_with_details` without the details."""

@@ -30,6 +30,8 @@ from kinmo.pipeline.stages import PipelineResult, StageTiming, _Clock, _stage, m
 from kinmo.prepare import PrepareConfig, prepare_dataset
 from kinmo.progress import CountingBar, console as new_console, literal
 from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
+from kinmo.ranges import fit_range_prior
+from kinmo.ranges.prior import PRIOR_VERSION
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.train import preset_config as axis_preset, train_axis_model
 from kinmo.report import write_report
@@ -213,8 +215,33 @@ class _Context:
         self.res.stages["split"] = [str(split_file)]
         return split_file, hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]
 
+    def range_prior(self, v: _Variant, base: dict[str, Any], graphs: Callable[[], Any],
+                    split_file: Path) -> Path:
+        """The ``fit range prior`` stage (issue 35): :func:`kinmo.ranges.fit_range_prior` of
+        the split's training graphs into ``out/ranges/ranges.json``.
+
+        Returns
+        -------
+        Path
+            The prior file.
+        """
+        folder = v.out / "ranges"
+        out = folder / "ranges.json"
+
+        def fit() -> None:
+            data = graphs()
+            train = set(Split.load(split_file).train)
+            every = load_cache(data) if isinstance(data, (str, Path)) else data
+            folder.mkdir(parents=True, exist_ok=True)
+            fit_range_prior(g for g in every if g.shape_id in train).save(out)
+
+        self.stage(folder, {**base, "ranges": PRIOR_VERSION, "split": file_fingerprint(split_file)}, fit,
+                   f"{v.prefix}fit range prior")
+        self.res.stages[f"{v.prefix}ranges"] = [str(out)]
+        return out
+
     def bundle(self, v: _Variant, base: dict[str, Any], gnn: Path, axis: Path | None,
-               ranker: Path | None, split_file: Path) -> Path:
+               ranker: Path | None, split_file: Path, ranges: Path | None = None) -> Path:
         """The ``model bundle`` stage: ``out/model/`` (:func:`kinmo.inference.bundle.write_bundle`)
         with ``trained_on`` the split's training ids; rewritten when a part changed.
 
@@ -226,10 +253,10 @@ class _Context:
 
         folder = v.out / "model"
         parts = [gnn / "model.pt", *([axis / "model.pt"] if axis is not None else []),
-                 *([ranker] if ranker is not None else [])]
+                 *([ranker] if ranker is not None else []), *([ranges] if ranges is not None else [])]
         key = {**base, "bundle": {str(p): file_fingerprint(p) for p in parts if p.is_file()}}
         self.stage(folder, key, lambda: write_bundle(
-            folder, gnn, axis, ranker, Split.load(split_file).train), f"{v.prefix}model bundle")
+            folder, gnn, axis, ranker, Split.load(split_file).train, ranges), f"{v.prefix}model bundle")
         self.res.stages[f"{v.prefix}model"] = [str(folder)]
         return folder
 
@@ -372,11 +399,14 @@ class _Context:
         # 5. the learned candidate selector (kinmo extension)
         ranker = self.ranker(v, base)
 
-        refine = (RefineConfig(selector="ranker", ranker=str(ranker)) if ranker is not None else RefineConfig())
+        # 5a. the range-of-motion prior (issue 35): learned ranges, clipped by a sweep at prediction
+        ranges = self.range_prior(v, base, graphs, split_file)
+        refine = (RefineConfig(selector="ranker", ranker=str(ranker), ranges=str(ranges)) if ranker is not None
+                  else RefineConfig(ranges=str(ranges)))
 
-        # 5b. the model bundle (issue 22): GNN (fine), axis network, ranker and the training
-        # ids in one folder that `--model` accepts whole (learned selector by default)
-        self.bundle(v, base, gnn_runs["fine"], axis_dir if cfg.refine else None, ranker, split_file)
+        # 5b. the model bundle (issue 22): GNN (fine), axis network, ranker, range prior and the
+        # training ids in one folder that `--model` accepts whole (learned selector by default)
+        self.bundle(v, base, gnn_runs["fine"], axis_dir if cfg.refine else None, ranker, split_file, ranges)
 
         # 6. Table 1 on the held-out pre-segmented shapes (always the real labelled ones),
         # with renders of the predictions for the report's gallery; with the learned
@@ -548,7 +578,9 @@ class _Context:
         ranker = cfg.out / "ranker" / "ranker.json"
         v = _Variant(out=vout, graphs=caches, split=split_file, labeled=cfg.labeled, unlabeled=None,
                      unlabeled_cache=None, key={}, prefix="release: ")
-        return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, split_file)
+        ranges = self.range_prior(v, base, lambda: cache_l, split_file)  # labelled objects only
+        return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, split_file,
+                           ranges)
 
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into

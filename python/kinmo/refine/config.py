@@ -75,6 +75,11 @@ class RefineConfig(BaseModel):
     ranker : str or None
         Path of the ranker file (``ranker.json``, :func:`kinmo.refine.ranker.load_ranker`);
         required by ``selector="ranker"``.
+    ranges : str or None
+        kinmo extension (issue 35): path of the range-of-motion prior (``ranges.json``,
+        :class:`kinmo.ranges.RangePrior`); after the selector, every moving joint gets its
+        learned range clipped by a sweep (:func:`kinmo.ranges.predict_ranges`). None: the
+        mobility tree's default ranges.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -94,6 +99,7 @@ class RefineConfig(BaseModel):
     merge_distance: float = Field(0.02, ge=0)
     selector: Literal["paper", "ranker"] = "paper"
     ranker: str | None = None
+    ranges: str | None = None
 
     @model_validator(mode="after")
     def _ranker_path(self) -> RefineConfig:

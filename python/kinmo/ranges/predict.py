@@ -1,0 +1,167 @@
+"""A range for every predicted moving joint: the learned prior, clipped by a swept-collision test.
+
+For each hinge or slider of a predicted mobility tree (:mod:`kinmo.mobility_tree`; its axis
+oriented so that a positive value opens the part):
+
+1. **Learned range.** The :class:`~kinmo.ranges.prior.RangePrior` group of the joint's kind,
+   the shape's category and the link's name (most specific first). Hinges of a group whose
+   joints mostly turn freely stay continuous (``limit=None``). Slider ranges are scaled by
+   the moving part's extent along the axis (:func:`~kinmo.ranges.prior.axial_extent`).
+2. **Closed ends from geometry.** The moving link (with every link hanging from it) is swept
+   about / along the axis in both directions from the rest pose against the rest of the
+   object (:class:`kinmo.geometry.SweepObstacle`, parry; contact and interpenetration at rest
+   do not count, its module docstring): hinges over a full turn in :data:`HINGE_STEPS`
+   steps, sliders over ``max(2, 1.25 x the learned end)`` extents in :data:`SLIDER_STEPS`.
+   The first blocking contact on each side bounds that side: ``hi <= free(+)``,
+   ``lo >= -free(-)``.
+3. **Fallbacks.** A part blocked on both sides within 5 % of the learned range (or whose
+   sweep cannot run: no meshes) keeps the learned range, with one warning line naming the
+   object and part; a part free in both directions keeps the learned range unclipped; a
+   joint no group covers keeps the tree's default range (:class:`~kinmo.mobility_tree.TreeOptions`,
+   ``--hinge-max`` / ``--slider-fraction``). A range is never empty or NaN: at least
+   :data:`MIN_HINGE_SPAN_DEG` degrees, or :data:`MIN_SLIDER_SPAN` extents.
+
+Frames and units: mesh frame (PartNet is y-up), degrees for hinges, mesh units for sliders.
+Deterministic: the moving points are subsampled with a fixed seed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+
+import numpy as np
+
+from kinmo.data.model import JointType, Link
+from kinmo.geometry.sweep import PRISMATIC, REVOLUTE, SweepObstacle
+from kinmo.mobility_tree import ShapePrediction
+from kinmo.ranges.prior import RangePrior, axial_extent
+
+__all__ = ["HINGE_STEPS", "MIN_HINGE_SPAN_DEG", "MIN_SLIDER_SPAN", "SLIDER_STEPS", "SWEEP_POINTS",
+           "free_extents", "predict_ranges"]
+
+logger = logging.getLogger(__name__)
+
+#: Sweep increments over a full turn (5 degrees each).
+HINGE_STEPS = 72
+#: Sweep increments of a slider per sign.
+SLIDER_STEPS = 48
+#: Moving points swept (a fixed-seed subsample of the part's samples).
+SWEEP_POINTS = 512
+#: Smallest hinge range (degrees) and slider range (fraction of the axial extent).
+MIN_HINGE_SPAN_DEG = 1.0
+MIN_SLIDER_SPAN = 0.01
+#: A clipped range narrower than this share of the learned one means "blocked everywhere".
+BLOCKED_SHARE = 0.05
+
+
+def _subtree(links: list[Link], lid: int) -> set[int]:
+    out = {lid}
+    grew = True
+    while grew:
+        grew = False
+        for lk in links:
+            if lk.parent in out and lk.id not in out:
+                out.add(lk.id)
+                grew = True
+    return out
+
+
+def free_extents(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray,
+                 direction: np.ndarray, revolute: bool, reach: float) -> tuple[float, float]:
+    """How far a part moves freely from rest in each direction.
+
+    Parameters
+    ----------
+    obstacle : SweepObstacle
+        The rest of the object.
+    points : (P, 3) float64
+        The moving part's surface points (mesh frame).
+    origin, direction : (3,) float64
+        The axis (direction as oriented by the tree).
+    revolute : bool
+    reach : float
+        Sweep range per sign: radians (at most 2π) or mesh units.
+
+    Returns
+    -------
+    (float, float)
+        Free extent along ``+direction`` and along ``-direction``: degrees for hinges, mesh
+        units for sliders; ``reach`` (in those units) when never blocked.
+    """
+    steps = HINGE_STEPS if revolute else SLIDER_STEPS
+    free, _ = obstacle.sweep(points, np.asarray(origin, float)[None], np.asarray(direction, float)[None],
+                             np.array([REVOLUTE if revolute else PRISMATIC]), np.array([reach]),
+                             n_steps=steps)
+    ext = free[0] * reach
+    if revolute:
+        ext = np.degrees(ext)
+    return float(ext[0]), float(ext[1])
+
+
+def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: int = 0) -> ShapePrediction:
+    """The prediction with a range on every moving joint the prior covers (module docstring).
+
+    Parameters
+    ----------
+    pred : ShapePrediction
+        Its tree's joints carry the default ranges.
+    prior : RangePrior
+    meshes : kinmo.refine.selector.ShapeMeshes or None
+        The shape's leaf meshes (mesh frame); None: no sweep (the learned ranges, one warning).
+    seed : int
+        Subsampling seed of the swept points.
+
+    Returns
+    -------
+    ShapePrediction
+        A copy whose tree's links carry the new joints (same ids, names, parts).
+    """
+    g, tree = pred.graph, pred.tree
+    leaves = np.flatnonzero(g.is_leaf)
+    leaf_link = np.asarray(tree.leaf_link)[leaves]
+    links = list(tree.links)
+    out: list[Link] = []
+    warned_meshes = False
+    for lk in links:
+        j = lk.joint
+        if not j.is_moving or j.direction is None:
+            out.append(lk)
+            continue
+        hinge = j.type is JointType.HINGE
+        entry = prior.lookup("hinge" if hinge else "slider", g.category, lk.name)
+        if entry is None:
+            out.append(lk)
+            continue
+        if hinge and entry.is_continuous:
+            out.append(dataclasses.replace(lk, joint=dataclasses.replace(j, limit=None)))
+            continue
+        moving = leaves[np.isin(leaf_link, list(_subtree(links, lk.id)))]
+        rest = np.setdiff1d(leaves, moving)
+        pts = np.asarray(g.points[moving], dtype=np.float64).reshape(-1, 3)
+        if len(pts) > SWEEP_POINTS:
+            pts = pts[np.sort(np.random.default_rng(seed).choice(len(pts), SWEEP_POINTS, replace=False))]
+        unit = 1.0 if hinge else axial_extent(pts, j.direction, g.scale)
+        lo, hi = float(entry.lo) * unit, float(entry.hi) * unit  # type: ignore[arg-type]
+        if meshes is None or not len(rest) or not len(pts):
+            if meshes is None and not warned_meshes:
+                logger.warning("%s: no meshes, joint ranges are the learned ones (no sweep)", g.shape_id)
+                warned_meshes = True
+        else:
+            reach = 2 * math.pi if hinge else max(2.0, 1.25 * max(abs(entry.lo), abs(entry.hi))) * unit  # type: ignore[arg-type]
+            obstacle = SweepObstacle(*meshes.union(rest))
+            e_pos, e_neg = free_extents(obstacle, pts, j.origin, j.direction, hinge, reach)
+            c_lo, c_hi = max(lo, -e_neg), min(hi, e_pos)
+            if c_hi - c_lo > BLOCKED_SHARE * (hi - lo):
+                lo, hi = c_lo, c_hi
+            else:
+                logger.warning("%s: part %r collides at every state of its learned range; keeping "
+                               "that range", g.shape_id, lk.name)
+        span = MIN_HINGE_SPAN_DEG if hinge else MIN_SLIDER_SPAN * unit
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            lo, hi = 0.0, span
+        if hi - lo < span:
+            hi = lo + span
+        out.append(dataclasses.replace(lk, joint=dataclasses.replace(j, limit=(float(lo), float(hi)))))
+    return dataclasses.replace(pred, tree=dataclasses.replace(tree, links=out))

@@ -1,0 +1,108 @@
+"""Predicted ranges: the learned prior clipped by a sweep (kinmo.ranges.predict, issue 35)."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+import pytest
+import trimesh
+from motion_cabinet import cabinet_graph, oracle_prediction
+
+from kinmo.mobility_tree import ShapePrediction, build_mobility_tree
+from kinmo.ranges import RangeEntry, RangePrior, predict_ranges
+from kinmo.refine.selector import ShapeMeshes
+
+
+def _prediction(seed: int = 0) -> ShapePrediction:
+    g = cabinet_graph(n_points=256, seed=seed)
+    e = oracle_prediction(g)
+    return ShapePrediction(g, e, build_mobility_tree(g, e), ())
+
+
+def _meshes(g) -> ShapeMeshes:
+    """Each leaf as the box its surface points span (the cabinet's geometry)."""
+    out = {}
+    for k in np.flatnonzero(g.is_leaf):
+        p = np.asarray(g.points[k], float)
+        lo, hi = p.min(0), p.max(0)
+        m = trimesh.creation.box(extents=hi - lo, transform=trimesh.transformations.translation_matrix((lo + hi) / 2))
+        out[int(k)] = (np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
+    return ShapeMeshes(out)
+
+
+def _prior(*entries) -> RangePrior:
+    return RangePrior([RangeEntry(*e) for e in entries])
+
+
+def _limits(pred):
+    return {lk.name: lk.joint.limit for lk in pred.tree.moving_links}
+
+
+def test_the_sweep_closes_the_blocked_side_and_keeps_the_learned_open_end():
+    p = _prediction()
+    prior = _prior(("hinge", None, None, 5, 0.0, -90.0, 120.0), ("slider", None, None, 5, 0.0, -0.5, 1.0))
+    out = predict_ranges(p, prior, _meshes(p.graph))
+    door, drawer = _limits(out)["door"], _limits(out)["drawer"]
+    # the door cannot turn into the body (the tree's axis opens it outwards): closed at ~0
+    assert -10.0 <= door[0] <= 0.0 and door[1] == pytest.approx(120.0)
+    # the drawer cannot be pushed into the body (beyond the contact skin, 0.5 % of the
+    # diagonal); it pulls out one depth (its extent along the axis, 0.06)
+    ext = np.ptp(p.graph.points[[4, 5]].reshape(-1, 3)[:, 2])
+    assert -0.01 * p.graph.scale <= drawer[0] <= 0.0 and drawer[1] == pytest.approx(ext, rel=0.05)
+    # the other parts of the prediction are untouched
+    assert out.tree.leaf_link.tolist() == p.tree.leaf_link.tolist()
+    assert [lk.joint.direction.tolist() for lk in out.tree.moving_links] == \
+           [lk.joint.direction.tolist() for lk in p.tree.moving_links]
+
+
+def test_the_sweep_bounds_a_learned_range_that_would_pass_through_the_body():
+    p = _prediction()
+    out = predict_ranges(p, _prior(("hinge", None, None, 5, 0.0, 0.0, 300.0)), _meshes(p.graph))
+    lo, hi = _limits(out)["door"]
+    # hinged at the body's front-left edge, the door swings out, past the half turn (flat
+    # beside the body), until it meets the body's left side at about three quarters of a turn
+    assert lo == 0.0 and 240.0 <= hi <= 275.0
+
+
+def test_continuous_groups_stay_continuous_and_unknown_joints_keep_the_default():
+    p = _prediction()
+    out = predict_ranges(p, _prior(("hinge", None, "door", 5, 0.8, 0.0, 90.0)), _meshes(p.graph))
+    lim = _limits(out)
+    assert lim["door"] is None
+    assert lim["drawer"] == _limits(p)["drawer"]  # no slider group: the tree's default
+
+
+def test_without_meshes_the_learned_range_is_kept_with_one_warning(caplog):
+    p = _prediction()
+    with caplog.at_level(logging.WARNING):
+        out = predict_ranges(p, _prior(("hinge", None, None, 5, 0.0, -90.0, 120.0),
+                                       ("slider", None, None, 5, 0.0, -0.5, 1.0)), None)
+    assert _limits(out)["door"] == (-90.0, 120.0)
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 1 and "cabinet0" in lines[0] and "no meshes" in lines[0]
+
+
+def test_blocked_everywhere_keeps_the_learned_range_with_a_warning_naming_the_part(caplog):
+    p = _prediction()
+    # a learned range entirely on the closing side of the door: blocked at every state
+    with caplog.at_level(logging.WARNING):
+        out = predict_ranges(p, _prior(("hinge", None, "door", 5, 0.0, -120.0, -30.0)), _meshes(p.graph))
+    assert _limits(out)["door"] == (-120.0, -30.0)
+    assert any("'door'" in r.getMessage() and "cabinet0" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.parametrize("lo, hi", [(0.0, 0.0), (5.0, 5.0)])
+def test_a_range_is_never_empty_or_nan(lo, hi):
+    p = _prediction()
+    out = predict_ranges(p, _prior(("hinge", None, None, 5, 0.0, lo, hi), ("slider", None, None, 5, 0.0, lo, hi)),
+                         _meshes(p.graph))
+    for a, b in _limits(out).values():
+        assert math.isfinite(a) and math.isfinite(b) and b > a
+
+
+def test_deterministic():
+    p = _prediction()
+    prior = _prior(("hinge", None, None, 5, 0.0, -90.0, 150.0), ("slider", None, None, 5, 0.0, -0.5, 1.5))
+    assert _limits(predict_ranges(p, prior, _meshes(p.graph))) == _limits(predict_ranges(p, prior, _meshes(p.graph)))

@@ -1,0 +1,102 @@
+"""The learned range prior (kinmo.ranges.prior, issue 35)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from motion_cabinet import cabinet_graph
+
+from kinmo.errors import KinmoDataError
+from kinmo.ranges import RangeEntry, RangePrior, fit_range_prior, true_ranges
+
+
+def _with_limits(g, door, drawer, door_dir=(0.0, 1.0, 0.0)):
+    links = [dict(lk) for lk in g.meta["links"]]
+    links[1]["limit"], links[1]["direction"] = door, list(door_dir)
+    links[2]["limit"] = drawer
+    g.meta = {**g.meta, "links": links}
+    return g
+
+
+def test_true_ranges_in_the_opening_sign_convention():
+    # the door (hinge at its left edge, x = -w/2) swings out of the front (+z) by a negative
+    # turn about +y: in the tree's convention (axis -y) that is a positive range
+    g = _with_limits(cabinet_graph(seed=0), [-90.0, 0.0], [0.0, 0.4])
+    door, drawer = true_ranges(g)
+    assert (door.kind, door.name, door.continuous) == ("hinge", "door", False)
+    assert (door.lo, door.hi) == pytest.approx((0.0, 90.0))
+    # the same motion annotated about -y
+    g2 = _with_limits(cabinet_graph(seed=0), [0.0, 90.0], [0.0, 0.4], door_dir=(0.0, -1.0, 0.0))
+    assert (true_ranges(g2)[0].lo, true_ranges(g2)[0].hi) == pytest.approx((0.0, 90.0))
+    # the opposite motion (into the body) stays negative
+    g3 = _with_limits(cabinet_graph(seed=0), [0.0, 90.0], [0.0, 0.4])
+    assert (true_ranges(g3)[0].lo, true_ranges(g3)[0].hi) == pytest.approx((-90.0, 0.0))
+    # slider travel in units of the drawer's extent along its axis (its depth, 0.06)
+    ext = np.ptp(g.points[[4, 5]].reshape(-1, 3) @ np.array([0.0, 0.0, 1.0]))
+    assert drawer.kind == "slider" and drawer.hi == pytest.approx(0.4 / max(ext, 0.02 * g.scale))
+
+
+def test_continuous_hinges():
+    g = _with_limits(cabinet_graph(seed=0), None, [0.0, 0.4])
+    assert true_ranges(g)[0].continuous
+    g = _with_limits(cabinet_graph(seed=0), [-180.0, 180.0], [0.0, 0.4])  # a full turn
+    assert true_ranges(g)[0].continuous
+
+
+def test_fit_takes_the_medoid_and_the_most_specific_group():
+    gs = [_with_limits(cabinet_graph(seed=s, jitter=0.1), lim, [0.0, 0.4])
+          for s, lim in enumerate(([-90.0, 0.0], [-95.0, 0.0], [-180.0, 0.0]))]
+    prior = fit_range_prior(gs)
+    e = prior.lookup("hinge", "StorageFurniture", "door")
+    assert (e.category, e.name, e.n) == ("StorageFurniture", "door", 3)
+    assert (e.lo, e.hi) == (0.0, 95.0)  # overlaps the others most: an actual range, not a mean
+    assert prior.lookup("hinge", "Laptop", "door").category is None  # by name
+    assert prior.lookup("hinge", "Laptop", "lid").name is None  # the kind alone
+    assert prior.lookup("hinge", "storagefurniture", "DOOR") is e  # case-insensitive
+    assert RangePrior().lookup("hinge", "StorageFurniture", "door") is None
+
+
+def test_save_load_round_trip(tmp_path):
+    prior = fit_range_prior([cabinet_graph(seed=0)])
+    prior.save(tmp_path / "ranges.json")
+    again = RangePrior.load(tmp_path / "ranges.json")
+    assert again.entries == prior.entries
+
+
+@pytest.mark.parametrize("entry, why", [
+    ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 10.0, "hi": 0.0}, "lo <= hi"),
+    ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": float("nan"), "hi": 1.0}, "finite"),
+    ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": 1e9}, "finite"),
+    ({"kind": "screw", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": 1.0}, "kind"),
+    ({"kind": "hinge", "n": 0, "continuous": 0.0, "lo": 0.0, "hi": 1.0}, "positive"),
+    ({"kind": "hinge", "n": 1, "continuous": 2.0, "lo": 0.0, "hi": 1.0}, "share"),
+    ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": None}, "both"),
+    ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": 1.0, "name": ["a"]}, "string"),
+])
+def test_malformed_files_get_one_clear_line(tmp_path, entry, why):
+    f = tmp_path / "ranges.json"
+    f.write_text(json.dumps({"format": "kinmo-range-prior", "version": 1, "entries": [entry]},
+                            allow_nan=True))
+    with pytest.raises(KinmoDataError, match=why) as e:
+        RangePrior.load(f)
+    assert "ranges.json" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_other_formats_and_newer_versions_are_refused(tmp_path):
+    f = tmp_path / "ranges.json"
+    f.write_text(json.dumps({"format": "something-else", "version": 1, "entries": []}))
+    with pytest.raises(KinmoDataError, match="not a range prior"):
+        RangePrior.load(f)
+    f.write_text(json.dumps({"format": "kinmo-range-prior", "version": 99, "entries": []}))
+    with pytest.raises(KinmoDataError, match="not supported"):
+        RangePrior.load(f)
+    with pytest.raises(KinmoDataError, match="missing"):
+        RangePrior.load(tmp_path / "absent.json")
+
+
+def test_entry_continuity():
+    assert RangeEntry("hinge", None, None, 4, 0.75, 0.0, 90.0).is_continuous
+    assert RangeEntry("hinge", None, None, 4, 1.0, None, None).is_continuous
+    assert not RangeEntry("hinge", None, None, 4, 0.25, 0.0, 90.0).is_continuous
