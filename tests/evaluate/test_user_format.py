@@ -3,6 +3,7 @@ user GLBs and back through `kinmo predict FILE`'s staging, moved-node sets and I
 
 from __future__ import annotations
 
+import json
 import numpy as np
 import pytest
 
@@ -129,3 +130,22 @@ def test_the_command_scores_one_object_and_names_its_outputs_on_one_line(objects
     assert r.exit_code == 0, r.output
     assert f"wrote {out / 'user_format.json'} and {out / 'user_format.md'}" in r.output
     assert (out / "user_format.md").is_file() and "| generic | 1 |" in r.output
+
+
+def test_matched_joints_are_scored_on_their_ranges_too():
+    from kinmo.data.model import Joint, JointType
+    from kinmo.evaluate.user_format import _score_one
+
+    d = np.array([0.0, 1.0, 0.0])
+    o = np.zeros(3)
+    true = [TrueJoint(1, "hinge", d, frozenset({0}), Joint(JointType.HINGE, o, d, (0.0, 90.0))),
+            TrueJoint(2, "slider", d, frozenset({1}), Joint(JointType.SLIDER, o, d, (0.0, 0.4)))]
+    # the predicted hinge about -y: its range (-45, 0) is (0, 45) about the true +y
+    pred = [PredJoint(7, "hinge", -d, frozenset({0}), Joint(JointType.HINGE, o, -d, (-45.0, 0.0))),
+            PredJoint(8, "slider", d, frozenset({1}), Joint(JointType.SLIDER, o, d, (0.0, 0.2)))]
+    row = _score_one("x", true, pred)
+    s = score([row])
+    assert s["range_iou_hinge"] == pytest.approx(0.5) and s["range_end_hinge"] == pytest.approx(45.0)
+    assert s["range_iou_slider"] == pytest.approx(0.5) and s["range_end_slider"] == pytest.approx(0.5)
+    assert s["range_cont_acc"] == 1.0 and s["range_ok_hinge"] == 1.0
+    json.dumps(row)  # rows are written to user_format.json

@@ -106,3 +106,24 @@ def test_deterministic():
     p = _prediction()
     prior = _prior(("hinge", None, None, 5, 0.0, -90.0, 150.0), ("slider", None, None, 5, 0.0, -0.5, 1.5))
     assert _limits(predict_ranges(p, prior, _meshes(p.graph))) == _limits(predict_ranges(p, prior, _meshes(p.graph)))
+
+
+def test_table1_scores_the_predicted_ranges_against_the_true_ones():
+    """Table 1's range columns (kinmo.evaluate.shape_metrics): the swept prediction of the
+    cabinet's door matches its true opening range; the tree's constant default does not."""
+    from kinmo.evaluate.shape_metrics import evaluate_graphs
+
+    g = cabinet_graph(n_points=256, seed=0)
+    links = [dict(lk) for lk in g.meta["links"]]
+    links[1]["limit"] = [-180.0, 0.0]  # about +y: the door swings out half a turn
+    g.meta = {**g.meta, "links": links}
+    e = oracle_prediction(g)
+    p = ShapePrediction(g, e, build_mobility_tree(g, e), ())
+    ranged = predict_ranges(p, _prior(("hinge", None, None, 5, 0.0, 0.0, 180.0),
+                                      ("slider", None, None, 5, 0.0, 0.0, 0.4 / 0.06)), _meshes(g))
+    rep = evaluate_graphs([g], {"default": [p], "ranged": [ranged]})
+    d, r = rep.table[("default", "all")], rep.table[("ranged", "all")]
+    assert d["range_iou_hinge"] == pytest.approx(0.5)  # 0-90 of 0-180
+    assert r["range_iou_hinge"] == pytest.approx(1.0) and r["range_end_hinge"] == pytest.approx(0.0)
+    assert r["range_iou_slider"] > 0.9 > d["range_iou_slider"]
+    assert r["range_cont_acc"] == 1.0

@@ -32,8 +32,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
 from kinmo.errors import KinmoDataError

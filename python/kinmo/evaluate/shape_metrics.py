@@ -57,14 +57,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.labels import rigid_groups
 from kinmo.data.model import FINE_TO_COARSE, FINE_TYPES, Joint, JointType, Link
 from kinmo.metrics.axis import axis_angle_deg, line_distance, point_line_distance
-from kinmo.metrics.motion_range import (
-    MAX_AXIS_ANGLE_DEG,
-    continuity_correct,
-    hinge_interval,
-    onto_true_direction,
-    range_iou,
-    worst_endpoint_error,
-)
+from kinmo.metrics.motion_range import RangeScore, score_range, summarise_ranges
 from kinmo.mobility_tree import MobilityTree
 
 __all__ = [
@@ -100,8 +93,6 @@ METRICS: tuple[tuple[str, str, bool], ...] = (
     ("range_cont_acc", "hinge continuous-or-not acc", True),
 )
 
-#: A continuous prediction of a limited hinge is scored as this interval (degrees).
-_FULL_TURN = (-180.0, 180.0)
 
 _MOVING_FINE = np.array([t not in ("Fixed", "None") for t in FINE_TYPES])
 _ROT_FINE = np.array([t.startswith("R") or t.startswith("PR") for t in FINE_TYPES])
@@ -201,33 +192,7 @@ class ShapeEval:
     angle_joint: list[float] = field(default_factory=list)
     dist_joint: list[float] = field(default_factory=list)
     matches: list[tuple[int, int, float]] = field(default_factory=list)
-    range_iou: dict[str, list[float]] = field(default_factory=lambda: {"hinge": [], "slider": []})
-    range_end: dict[str, list[float]] = field(default_factory=lambda: {"hinge": [], "slider": []})
-    range_cont: list[bool] = field(default_factory=list)
-
-
-def _score_range(r: ShapeEval, a: Joint, b: Joint) -> None:
-    """Add the range scores of predicted joint ``a`` matched to true joint ``b`` (module
-    docstring, "Ranges") to ``r``."""
-    if _kind(a) != _kind(b) or a.direction is None or b.direction is None:
-        return
-    if float(axis_angle_deg(a.direction, b.direction)) > MAX_AXIS_ANGLE_DEG:
-        return
-    if b.type is JointType.HINGE:
-        t = None if b.limit is None else hinge_interval(*b.limit)
-        p = None if a.limit is None else hinge_interval(*onto_true_direction(a.limit, a.direction, b.direction))
-        r.range_cont.append(continuity_correct(p is None, t is None))
-        if t is None:
-            return
-        p = p or _FULL_TURN
-        r.range_iou["hinge"].append(range_iou(p, t))
-        r.range_end["hinge"].append(worst_endpoint_error(p, t))
-        return
-    if b.limit is None or a.limit is None:
-        return
-    p = onto_true_direction(a.limit, a.direction, b.direction)
-    r.range_iou["slider"].append(range_iou(p, b.limit))
-    r.range_end["slider"].append(worst_endpoint_error(p, b.limit, relative=True))
+    ranges: list[RangeScore] = field(default_factory=list)
 
 
 def evaluate_shape(graph: PartGraph, probs: np.ndarray, direction: np.ndarray,
@@ -293,7 +258,9 @@ def evaluate_shape(graph: PartGraph, probs: np.ndarray, direction: np.ndarray,
         r.angle_joint.append(float(axis_angle_deg(a.direction, b.direction)))
         if _kind(b) in ("R", "PR"):
             r.dist_joint.append(float(line_distance(a.origin, a.direction, b.origin, b.direction)) / scale)
-        _score_range(r, a, b)
+        rs = score_range(a, b)
+        if rs is not None:
+            r.ranges.append(rs)
     return r
 
 
@@ -322,13 +289,7 @@ def aggregate(rows: Sequence[ShapeEval]) -> dict[str, float]:
         "angle_joint": nanmean([a for r in rows for a in r.angle_joint]),
         "dist_joint": nanmean([a for r in rows for a in r.dist_joint]),
     }
-    for kind in ("hinge", "slider"):
-        ious = [x for r in rows for x in r.range_iou[kind]]
-        ends = [x for r in rows for x in r.range_end[kind] if not math.isnan(x)]
-        out[f"range_iou_{kind}"] = nanmean(ious)
-        out[f"range_ok_{kind}"] = float(np.mean(np.asarray(ious) >= 0.5)) if ious else float("nan")
-        out[f"range_end_{kind}"] = float(np.median(ends)) if ends else float("nan")
-    out["range_cont_acc"] = nanmean([float(c) for r in rows for c in r.range_cont])
+    out.update(summarise_ranges(x for r in rows for x in r.ranges))
     return out
 
 

@@ -28,6 +28,7 @@ every node has a unique name and predictions are mapped back by name, never by o
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import shutil
@@ -39,10 +40,11 @@ from typing import Any
 import numpy as np
 
 from kinmo.data.augment import flat_groups
-from kinmo.data.model import JointType, Link, PartHierarchy, Shape
+from kinmo.data.model import Joint, JointType, Link, PartHierarchy, Shape
 from kinmo.data.build import load_shape_meshes
 from kinmo.data.readers import find_shapes, read_links, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.metrics.motion_range import RangeScore, score_range, summarise_ranges
 from kinmo.inference.predictor import Predictor
 from kinmo.io import atomic_path, write_json, write_text
 from kinmo.predict import predict_dataset
@@ -75,22 +77,26 @@ class UserNodes:
 
 @dataclass
 class TrueJoint:
-    """A true moving joint: its link, type, unit axis direction (mesh frame) and moved nodes."""
+    """A true moving joint: its link, type, unit axis direction (mesh frame), moved nodes and
+    the joint itself (its range)."""
 
     link: int
     type: str
     direction: np.ndarray
     moved: frozenset[int]
+    joint: Joint | None = None
 
 
 @dataclass
 class PredJoint:
-    """A predicted moving link: id, type, unit axis direction and the input nodes it moves."""
+    """A predicted moving link: id, type, unit axis direction, the input nodes it moves and the
+    joint itself (its range)."""
 
     link: int
     type: str
     direction: np.ndarray
     moved: frozenset[int]
+    joint: Joint | None = None
 
 
 def _clean(name: str) -> str:
@@ -202,7 +208,8 @@ def true_joints(shape: Shape, nodes: UserNodes) -> list[TrueJoint]:
         if lk.joint.type not in _MOVING or lk.joint.direction is None:
             continue
         moved = moved_nodes(nodes.leaves, _subtree_leaves(shape.links, shape.hierarchy, lk.id))
-        out.append(TrueJoint(lk.id, lk.joint.type.value, np.asarray(lk.joint.direction, float), moved))
+        out.append(TrueJoint(lk.id, lk.joint.type.value, np.asarray(lk.joint.direction, float), moved,
+                             lk.joint))
     return out
 
 
@@ -213,7 +220,8 @@ def _pred_joints(links: Sequence[Link], hierarchy: PartHierarchy,
         if lk.joint.type not in _MOVING or lk.joint.direction is None:
             continue
         moved = moved_nodes(node_leaves, _subtree_leaves(links, hierarchy, lk.id))
-        out.append(PredJoint(lk.id, lk.joint.type.value, np.asarray(lk.joint.direction, float), moved))
+        out.append(PredJoint(lk.id, lk.joint.type.value, np.asarray(lk.joint.direction, float), moved,
+                             lk.joint))
     return out
 
 
@@ -270,6 +278,7 @@ def score(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "within_5deg": float(np.mean(np.asarray(angles) <= 5.0)) if angles else float("nan"),
         "flips_over_45deg": int(np.sum(np.asarray(angles) > 45.0)) if angles else 0,
         "type_accuracy": float(np.mean(types)) if types else float("nan"),
+        **summarise_ranges(RangeScore(**s) for r in rows for s in r.get("ranges", [])),
     }
 
 
@@ -277,7 +286,10 @@ def _score_one(sid: str, true: list[TrueJoint], pred: list[PredJoint]) -> dict[s
     m = match_joints(true, pred)
     return {"id": sid, "n_true": len(true), "n_pred": len(pred),
             "angles": [acute_angle(true[i].direction, pred[j].direction) for i, j, _ in m],
-            "type_ok": [true[i].type == pred[j].type for i, j, _ in m], "error": ""}
+            "type_ok": [true[i].type == pred[j].type for i, j, _ in m],
+            "ranges": [dataclasses.asdict(x) for i, j, _ in m if pred[j].joint is not None
+                       and true[i].joint is not None
+                       and (x := score_range(pred[j].joint, true[i].joint)) is not None], "error": ""}
 
 
 @dataclass
@@ -410,9 +422,13 @@ def _row(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHier
 def results_markdown(results: dict[str, dict[str, Any]]) -> str:
     """A Markdown table of :func:`evaluate_user_format`'s scores."""
     lines = ["| input | objects | true joints | recall | mean angle (deg) | median | within 5 deg "
-             "| > 45 deg | type acc. |", "|---|---|---|---|---|---|---|---|---|"]
+             "| > 45 deg | type acc. | hinge range IoU | IoU >= 0.5 | slider range IoU | IoU >= 0.5 "
+             "| continuous acc. |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for v, s in results.items():
+        r = [s.get(k, float("nan")) for k in ("range_iou_hinge", "range_ok_hinge", "range_iou_slider",
+                                              "range_ok_slider", "range_cont_acc")]
         lines.append(f"| {v} | {s['objects']} | {s['true_joints']} | {s['recall']:.2f} | "
                      f"{s['mean_angle']:.1f} | {s['median_angle']:.1f} | {s['within_5deg']:.2f} | "
-                     f"{s['flips_over_45deg']} | {s['type_accuracy']:.2f} |")
+                     f"{s['flips_over_45deg']} | {s['type_accuracy']:.2f} | "
+                     + " | ".join(f"{x:.2f}" for x in r) + " |")
     return "\n".join(lines) + "\n"

@@ -22,13 +22,23 @@ Units: degrees for hinges, mesh units for sliders (both inputs in the same units
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
+from dataclasses import dataclass
 
 import numpy as np
 
+from kinmo.data.model import Joint, JointType
+from kinmo.metrics.axis import axis_angle_deg
 from kinmo.urdf import hinge_limits_rad
 
-__all__ = ["MAX_AXIS_ANGLE_DEG", "continuity_correct", "hinge_interval", "onto_true_direction",
-           "range_iou", "worst_endpoint_error"]
+__all__ = ["MAX_AXIS_ANGLE_DEG", "RANGE_KEYS", "RangeScore", "continuity_correct", "hinge_interval",
+           "onto_true_direction", "range_iou", "score_range", "summarise_ranges", "worst_endpoint_error"]
+
+#: The summary keys of :func:`summarise_ranges`, in table order.
+RANGE_KEYS = ("range_iou_hinge", "range_ok_hinge", "range_end_hinge", "range_iou_slider",
+              "range_ok_slider", "range_end_slider", "range_cont_acc")
+#: A continuous prediction of a limited hinge is scored as this interval (degrees).
+FULL_TURN = (-180.0, 180.0)
 
 #: Joints whose predicted axis is farther than this from the truth (degrees) are not scored.
 MAX_AXIS_ANGLE_DEG = 20.0
@@ -92,3 +102,72 @@ def worst_endpoint_error(pred: tuple[float, float], true: tuple[float, float],
 def continuity_correct(pred_continuous: bool, true_continuous: bool) -> bool:
     """True when both joints turn freely or neither does."""
     return bool(pred_continuous) == bool(true_continuous)
+
+
+@dataclass(frozen=True)
+class RangeScore:
+    """The range scores of one matched joint (module docstring).
+
+    Attributes
+    ----------
+    kind : {"hinge", "slider"}
+    iou, end : float or None
+        Range IoU and worst end-point error; None for a true continuous hinge (or a slider
+        without limits on either side).
+    continuous_ok : bool or None
+        Hinges: continuous or not, as the truth; None for sliders.
+    """
+
+    kind: str
+    iou: float | None
+    end: float | None
+    continuous_ok: bool | None
+
+
+def _kind(j: Joint) -> str:
+    return "R" if j.type is JointType.HINGE else ("PR" if j.rotates else "P")
+
+
+def score_range(pred: Joint, true: Joint) -> RangeScore | None:
+    """Score a predicted joint's range against its matched true joint.
+
+    Only joints of the same kind (revolute, prismatic, cylindrical) whose axes are within
+    :data:`MAX_AXIS_ANGLE_DEG` are scored (None otherwise). A continuous prediction of a
+    limited hinge counts as :data:`FULL_TURN`; cylindrical joints are scored on their
+    translation range.
+    """
+    if _kind(pred) != _kind(true) or pred.direction is None or true.direction is None:
+        return None
+    if float(axis_angle_deg(pred.direction, true.direction)) > MAX_AXIS_ANGLE_DEG:
+        return None
+    if true.type is JointType.HINGE:
+        t = None if true.limit is None else hinge_interval(*true.limit)
+        p = None if pred.limit is None else hinge_interval(*onto_true_direction(
+            pred.limit, pred.direction, true.direction))
+        ok = continuity_correct(p is None, t is None)
+        if t is None:
+            return RangeScore("hinge", None, None, ok)
+        p = p or FULL_TURN
+        return RangeScore("hinge", range_iou(p, t), worst_endpoint_error(p, t), ok)
+    if true.limit is None or pred.limit is None:
+        return RangeScore("slider", None, None, None)
+    p = onto_true_direction(pred.limit, pred.direction, true.direction)
+    return RangeScore("slider", range_iou(p, true.limit), worst_endpoint_error(p, true.limit, relative=True),
+                      None)
+
+
+def summarise_ranges(scores: Iterable[RangeScore | None]) -> dict[str, float]:
+    """Pool range scores into :data:`RANGE_KEYS`: mean IoU, share with IoU >= 0.5 and median
+    worst end-point error per kind, and the continuity accuracy of hinges (NaN where there is
+    nothing to pool)."""
+    scores = [s for s in scores if s is not None]
+    out: dict[str, float] = {}
+    for kind in ("hinge", "slider"):
+        ious = [s.iou for s in scores if s.kind == kind and s.iou is not None]
+        ends = [s.end for s in scores if s.kind == kind and s.end is not None and not math.isnan(s.end)]
+        out[f"range_iou_{kind}"] = float(np.mean(ious)) if ious else float("nan")
+        out[f"range_ok_{kind}"] = float(np.mean(np.asarray(ious) >= 0.5)) if ious else float("nan")
+        out[f"range_end_{kind}"] = float(np.median(ends)) if ends else float("nan")
+    cont = [s.continuous_ok for s in scores if s.continuous_ok is not None]
+    out["range_cont_acc"] = float(np.mean(cont)) if cont else float("nan")
+    return out
