@@ -87,6 +87,8 @@ def test_package_path_option_finds_a_package_without_package_xml(tmp_path):
     with pytest.raises(KinmoDataError, match=r"no package.xml named 'cab' above the file; pass "
                                              r"--package-path DIR holding cab/"):
         read_parts(urdf)
+    with pytest.raises(KinmoDataError, match=r"above the file nor in .*elsewhere; pass --package-path"):
+        read_parts(urdf, ReadOptions((tmp_path / "elsewhere",)))
     parts = read_parts(urdf, ReadOptions((tmp_path / "elsewhere", tmp_path / "pkgs")))
     assert bounds(parts)[1, 0] == pytest.approx(3.5)
 
@@ -152,7 +154,7 @@ def test_a_package_root_that_is_a_link_keeps_its_files_inside_it(tmp_path):
 @pytest.mark.parametrize("geometry,needle", [
     ('<box size="1 1"/>', r"<box size> is '1 1'; it must be 3 finite number\(s\)"),
     ('<box size="1 nan 1"/>', "<box size> is '1 nan 1'"),
-    ('<box size="1 0 1"/>', "<box> box takes 3 finite positive size"),
+    ('<box size="1 0 1"/>', r"<box> takes 3 finite positive size\(s\), not \[1.0, 0.0, 1.0\]"),
     ("<cylinder radius=\"1\"/>", "<cylinder length> is missing"),
     ('<mesh filename="a.obj" scale="x"/>', "<mesh scale> is 'x'"),
     ("<cone/>", r"unknown geometry <cone> \(kinmo reads mesh, box, cylinder, sphere or capsule\)"),

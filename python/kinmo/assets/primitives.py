@@ -56,7 +56,7 @@ def primitive(kind: str, sizes: Sequence[float]) -> tuple[np.ndarray, np.ndarray
     """
     s = np.asarray(sizes, dtype=np.float64)
     if kind not in SIZES or s.shape != (SIZES[kind],) or not np.all(np.isfinite(s) & (s > 0)):
-        raise ValueError(f"{kind} takes {SIZES.get(kind, '?')} finite positive size(s)")
+        raise ValueError(f"takes {SIZES.get(kind, '?')} finite positive size(s), not {s.tolist()}")
     if kind == "box":
         m = trimesh.creation.box(extents=s)
     elif kind == "cylinder":

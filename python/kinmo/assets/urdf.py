@@ -150,7 +150,8 @@ def mesh_file(source: Path, link: str, filename: str, options: ReadOptions) -> P
                                f"paths stay inside package {name!r}")
             if path.is_file():
                 return path
-            raise KinmoDataError(source, f"{what}: no package.xml named {name!r} above the file; "
+            nor = "".join(f" nor in {d}" for d in options.package_path)
+            raise KinmoDataError(source, f"{what}: no package.xml named {name!r} above the file{nor}; "
                                          f"pass --package-path DIR holding {name}/")
         path = file_inside(root, rest, source, what, f"paths stay inside package {name!r}")
         where = f"in package {name!r} at {root}"
