@@ -158,7 +158,7 @@ def gltf_docs(draw):
 def test_random_gltf_scenes_fail_cleanly(tmp_path_factory, doc, glb):
     import struct
 
-    from kinmo.user_input import read_parts
+    from kinmo.assets import read_parts
 
     base = tmp_path_factory.mktemp("gltf")
     raw = json.dumps(doc).encode()
@@ -195,3 +195,76 @@ def test_huge_part_counts_are_refused_before_allocating(tmp_path, monkeypatch):
     with pytest.raises(KinmoError, match="parts per shape exceeds the limit"):
         build_graph(read_shape(folder), n_points=8)
     assert os.listdir(tmp_path) == ["shape"]
+
+
+# ---- issue 36: file references inside URDF and MJCF input -----------------------------------
+
+REFS = st.one_of(HOSTILE, st.sampled_from([
+    "meshes/a.obj", "./meshes/a.obj", "meshes//a.obj", "../meshes/a.obj", "../../../probe/victim.obj",
+    "meshes/../../../probe/victim.obj", "meshes/victim.obj", "pkg/meshes/a.obj", "pkg/../probe/victim.obj",
+]))
+
+
+def _victim_layout(base: Path) -> Path:
+    """``base/ws/pkg`` (a ROS package holding meshes/a.obj, and a link meshes/victim.obj to
+    ``base/probe/victim.obj``, a box far away): returns the package folder."""
+    pkg = base / "ws" / "pkg"
+    (pkg / "meshes").mkdir(parents=True)
+    (pkg / "package.xml").write_text("<package><name>pkg</name></package>")
+    write_box_obj(pkg / "meshes" / "a.obj", (0, 0, 0), (1, 1, 1))
+    (base / "probe").mkdir()
+    write_box_obj(base / "probe" / "victim.obj", (100, 100, 100), (101, 101, 101))
+    (pkg / "meshes" / "victim.obj").symlink_to(base / "probe" / "victim.obj")
+    return pkg
+
+
+def _only_inside(base: Path, read) -> None:
+    """``read()`` either fails in one line or reads the box inside the package, never the victim."""
+    import numpy as np
+
+    before = _files(base)
+    try:
+        parts = read()
+        assert float(np.concatenate([v for _, v, _ in parts]).max()) <= 1.0 + 1e-9
+    except KinmoError as e:
+        assert "\n" not in str(e).strip()
+    assert _files(base) == before
+    shutil.rmtree(base)
+
+
+@given(prefix=st.sampled_from(["", "package://", "package://pkg/", "file://", "package://ws/"]), ref=REFS)
+@SETTINGS
+def test_random_urdf_mesh_references_stay_inside_their_root(tmp_path_factory, prefix, ref):
+    from kinmo.assets import read_parts
+
+    base = tmp_path_factory.mktemp("urdf")
+    pkg = _victim_layout(base)
+    (pkg / "r.urdf").write_text(
+        '<robot name="r"><link name="a"><visual><geometry><box size="1 1 1"/></geometry></visual>'
+        '<visual><origin xyz="0.5 0.5 0.5"/><geometry><box size="1 1 1"/></geometry></visual></link>'
+        f'<link name="b"><visual><geometry><mesh filename="{_xml_attr(prefix + ref)}"/></geometry>'
+        "</visual></link></robot>")
+    _only_inside(base, lambda: read_parts(pkg / "r.urdf"))
+
+
+@given(ref=REFS, meshdir=st.one_of(st.none(), st.sampled_from(["", ".", "meshes", "..", "/tmp"]), HOSTILE))
+@SETTINGS
+def test_random_mjcf_file_references_stay_inside_the_model_folder(tmp_path_factory, ref, meshdir):
+    from kinmo.assets import read_parts
+
+    base = tmp_path_factory.mktemp("mjcf")
+    pkg = _victim_layout(base)
+    compiler = "" if meshdir is None else f'<compiler meshdir="{_xml_attr(meshdir)}"/>'
+    (pkg / "m.xml").write_text(
+        f'<mujoco>{compiler}<asset><mesh name="m" file="{_xml_attr(ref)}"/></asset><worldbody>'
+        '<geom type="box" size="0.5 0.5 0.5" pos="0.5 0.5 0.5"/><body><geom type="mesh" mesh="m"/>'
+        "</body></worldbody></mujoco>")
+    _only_inside(base, lambda: read_parts(pkg / "m.xml"))
+
+
+def _xml_attr(text: str) -> str:
+    """``text`` as an XML attribute value (characters XML cannot hold as character references
+    are left for the parser to refuse)."""
+    from xml.sax.saxutils import quoteattr
+
+    return quoteattr(text)[1:-1]

@@ -114,7 +114,7 @@ def _gltf(path, nodes, uri=None, scenes=None):
 
 def test_gltf_node_cycle_is_one_clear_error(tmp_path):
     from kinmo.errors import KinmoDataError
-    from kinmo.user_input import read_parts
+    from kinmo.assets import read_parts
 
     nodes = [{"mesh": 0, "children": [1]}, {"mesh": 0, "children": [2]},
              {"mesh": 0, "children": [0]}]
@@ -128,7 +128,7 @@ def test_gltf_node_cycle_is_one_clear_error(tmp_path):
 
 def test_gltf_external_uri_outside_the_folder_is_refused(tmp_path):
     from kinmo.errors import KinmoDataError
-    from kinmo.user_input import read_parts
+    from kinmo.assets import read_parts
 
     nodes = [{"mesh": 0}, {"mesh": 0, "translation": [2, 0, 0]}]
     f = _gltf(tmp_path / "a.gltf", nodes, uri="../../etc/passwd",
@@ -138,7 +138,7 @@ def test_gltf_external_uri_outside_the_folder_is_refused(tmp_path):
 
 
 def test_gltf_of_plain_parts_still_reads(tmp_path):
-    from kinmo.user_input import read_parts
+    from kinmo.assets import read_parts
 
     nodes = [{"mesh": 0, "children": [1]}, {"mesh": 0, "translation": [2, 0, 0]}]
     assert len(read_parts(_gltf(tmp_path / "ok.gltf", nodes))) == 2
@@ -161,29 +161,30 @@ def _urdf(folder, filename, doctype=""):
 
 
 @pytest.mark.parametrize("filename", ["ABS", "../outside.obj", "sub/../../outside.obj",
-                                      "package://../outside.obj"])
+                                      "package://../outside.obj", "package://sub/../../outside.obj",
+                                      "package://foo/../../etc/passwd", "package://a\\b/x.obj",
+                                      "file://ABS", "file://../outside.obj"])
 def test_urdf_mesh_paths_outside_its_folder_are_refused(tmp_path, filename):
     from conftest import write_box_obj
 
     from kinmo.errors import KinmoDataError
-    from kinmo.user_input import read_parts
+    from kinmo.assets import read_parts
 
     write_box_obj(tmp_path / "outside.obj", (0, 0, 0), (1, 1, 1))
-    if filename == "ABS":
-        filename = str(tmp_path / "outside.obj")
+    filename = filename.replace("ABS", str(tmp_path / "outside.obj"))
     with pytest.raises(KinmoDataError, match="refused"):
         read_parts(_urdf(tmp_path / "asset", filename))
 
 
 def test_urdf_relative_mesh_inside_its_folder_reads(tmp_path):
-    from kinmo.user_input import read_parts
+    from kinmo.assets import read_parts
 
     assert [p[0] for p in read_parts(_urdf(tmp_path / "asset", "package://sub/b.obj"))] == ["a", "b"]
 
 
 def test_urdf_with_entities_is_refused(tmp_path):
     from kinmo.errors import KinmoDataError
-    from kinmo.user_input import read_parts
+    from kinmo.assets import read_parts
 
     bomb = ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">'
             '<!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">]>\n')

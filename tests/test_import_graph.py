@@ -122,14 +122,26 @@ def test_the_module_map_lists_every_module():
     assert missing == [], f"docs/modules.md lacks {missing}"
 
 
-def test_refine_stays_below_inference_and_its_callers():
-    # issue 22: refine/ is used by kinmo.inference, never the other way round
-    above = ("kinmo.predict", "kinmo.evaluate", "kinmo.inference", "kinmo.pseudo_label",
-             "kinmo.pipeline")
+def _imports_upward(package: str, above: tuple[str, ...]) -> dict[str, list[str]]:
+    """Modules of ``package`` (itself and below) that import a module of ``above``."""
     g = import_graph()
     bad = {m: sorted(t for t in g[m] if t.startswith(above))
-           for m in g if m == "kinmo.refine" or m.startswith("kinmo.refine.")}
-    assert {m: t for m, t in bad.items() if t} == {}
+           for m in g if m == package or m.startswith(package + ".")}
+    return {m: t for m, t in bad.items() if t}
+
+
+def test_refine_stays_below_inference_and_its_callers():
+    # issue 22: refine/ is used by kinmo.inference, never the other way round
+    assert _imports_upward("kinmo.refine", ("kinmo.predict", "kinmo.evaluate", "kinmo.inference",
+                                            "kinmo.pseudo_label", "kinmo.pipeline")) == {}
+
+
+def test_assets_stay_below_prediction_and_export():
+    # issue 36: kinmo.assets reads a user's files into parts; what predicts or writes uses it
+    assert _imports_upward("kinmo.assets", ("kinmo.user_input", "kinmo.predict", "kinmo.inference",
+                                            "kinmo.export", "kinmo.cli", "kinmo.pipeline",
+                                            "kinmo.evaluate", "kinmo.models", "kinmo.train")) == {}
+    assert "kinmo.assets" in import_graph()["kinmo.user_input"]
 
 
 #: Ceiling of function-local imports of kinmo modules outside kinmo/cli/ (issue 22: 211 -> 38,

@@ -21,7 +21,7 @@ from kinmo.geometry import load_obj
 from kinmo.train.config import preset
 from kinmo.train.gnn import train_gnn
 from kinmo.train.split import Split
-from kinmo.user_input import read_parts
+from kinmo.assets import read_parts
 
 torch.set_num_threads(1)
 
@@ -190,6 +190,62 @@ def test_a_z_up_asset_in_centimetres_gets_the_joints_of_the_y_up_one_in_its_own_
     assert (outs["z"] / "dishwasher" / "view.html").is_file()
 
 
+def _z_up_urdf_and_mjcf(folder: Path, leaves, scale: float) -> dict[str, Path]:
+    """The object turned z-up and scaled, as a URDF (a link per leaf, fixed joints) and an MJCF
+    model (the first leaf in the world body, a body per other leaf with a hinge kinmo must
+    ignore), both naming the same OBJ meshes."""
+    from xml.sax.saxutils import quoteattr
+
+    (folder / "meshes").mkdir(parents=True)
+    names = []
+    for k, (name, v, f) in enumerate(leaves):
+        trimesh.Trimesh(scale * v @ _TO_Z_UP.T, f, process=False).export(folder / "meshes" / f"p{k}.obj")
+        names.append(quoteattr(f"{name}_{k}"))
+    links = "".join(f'<link name={n}><visual><geometry><mesh filename="meshes/p{k}.obj"/></geometry>'
+                    "</visual></link>" for k, n in enumerate(names))
+    joints = "".join(f'<joint name="j{k}" type="fixed"><parent link={names[0]}/><child link={n}/></joint>'
+                     for k, n in enumerate(names[1:], 1))
+    (folder / "dishwasher.urdf").write_text(f'<robot name="d">{links}{joints}</robot>')
+    assets = "".join(f'<mesh name="p{k}" file="meshes/p{k}.obj" inertia="shell"/>' for k in range(len(names)))
+    bodies = "".join(f'<body name={n}><joint type="hinge"/><geom type="mesh" mesh="p{k}"/></body>'
+                     for k, n in enumerate(names[1:], 1))
+    (folder / "dishwasher.xml").write_text(
+        f'<mujoco><asset>{assets}</asset><worldbody><geom type="mesh" mesh="p0"/>{bodies}'
+        "</worldbody></mujoco>")
+    return {"urdf": folder / "dishwasher.urdf", "mjcf": folder / "dishwasher.xml"}
+
+
+@pytest.mark.exactdata
+@pytest.mark.parametrize("kind", ["urdf", "mjcf"])
+def test_urdf_and_mjcf_input_in_other_units_get_the_same_joints_scaled(inputs, tmp_path, kind):
+    """Issue 36: the z-up URDF / MJCF object at x0.01 and x100 gets the joints of x1, scaled
+    (both formats are z-up by default: no --up)."""
+    shapes = {}
+    for scale in (1.0, 0.01, 100.0):
+        src = _z_up_urdf_and_mjcf(tmp_path / f"in_{scale}", inputs["leaves"], scale)[kind]
+        out = tmp_path / f"out_{scale}"
+        r = CliRunner().invoke(app, ["predict", str(src), "--model", str(inputs["run"]), "--out",
+                                     str(out), "--device", "cpu", "--quiet", "-f", "mobility_v2"])
+        assert r.exit_code == 0, r.output
+        shapes[scale] = read_shape(out / "dishwasher")
+        frame = json.loads((out / "dishwasher" / "frame.json").read_text())
+        assert frame["up"] == "z"
+    ref = {link.id: link for link in shapes[1.0].links if link.joint.direction is not None}
+    assert ref and len(shapes[1.0].hierarchy.leaves(shapes[1.0].hierarchy.root)) == 4
+    for scale in (0.01, 100.0):
+        moving = {link.id: link for link in shapes[scale].links if link.joint.direction is not None}
+        assert sorted(moving) == sorted(ref)
+        for i, link in moving.items():
+            assert link.joint.type == ref[i].joint.type
+            d0 = ref[i].joint.direction / np.linalg.norm(ref[i].joint.direction)
+            d = link.joint.direction / np.linalg.norm(link.joint.direction)
+            assert abs(float(d0 @ d)) > 0.999
+            off = np.cross(scale * ref[i].joint.origin - link.joint.origin, d)  # the axis lines coincide
+            assert np.linalg.norm(off) < 1e-3 * scale, (scale, ref[i].joint.origin, link.joint.origin)
+            if link.joint.type.name == "SLIDER" and link.joint.limit is not None:
+                assert link.joint.limit[1] == pytest.approx(scale * ref[i].joint.limit[1], rel=1e-3)
+
+
 def sy_scale(inputs) -> float:
     """kinmo's scale of the y-up asset: 2 / its bounding-box diagonal."""
     allv = np.concatenate([v for _, v, _ in inputs["leaves"]])
@@ -198,7 +254,7 @@ def sy_scale(inputs) -> float:
 
 @pytest.mark.exactdata
 def test_up_axis_defaults_follow_the_format(inputs, tmp_path):
-    from kinmo.user_input import asset_up
+    from kinmo.assets import asset_up
 
     assert asset_up(inputs["glb"]) == "y" and asset_up(inputs["obj"]) == "y"
     assert asset_up(inputs["folder"]) == "y"

@@ -20,7 +20,8 @@ from kinmo.evaluate.user_format import (
     user_nodes,
     write_user_glb,
 )
-from kinmo.user_input import read_parts, stage_partnet
+from kinmo.assets import read_parts
+from kinmo.user_input import stage_partnet
 
 
 @pytest.fixture(scope="module")

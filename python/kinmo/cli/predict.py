@@ -18,7 +18,7 @@ from kinmo.cli._refine import REFINE, RefineOptions, model_or_pretrained, with_r
 @app.command("predict")
 @with_refine_options
 def predict_cmd(
-    data: Path = typer.Argument(..., metavar="DIR|FILE", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder; or your own part-segmented asset: a GLB/glTF scene (a node per part), an OBJ with o/g groups, a folder of part meshes, or a URDF (a link per part)."),
+    data: Path = typer.Argument(..., metavar="DIR|FILE", help="Dataset folder (PartNet or PartNet-Mobility) or one shape folder; or your own part-segmented asset: a GLB/glTF scene (a node per part), an OBJ with o/g groups, a folder of part meshes, a URDF (a link per part) or an MJCF model (.xml, a body per part)."),
     model: Optional[Path] = typer.Option(None, "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model: GNN, axis network, ranker; the learned selector by default) or a run folder of `kinmo train gnn` [default: the pretrained model, `kinmo models`]."),  # noqa: UP007
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/{mobility_v2.json,mobility.urdf,edges.json}."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="Part-graph cache of DIR (`kinmo prepare`), to skip building graphs."),  # noqa: UP007
@@ -30,6 +30,7 @@ def predict_cmd(
     refine: RefineOptions = REFINE,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     up: Optional[str] = typer.Option(None, "--up", callback=_values.up_axis, help="Up axis of FILE, y or z. Default: by its format (glTF, OBJ, a mesh folder: y; URDF: z, as ROS; a URDF kinmo wrote: y). Outputs stay in FILE's frame and units."),  # noqa: UP007
+    package_path: Optional[list[Path]] = typer.Option(None, "--package-path", metavar="DIR", help="For a URDF FILE: a folder holding ROS packages by name, so that package://NAME/... meshes resolve to DIR/NAME/... when no package.xml named NAME lies above FILE (repeatable)."),  # noqa: UP007
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
     collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes for a DIR of shapes (0: one per CPU, 1: no pool); every count writes the same files."),
@@ -37,8 +38,9 @@ def predict_cmd(
 ) -> None:
     """Predict the motion of every shape under DIR (or of FILE); write PartNet-Mobility files and URDFs.
 
-    FILE (a GLB/glTF, OBJ with groups, folder of part meshes or URDF) becomes OUT/<name>/, a
-    complete PartNet-Mobility folder (see kinmo.user_input for the part hierarchy rule).
+    FILE (a GLB/glTF, OBJ with groups, folder of part meshes, URDF or MJCF) becomes OUT/<name>/,
+    a complete PartNet-Mobility folder (see kinmo.assets for the parts of each format,
+    kinmo.user_input for the part hierarchy rule).
 
     Exit code 1 when any shape failed (listed at the end, and in OUT/predictions.csv).
     """
@@ -52,25 +54,30 @@ def predict_cmd(
     err = new_console(stderr=True)
     check_formats(fmt)
     with cli_errors(1), _locked(out, [data], "kinmo predict"):
+        from kinmo.assets import is_user_input
         from kinmo.inference.predictor import Predictor
-        from kinmo.user_input import is_user_input, predict_user_input
+        from kinmo.user_input import predict_user_input
 
         if out.exists() and not out.is_dir():  # named before the models load
             from kinmo.io import output_dir
 
             output_dir(out)
+        own = is_user_input(data)
+        if (up is not None or package_path) and not own:  # refused before the models load
+            from kinmo.cli._errors import fail
+
+            fail("--up is for your own asset (FILE); PartNet and PartNet-Mobility folders are y-up"
+                 if up is not None else "--package-path is for your own asset (FILE: a URDF with "
+                 "package://NAME/... meshes)", 2)
         model, axis_model, rc = refine.resolve(model_or_pretrained(model), axis_model)
         options = TreeOptions((0.0, hinge_max), slider_fraction)
         predictor = Predictor.from_parts(model, axis_model, rc, options, device)
         err.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)
         kw = dict(device=device, options=options, progress=not quiet, render=render,
                   collision=collision)
-        if up is not None and not is_user_input(data):
-            from kinmo.cli._errors import fail
-
-            fail("--up is for your own asset (FILE); PartNet and PartNet-Mobility folders are y-up", 2)
-        if is_user_input(data):
-            rows = predict_user_input(data, predictor, out, formats=fmt or None, up=up, **kw)
+        if own:
+            rows = predict_user_input(data, predictor, out, formats=fmt or None, up=up,
+                                      package_path=package_path or (), **kw)
         else:
             rows = predict_dataset(data, predictor, out, cache=cache, formats=fmt or None,
                                    workers=workers, executor=executor, **kw)

@@ -9,6 +9,7 @@ format      default  why
 ==========  =======  ==========================================================
 glTF / GLB  ``y``    the glTF 2.0 specification: +Y up, metres
 URDF        ``z``    ROS REP 103: +Z up, metres
+MJCF        ``z``    MuJoCo: gravity along -Z by default, metres (:mod:`kinmo.assets.mjcf`)
 OBJ, folder ``y``    no convention in the format; y-up is the common exporter default
 ==========  =======  ==========================================================
 

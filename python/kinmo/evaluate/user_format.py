@@ -143,7 +143,7 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
     KinmoDataError
         A mesh cannot be loaded.
     """
-    import trimesh  # optional heavy dependency, as in kinmo.user_input
+    import trimesh  # optional heavy dependency, as in kinmo.assets.mesh
 
     h = shape.hierarchy
     scene = trimesh.Scene()
