@@ -7,12 +7,16 @@ graph cache, as for a dataset seen for the first time:
 
 - ``pseudo-label``: ``kinmo pseudo-label PARTNET -o OUT -j 2 -q``;
 - ``predict``: ``kinmo predict PARTNET -o OUT -j 2 -q``;
+- ``predict-no-ranges``: the same with a copy of the pretrained bundle without its range
+  prior (``ranges.json``), i.e. the tree's constant default ranges: the baseline of issue 35's
+  cost check (a range for every joint may cost at most 20 % of ``predict``'s time);
 - ``render``: ``kinmo render MOBILITY -o OUT -j 2 -q`` (its defaults: 10 frames of 256 x 256
   per object).
 
 ``-j 2`` unless ``--jobs`` says otherwise: ``--jobs 1,2`` runs each stage with one process
 and with two workers, alternating within each repeat, and gives the speed-up of each over
-the first.
+the first. Within each repeat every stage runs once, so a change of load on the machine
+hits the stages alike.
 
 Reported per stage: shapes, wall seconds, shapes per second on this machine, CPU seconds
 (user + system of the command and every process it started, from ``RUSAGE_CHILDREN``) per
@@ -23,7 +27,8 @@ gives the medians.
 Usage::
 
     python bench/bench_throughput.py [--partnet ../shared/data/partnet]
-        [--mobility ../shared/data/partnet-mobility] [--stages pseudo-label,predict,render]
+        [--mobility ../shared/data/partnet-mobility]
+        [--stages pseudo-label,predict,predict-no-ranges,render]
         [--repeats 1] [--jobs 2]      # --jobs 1,2: one process against two workers
 
 Prints a Markdown table and writes ``bench/results/throughput.csv``; ``docs/results/scaling.md``
@@ -61,9 +66,27 @@ def _command(stage: str, partnet: Path, mobility: Path, out: Path, jobs: int = 2
         return kinmo + ["pseudo-label", str(partnet), "-o", str(out), *j, "-q"]
     if stage == "predict":
         return kinmo + ["predict", str(partnet), "-o", str(out), *j, "-q"]
+    if stage == "predict-no-ranges":
+        return kinmo + ["predict", str(partnet), "-o", str(out), "--model", str(_bundle_without_ranges(out.parent)),
+                        *j, "-q"]
     if stage == "render":
         return kinmo + ["render", str(mobility), "-o", str(out), *j, "-q"]
     raise SystemExit(f"unknown stage {stage}")
+
+
+def _bundle_without_ranges(folder: Path) -> Path:
+    """A copy of the pretrained bundle in ``folder`` without its range prior."""
+    import json
+
+    from kinmo.pretrained import default_model
+
+    dst = folder / "bundle-without-ranges"
+    shutil.copytree(default_model(), dst)
+    doc = json.loads((dst / "bundle.json").read_text())
+    doc.pop("ranges", None)
+    (dst / "ranges.json").unlink(missing_ok=True)
+    (dst / "bundle.json").write_text(json.dumps(doc, indent=2))
+    return dst
 
 
 def _count(stage: str, partnet: Path, mobility: Path) -> int:
@@ -105,8 +128,8 @@ def main() -> None:
     args = ap.parse_args()
     jobs = [int(j) for j in args.jobs.split(",")]
     rows = []
-    for stage in args.stages.split(","):
-        for k in range(args.repeats):
+    for k in range(args.repeats):  # stages alternate within a repeat: load drifts hit them alike
+        for stage in args.stages.split(","):
             for j in jobs:
                 row = run_stage(stage, args.partnet, args.mobility, j)
                 print(f"{stage} -j {j} #{k + 1}: {row}", file=sys.stderr, flush=True)
