@@ -55,7 +55,7 @@ def test_predict_on_a_glb_needs_no_training_and_no_model(tmp_path):
     assert json.loads((final / "frame.json").read_text())["up"] == "y"  # glTF: y-up by its spec
 
 
-def test_pseudo_label_needs_no_model_and_writes_hull_collision(tmp_path):
+def test_pseudo_label_needs_no_model_and_writes_convex_collision(tmp_path):
     runner = CliRunner()
     r = runner.invoke(app, ["synth", str(tmp_path / "pn"), "--n", "2", "--seed", "1", "--partnet",
                             "--categories", "StorageFurniture", "-q"])
@@ -66,7 +66,7 @@ def test_pseudo_label_needs_no_model_and_writes_hull_collision(tmp_path):
     assert f"pretrained model {DEFAULT_MODEL}" in " ".join(r.output.split())
     kept = [p for p in (tmp_path / "out").iterdir() if (p / "mobility.urdf").is_file()]
     assert kept, r.output
-    for obj in kept:  # the default collision: one convex hull per leaf mesh of each link
+    for obj in kept:  # the default collision: at least one convex piece per leaf mesh
         shape = read_shape(obj)
         n_leaves = sum(len(shape.hierarchy.mesh_names(pid)) for l in shape.links for pid in l.parts)
-        assert len(list((obj / "collision").glob("link_*_*.obj"))) == n_leaves
+        assert len(list((obj / "collision").glob("link_*_*.obj"))) >= n_leaves

@@ -149,7 +149,7 @@ class PseudoLabelConfig(BaseModel):
         Export formats of a kept shape (:mod:`kinmo.export`); ``mobility_v2.json`` is always
         written (it makes the folder a PartNet-Mobility object).
     collision : str
-        Collision geometry of URDF / MJCF (:mod:`kinmo.export.collision`; default ``hull``).
+        Collision geometry of URDF / MJCF (:mod:`kinmo.export.collision`; default ``parts``).
     """
 
     model_config = ConfigDict(extra="forbid")

@@ -31,21 +31,19 @@ PANELS = {
 DRAWER = ((0.05, 0.05, 0.05), (0.95, 0.95, 1.0))
 
 
-def write_hollow_cabinet(folder: Path) -> Path:
-    """A PartNet-Mobility folder: link 0 the body (5 panel leaves, root), link 1 a drawer inside
-    it (slider along +z, 0 .. 0.8)."""
-    (folder / "textured_objs").mkdir(parents=True)
-    for name, (lo, hi) in {**PANELS, "drawer": DRAWER}.items():
-        write_box_obj(folder / "textured_objs" / f"{name}.obj", lo, hi)
-    leaves = [{"id": k + 2, "name": n, "text": n, "objs": [n]} for k, n in enumerate(PANELS)]
-    tree = [{"id": 0, "name": "cabinet", "text": "cabinet", "children": [
+def _write_two_links(folder: Path, body: list[str], child: str, direction, travel: float) -> Path:
+    """A PartNet-Mobility folder of ``textured_objs/*.obj`` already written: link 0 the body
+    (one leaf per name of ``body``, root), link 1 the leaf ``child`` sliding along
+    ``direction`` from 0 to ``travel``."""
+    leaves = [{"id": k + 2, "name": n, "text": n, "objs": [n]} for k, n in enumerate(body)]
+    tree = [{"id": 0, "name": "object", "text": "object", "children": [
         {"id": 1, "name": "body", "text": "body", "children": leaves},
-        {"id": 9, "name": "drawer", "text": "drawer", "objs": ["drawer"]}]}]
+        {"id": 99, "name": child, "text": child, "objs": [child]}]}]
     links = [
         {"id": 0, "parent": -1, "joint": "heavy", "name": "body", "parts": [{"id": 1}], "jointData": {}},
-        {"id": 1, "parent": 0, "joint": "slider", "name": "drawer", "parts": [{"id": 9}],
-         "jointData": {"axis": {"origin": [0, 0, 0], "direction": [0, 0, 1]},
-                       "limit": {"a": 0, "b": 0.8, "noLimit": False, "rotates": False}}},
+        {"id": 1, "parent": 0, "joint": "slider", "name": child, "parts": [{"id": 99}],
+         "jointData": {"axis": {"origin": [0, 0, 0], "direction": list(direction)},
+                       "limit": {"a": 0, "b": travel, "noLimit": False, "rotates": False}}},
     ]
     (folder / "result.json").write_text(json.dumps(tree))
     (folder / "mobility_v2.json").write_text(json.dumps(links))
@@ -53,8 +51,59 @@ def write_hollow_cabinet(folder: Path) -> Path:
     return folder
 
 
-def _deepest_penetration(urdf: Path) -> float:
-    """Deepest drawer-body penetration in PyBullet while the drawer slides over its range."""
+def write_hollow_cabinet(folder: Path, one_leaf: bool = False) -> Path:
+    """A PartNet-Mobility folder: link 0 the body (5 panel leaves, or with ``one_leaf`` one
+    leaf of the 5 panels 1 mm smaller on every side, disconnected, root), link 1 a drawer
+    inside it (slider along +z, 0 .. 0.8)."""
+    objs = folder / "textured_objs"
+    objs.mkdir(parents=True)
+    write_box_obj(objs / "drawer.obj", *DRAWER)
+    for name, (lo, hi) in PANELS.items():
+        write_box_obj(objs / f"{name}.obj", lo, hi)
+    if not one_leaf:
+        return _write_two_links(folder, list(PANELS), "drawer", (0, 0, 1), 0.8)
+    boards = [trimesh.creation.box(bounds=(np.add(lo, 1e-3), np.subtract(hi, 1e-3)))
+              for lo, hi in PANELS.values()]
+    trimesh.util.concatenate(boards).export(objs / "frame.obj")
+    return _write_two_links(folder, ["frame"], "drawer", (0, 0, 1), 0.8)
+
+
+#: A U-shaped block, one connected leaf: 3 wide, 3 high, 1 deep, a slot x in [1, 2] from y = 1
+#: up; its profile (counter-clockwise, with the cap's corners at (1, 0) and (2, 0)).
+U_PROFILE = [(0, 0), (1, 0), (2, 0), (3, 0), (3, 3), (2, 3), (2, 1), (1, 1), (1, 3), (0, 3)]
+#: The cap's quads (profile indices): left post, bridge, right post.
+U_CAPS = [(0, 1, 7, 8), (1, 2, 6, 7), (2, 3, 4, 5)]
+#: A cube that fits the slot (0.1 clearance each side), above it; it slides down by 2.
+SLOT_CUBE = ((1.1, 3.2, 0.1), (1.9, 4.0, 0.9))
+
+
+def u_mesh() -> tuple[np.ndarray, np.ndarray]:
+    """The U block of :data:`U_PROFILE` extruded along z from 0 to 1: (vertices (20, 3),
+    faces (36, 3)), outward, connected (shared vertices)."""
+    n = len(U_PROFILE)
+    v = np.array([(x, y, z) for z in (0.0, 1.0) for x, y in U_PROFILE], dtype=float)
+    faces = []
+    for a, b, c, d in U_CAPS:  # back cap (z = 0) faces -z, front cap +z
+        faces += [(a, c, b), (a, d, c), (a + n, b + n, c + n), (a + n, c + n, d + n)]
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [(i, j, j + n), (i, j + n, i + n)]
+    return v, np.array(faces, dtype=np.int64)
+
+
+def write_slot_object(folder: Path) -> Path:
+    """A PartNet-Mobility folder: link 0 the U block (one leaf), link 1 a cube sliding down
+    into its slot (along -y, 0 .. 2)."""
+    objs = folder / "textured_objs"
+    objs.mkdir(parents=True)
+    trimesh.Trimesh(*u_mesh(), process=False).export(objs / "u.obj")
+    write_box_obj(objs / "cube.obj", *SLOT_CUBE)
+    return _write_two_links(folder, ["u"], "cube", (0, -1, 0), 2.0)
+
+
+def _deepest_penetration(urdf: Path, travel: float = 0.8) -> float:
+    """Deepest child-body penetration in PyBullet while the (only) slider moves from 0 to
+    ``travel``."""
     import pybullet as p
 
     cid = p.connect(p.DIRECT)
@@ -65,7 +114,7 @@ def _deepest_penetration(urdf: Path) -> float:
         child = j  # the drawer's link index is its joint's
         parent = p.getJointInfo(body, j, physicsClientId=cid)[16]
         deepest = 0.0
-        for t in np.linspace(0.0, 0.8, 9):
+        for t in np.linspace(0.0, travel, 9):
             p.resetJointState(body, j, float(t), physicsClientId=cid)
             p.performCollisionDetection(physicsClientId=cid)
             for c in p.getClosestPoints(body, body, 0.0, child, parent, physicsClientId=cid):
@@ -158,7 +207,7 @@ def test_cached_methods_are_computed_once(tmp_path, monkeypatch):
 def test_unknown_method_and_missing_coacd_are_usage_errors(tmp_path, monkeypatch):
     import importlib.util
 
-    with pytest.raises(KinmoUsageError, match="unknown collision method 'nope'; known: hull, vhacd, coacd"):
+    with pytest.raises(KinmoUsageError, match="unknown collision method 'nope'; known: hull, parts, vhacd, coacd"):
         col.check_collision_method("nope")
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
@@ -183,3 +232,78 @@ def test_export_vhacd_on_request(tmp_path, monkeypatch):
     for p in pieces:
         m = trimesh.load(p, force="mesh")
         assert m.is_convex
+
+
+def _covered(pieces, points: np.ndarray, tol: float = 1e-9) -> bool:
+    """Every point inside or on some convex piece."""
+    def inside(v, f, x):
+        a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        n = np.cross(b - a, c - a)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        return (np.einsum("ij,ij->i", n, x - a) <= tol).all()
+
+    return all(any(inside(v, f, x) for v, f in pieces) for x in points)
+
+
+def test_parts_splits_a_concave_leaf_and_leaves_its_slot_free():
+    v, f = u_mesh()
+    mesh = LinkMesh(0, v, f, (len(f),))
+    slot = np.array([1.5, 2.0, 0.5])
+    (hull,) = col.leaf_hulls(mesh)
+    assert _inside(*hull, slot)  # the leaf's hull fills the slot
+    pieces = col.concave_parts(mesh)
+    assert len(pieces) > 1
+    for pv, pf in pieces:
+        assert trimesh.Trimesh(pv, pf, process=False).is_convex
+    assert not any(_inside(pv, pf, slot) for pv, pf in pieces)
+    assert _covered(pieces, v)  # every face lies in a piece: the U's surface is kept
+    again = col.concave_parts(mesh)  # deterministic
+    assert all(np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+               for a, b in zip(pieces, again, strict=True))
+
+
+def test_default_collision_lets_a_cube_slide_into_a_slot(tmp_path, monkeypatch):
+    assert col.DEFAULT_COLLISION == "parts"
+    src = write_slot_object(tmp_path / "u")
+    files = export(read_shape(src), tmp_path / "parts", ["urdf"])["urdf"]
+    assert len(files) - 1 > 2
+    assert _deepest_penetration(files[0], 2.0) < 0.05
+    files = export(read_shape(src), tmp_path / "hull", ["urdf"], collision="hull")["urdf"]
+    assert _deepest_penetration(files[0], 2.0) > 0.5  # the U's hull blocks the slot
+
+
+def test_parts_keeps_convex_leaves_one_hull_each():
+    ball = trimesh.creation.icosphere(subdivisions=2)
+    box = trimesh.creation.box(extents=(1.0, 2.0, 0.5))
+    box.apply_translation((3.0, 0.0, 0.0))
+    v = np.concatenate([ball.vertices, box.vertices])
+    f = np.concatenate([ball.faces, box.faces + len(ball.vertices)]).astype(np.int64)
+    mesh = LinkMesh(0, v, f, (len(ball.faces), len(box.faces)))
+    got, want = col.concave_parts(mesh), col.leaf_hulls(mesh)
+    assert len(got) == 2
+    for (a, af), (b, bf) in zip(got, want, strict=True):
+        assert np.array_equal(a, b) and np.array_equal(af, bf)
+
+
+def test_parts_splits_a_frame_leaf_into_its_boards(tmp_path):
+    src = write_hollow_cabinet(tmp_path / "cab", one_leaf=True)
+    shape = read_shape(src)
+    body = link_meshes(shape)[0]
+    assert body.leaf_faces == (60,)
+    assert len(col.concave_parts(body)) == 5  # its 5 connected components
+    files = export(shape, tmp_path / "parts", ["urdf"])["urdf"]
+    assert _deepest_penetration(files[0]) < 1e-3
+    files = export(shape, tmp_path / "hull", ["urdf"], collision="hull")["urdf"]
+    assert _deepest_penetration(files[0]) > 0.1
+
+
+def test_cli_default_collision_is_the_registry_default():
+    import inspect
+
+    from kinmo.cli.export import export_cmd
+    from kinmo.cli.predict import predict_cmd
+    from kinmo.cli.pseudo_label import pseudo_label_cmd
+
+    for cmd in (export_cmd, predict_cmd, pseudo_label_cmd):
+        option = inspect.signature(cmd).parameters["collision"].default
+        assert option.default == col.DEFAULT_COLLISION, cmd.__name__

@@ -19,9 +19,10 @@ FORMAT_HELP = ("Output format, repeatable: mobility_v2, semantics, urdf, mjcf, u
                "(see kinmo.export).")
 
 #: Help of ``--collision`` (export, predict, pseudo-label).
-COLLISION_HELP = ("Collision geometry of URDF/MJCF: hull (convex hull of each part mesh; "
-                  "milliseconds), vhacd (V-HACD per link; seconds), coacd (CoACD per link; needs "
-                  "`pip install coacd`). See docs/results/collision.md.")
+COLLISION_HELP = ("Collision geometry of URDF/MJCF: parts (convex hull of each part mesh, "
+                  "concave ones split into convex pieces; milliseconds), hull (convex hull of "
+                  "each part mesh), vhacd (V-HACD per link; seconds), coacd (CoACD per link; "
+                  "needs `pip install coacd`). See docs/results/collision.md.")
 
 
 def check_formats(fmt: list[str] | None) -> None:
@@ -54,7 +55,7 @@ def export_cmd(
     fmt: list[str] = typer.Option(..., "--format", "-f", help=FORMAT_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (OUT/<id>/ per object when SRC holds several)."),
     source: Optional[Path] = typer.Option(None, "--source", "-s", exists=True, file_okay=False, help="For a `kinmo predict` output SRC (mobility_v2.json only): the shape folder it was predicted for (meshes)."),  # noqa: UP007
-    collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
+    collision: str = typer.Option("parts", "--collision", callback=_values.collision, help=COLLISION_HELP),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Write the articulated object(s) in SRC in each --format, loadable by its simulator.

@@ -32,7 +32,7 @@ def predict_cmd(
     up: Optional[str] = typer.Option(None, "--up", callback=_values.up_axis, help="Up axis of FILE, y or z. Default: by its format (glTF, OBJ, a mesh folder: y; URDF: z, as ROS; a URDF kinmo wrote: y). Outputs stay in FILE's frame and units."),  # noqa: UP007
     package_path: Optional[list[Path]] = typer.Option(None, "--package-path", metavar="DIR", help="For a URDF FILE: a folder holding ROS packages by name, so that package://NAME/... meshes resolve to DIR/NAME/... when no package.xml named NAME lies above FILE (repeatable)."),  # noqa: UP007
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
-    collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
+    collision: str = typer.Option("parts", "--collision", callback=_values.collision, help=COLLISION_HELP),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes for a DIR of shapes (0: one per CPU, 1: no pool); every count writes the same files."),
     executor: str = EXECUTOR,
 ) -> None:

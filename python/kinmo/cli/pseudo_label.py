@@ -34,7 +34,7 @@ def pseudo_label_cmd(
     force: bool = typer.Option(False, "--force", help="Redo shapes already processed with the same inputs."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf (mobility_v2 is always written)."),  # noqa: UP007
-    collision: str = typer.Option("hull", "--collision", callback=_values.collision, help=COLLISION_HELP),
+    collision: str = typer.Option("parts", "--collision", callback=_values.collision, help=COLLISION_HELP),
     executor: str = EXECUTOR,
 ) -> None:
     """Predict and refine the motions of every shape under DIR; keep the confident ones.

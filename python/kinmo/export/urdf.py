@@ -4,7 +4,8 @@ The URDF itself is written by :func:`kinmo.urdf.write_urdf` (frames, signs, join
 names in :mod:`kinmo.urdf`): a single-parent tree (one URDF link per PartNet-Mobility link, a
 geometry-less helper link per cylindrical joint), joint limits, the original OBJ meshes as
 visuals. Collision geometry is a list of convex pieces per link (:mod:`kinmo.export.collision`:
-by default the convex hull of each leaf mesh; V-HACD or CoACD with ``--collision``):
+by default the convex hull of each leaf mesh, concave leaves split into convex parts; V-HACD
+or CoACD with ``--collision``):
 ``collision/link_<id>_<k>.obj`` is its ``k``-th piece, one ``<collision>`` element each
 (simulators reject or slow down on concave triangle soups; every URDF loader takes a list of
 convex meshes).
