@@ -148,6 +148,53 @@ def read_checkpoint(path: str | Path, fmt: str, what: str) -> dict[str, Any]:
     return payload
 
 
+def read_json_document(path: str | Path, fmt: str, max_version: int, what: str,
+                       missing: str) -> dict[str, Any]:
+    """Read a kinmo JSON document (``{"format": fmt, "version": n, ...}``) as untrusted input.
+
+    The one reader of kinmo's own JSON files that carry a format and a version (the model
+    bundle's ``bundle.json``, the range prior's ``ranges.json``): size bounded
+    (:func:`kinmo.limits.check_file`) before reading, then the format and version checked.
+
+    Parameters
+    ----------
+    path : str or Path
+    fmt : str
+        The ``"format"`` entry the document must carry.
+    max_version : int
+        The newest ``"version"`` this kinmo reads.
+    what : str
+        What it is, for messages (``"model bundle"``).
+    missing : str
+        The message of a missing file.
+
+    Returns
+    -------
+    dict
+        The document.
+
+    Raises
+    ------
+    KinmoDataError
+        Missing, too large, malformed JSON, another format or a newer version (one line
+        naming the file).
+    """
+    p = Path(path)
+    limits.check_file(p)
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise KinmoDataError(p, missing) from None
+    except (OSError, ValueError) as e:
+        raise KinmoDataError(p, f"malformed {what}: {e}") from None
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        raise KinmoDataError(p, f"not a {what} (format is not {fmt!r})")
+    if not isinstance(doc.get("version"), int) or doc["version"] > max_version:
+        raise KinmoDataError(p, f"{what} version {doc.get('version')!r} is not supported "
+                                f"(this kinmo reads up to {max_version})")
+    return doc
+
+
 def write_json(path: str | Path, obj: Any, indent: int | None = 2) -> None:
     """Write a JSON file atomically."""
     write_text(path, json.dumps(obj, indent=indent) + "\n")

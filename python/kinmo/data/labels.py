@@ -48,6 +48,7 @@ Frames: mesh frame, y-up.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +62,7 @@ __all__ = [
     "is_vertical",
     "label_sibling_edges",
     "line_segment_distance",
+    "link_subtree",
     "node_links",
     "obb_edges",
     "pivot_is_central",
@@ -101,6 +103,33 @@ def node_links(hierarchy: PartHierarchy, links: list[Link]) -> dict[int, int]:
         else:
             kids = {out[c] for c in node.children}
             out[nid] = kids.pop() if len(kids) == 1 else -1
+    return out
+
+
+def link_subtree(parent_of: Mapping[int, int], root: int) -> set[int]:
+    """Ids of link ``root`` and of every link hanging from it, at any depth.
+
+    Parameters
+    ----------
+    parent_of : mapping of int to int
+        Link id -> parent link id (-1 for a root).
+    root : int
+
+    Returns
+    -------
+    set of int
+        Includes ``root``; a cycle of parents ends the walk instead of looping.
+    """
+    kids: dict[int, list[int]] = {}
+    for lid, parent in parent_of.items():
+        kids.setdefault(parent, []).append(lid)
+    out: set[int] = set()
+    stack = [root]
+    while stack:
+        i = stack.pop()
+        if i not in out:
+            out.add(i)
+            stack.extend(kids.get(i, ()))
     return out
 
 

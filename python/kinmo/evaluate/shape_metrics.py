@@ -57,7 +57,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.labels import rigid_groups
 from kinmo.data.model import FINE_TO_COARSE, FINE_TYPES, Joint, JointType, Link
 from kinmo.metrics.axis import axis_angle_deg, line_distance, point_line_distance
-from kinmo.metrics.motion_range import RangeScore, score_range, summarise_ranges
+from kinmo.metrics.motion_range import RangeScore, joint_kind, score_range, summarise_ranges
 from kinmo.mobility_tree import MobilityTree
 
 __all__ = [
@@ -122,12 +122,6 @@ def gt_links(graph: PartGraph) -> list[Link]:
                      tuple(int(p) for p in d.get("parts", [])), _joint_from_json(d)) for d in raw]
     except (KeyError, TypeError, ValueError) as e:
         raise ValueError(f"{graph.shape_id}: malformed ground-truth links: {e}") from None
-
-
-def _kind(j: Joint) -> str:
-    if j.type is JointType.HINGE:
-        return "R"
-    return "PR" if j.rotates else "P"
 
 
 def _moving_groups(links: Sequence[Link], leaf_link: dict[int, int]) -> dict[int, set[int]]:
@@ -254,9 +248,9 @@ def evaluate_shape(graph: PartGraph, probs: np.ndarray, direction: np.ndarray,
     tj = {lk.id: lk.joint for lk in links_true}
     for p, t, _ in r.matches:
         a, b = pj[p], tj[t]
-        r.joint_type_correct += int(_kind(a) == _kind(b))
+        r.joint_type_correct += int(joint_kind(a) == joint_kind(b))
         r.angle_joint.append(float(axis_angle_deg(a.direction, b.direction)))
-        if _kind(b) in ("R", "PR"):
+        if joint_kind(b) in ("R", "PR"):
             r.dist_joint.append(float(line_distance(a.origin, a.direction, b.origin, b.direction)) / scale)
         rs = score_range(a, b)
         if rs is not None:

@@ -42,6 +42,7 @@ import numpy as np
 from kinmo.data.augment import flat_groups
 from kinmo.data.model import Joint, JointType, Link, PartHierarchy, Shape
 from kinmo.data.build import load_shape_meshes
+from kinmo.data.labels import link_subtree
 from kinmo.data.readers import find_shapes, read_links, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.metrics.motion_range import RangeScore, score_range, summarise_ranges
@@ -164,22 +165,9 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
 
 
 def _subtree_leaves(links: Sequence[Link], hierarchy: PartHierarchy, link: int) -> set[int]:
-    kids: dict[int, list[int]] = {}
-    for lk in links:
-        kids.setdefault(lk.parent, []).append(lk.id)
     by_id = {lk.id: lk for lk in links}
-    out: set[int] = set()
-    stack = [link]
-    seen: set[int] = set()
-    while stack:
-        i = stack.pop()
-        if i in seen:
-            continue
-        seen.add(i)
-        out.update(leaf for part in by_id[i].parts for leaf in hierarchy.leaves(part))
-        stack.extend(kids.get(i, []))
-    return out
-
+    ids = link_subtree({lk.id: lk.parent for lk in links}, link)
+    return {leaf for i in ids for part in by_id[i].parts for leaf in hierarchy.leaves(part)}
 
 def moved_nodes(node_leaves: Sequence[Sequence[int]], moved_leaves: set[int]) -> frozenset[int]:
     """Input nodes moved by a joint: those with more than half of their leaves moved.

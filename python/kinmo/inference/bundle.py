@@ -21,7 +21,6 @@ instead of silently falling back to the paper's.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 from collections.abc import Sequence
@@ -29,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from kinmo.errors import KinmoDataError
-from kinmo.io import write_json
+from kinmo.io import read_json_document, write_json
 
 __all__ = ["BUNDLE_FILE", "BUNDLE_FORMAT", "BUNDLE_VERSION", "ModelBundle", "find_ranker",
            "read_bundle", "resolve_bundle", "write_bundle"]
@@ -98,17 +97,8 @@ def read_bundle(path: str | Path) -> ModelBundle:
     """
     root = Path(path)
     f = root / BUNDLE_FILE
-    try:
-        doc = json.loads(f.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise KinmoDataError(f, "not a model bundle (no bundle.json)") from None
-    except (OSError, ValueError) as e:
-        raise KinmoDataError(f, f"malformed model bundle: {e}") from None
-    if not isinstance(doc, dict) or doc.get("format") != BUNDLE_FORMAT:
-        raise KinmoDataError(f, f"not a model bundle (format is not {BUNDLE_FORMAT!r})")
-    if not isinstance(doc.get("version"), int) or doc["version"] > BUNDLE_VERSION:
-        raise KinmoDataError(f, f"model bundle version {doc.get('version')!r} is not supported "
-                                f"(this kinmo reads up to {BUNDLE_VERSION})")
+    doc = read_json_document(f, BUNDLE_FORMAT, BUNDLE_VERSION, "model bundle",
+                             "not a model bundle (no bundle.json)")
 
     def part(key: str, required: bool) -> Path | None:
         name = doc.get(key)

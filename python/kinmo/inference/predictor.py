@@ -186,16 +186,21 @@ class Predictor:
         return (self.refine is not None and self.refine.selector == "ranker"
                 and ranker_needs_meshes(load_ranker(str(self.refine.ranker))))
 
-    def _meshes(self, graph: PartGraph, meshes: MeshSource) -> ShapeMeshes | None:
-        if not self._ranker_meshes() and self.ranges is None:
+    def _meshes(self, graph: PartGraph, meshes: MeshSource,
+                ranker_needs: bool | None = None) -> ShapeMeshes | None:
+        """The shape's meshes when the ranker's sweep features (``ranker_needs``, by default
+        asked of the ranker) or the range sweep need them; a missing mesh is logged once, by
+        whichever needs it (:func:`kinmo.ranges.predict_ranges` logs its own)."""
+        if ranker_needs is None:
+            ranker_needs = self._ranker_meshes()
+        if not ranker_needs and self.ranges is None:
             return None
         m = meshes(graph) if callable(meshes) else meshes
         if m is None:
             m = shape_meshes(graph)
-        if m is None:
+        if m is None and ranker_needs:
             logger.warning("%s: no meshes (source %s unreadable or not matching the graph): the "
-                           "ranker's sweep features use the point proxy, joint ranges are not swept",
-                           graph.shape_id,
+                           "ranker's sweep features use the point proxy", graph.shape_id,
                            graph.meta.get("source", "unknown"))
         return m
 
@@ -206,11 +211,12 @@ class Predictor:
         of this predictor's run), its mobility tree rebuilt and its joints given ranges (with a
         range prior), with the per-edge details
         (:class:`~kinmo.refine.refine.RefinedPredictions`; None without a refinement)."""
-        m = self._meshes(pred.graph, meshes)
+        ranker_needs = self._ranker_meshes()
+        m = self._meshes(pred.graph, meshes, ranker_needs)
         det = None
         if self.refine is not None:
             pred, det = refine_shape_prediction(pred, self.axis_net, self.refine, options or self.options,
-                                                meshes=m if self._ranker_meshes() else None)
+                                                meshes=m if ranker_needs else None)
         if self.ranges is not None:
             pred = predict_ranges(pred, self.ranges, m, seed=self.refine.seed if self.refine else 0)
         return pred, det

@@ -32,7 +32,8 @@ from kinmo.metrics.axis import axis_angle_deg
 from kinmo.urdf import hinge_limits_rad
 
 __all__ = ["MAX_AXIS_ANGLE_DEG", "RANGE_KEYS", "RangeScore", "continuity_correct", "hinge_interval",
-           "onto_true_direction", "range_iou", "score_range", "summarise_ranges", "worst_endpoint_error"]
+           "joint_kind", "onto_true_direction", "range_iou", "score_range", "summarise_ranges",
+           "worst_endpoint_error"]
 
 #: The summary keys of :func:`summarise_ranges`, in table order.
 RANGE_KEYS = ("range_iou_hinge", "range_ok_hinge", "range_end_hinge", "range_iou_slider",
@@ -124,7 +125,8 @@ class RangeScore:
     continuous_ok: bool | None
 
 
-def _kind(j: Joint) -> str:
+def joint_kind(j: Joint) -> str:
+    """``"R"`` (hinge), ``"P"`` (slider) or ``"PR"`` (cylindrical: a slider that rotates)."""
     return "R" if j.type is JointType.HINGE else ("PR" if j.rotates else "P")
 
 
@@ -136,7 +138,7 @@ def score_range(pred: Joint, true: Joint) -> RangeScore | None:
     limited hinge counts as :data:`FULL_TURN`; cylindrical joints are scored on their
     translation range.
     """
-    if _kind(pred) != _kind(true) or pred.direction is None or true.direction is None:
+    if joint_kind(pred) != joint_kind(true) or pred.direction is None or true.direction is None:
         return None
     if float(axis_angle_deg(pred.direction, true.direction)) > MAX_AXIS_ANGLE_DEG:
         return None

@@ -33,6 +33,7 @@ import math
 
 import numpy as np
 
+from kinmo.data.labels import link_subtree
 from kinmo.data.model import JointType, Link
 from kinmo.geometry.sweep import PRISMATIC, REVOLUTE, SweepObstacle
 from kinmo.mobility_tree import ShapePrediction
@@ -54,18 +55,6 @@ MIN_HINGE_SPAN_DEG = 1.0
 MIN_SLIDER_SPAN = 0.01
 #: A clipped range narrower than this share of the learned one means "blocked everywhere".
 BLOCKED_SHARE = 0.05
-
-
-def _subtree(links: list[Link], lid: int) -> set[int]:
-    out = {lid}
-    grew = True
-    while grew:
-        grew = False
-        for lk in links:
-            if lk.parent in out and lk.id not in out:
-                out.add(lk.id)
-                grew = True
-    return out
 
 
 def free_extents(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray,
@@ -122,6 +111,7 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
     leaves = np.flatnonzero(g.is_leaf)
     leaf_link = np.asarray(tree.leaf_link)[leaves]
     links = list(tree.links)
+    parent_of = {lk.id: lk.parent for lk in links}
     out: list[Link] = []
     warned_meshes = False
     for lk in links:
@@ -137,7 +127,7 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
         if hinge and entry.is_continuous:
             out.append(dataclasses.replace(lk, joint=dataclasses.replace(j, limit=None)))
             continue
-        moving = leaves[np.isin(leaf_link, list(_subtree(links, lk.id)))]
+        moving = leaves[np.isin(leaf_link, list(link_subtree(parent_of, lk.id)))]
         rest = np.setdiff1d(leaves, moving)
         pts = np.asarray(g.points[moving], dtype=np.float64).reshape(-1, 3)
         if len(pts) > SWEEP_POINTS:

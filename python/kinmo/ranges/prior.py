@@ -26,10 +26,9 @@ names plain text.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,8 +36,9 @@ import numpy as np
 
 from kinmo import limits
 from kinmo.data.graph import PartGraph
+from kinmo.data.labels import link_subtree
 from kinmo.errors import KinmoDataError
-from kinmo.io import write_json
+from kinmo.io import read_json_document, write_json
 from kinmo.metrics.motion_range import hinge_interval, range_iou
 from kinmo.mobility_tree import opening_direction
 
@@ -100,18 +100,6 @@ class TrueRange:
     hi: float
 
 
-def _desc(links: Sequence[dict], lid: int) -> set[int]:
-    out = {lid}
-    grew = True
-    while grew:
-        grew = False
-        for lk in links:
-            if lk["parent"] in out and lk["id"] not in out:
-                out.add(lk["id"])
-                grew = True
-    return out
-
-
 def _centres(g: PartGraph, lk: dict, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Moving and reference centres of a true link, as the mobility tree would take them: the
     OBB centres of a sibling edge of the link's joint (its reference in the parent link when
@@ -125,7 +113,7 @@ def _centres(g: PartGraph, lk: dict, moving: np.ndarray) -> tuple[np.ndarray, np
             return np.asarray(g.obb_center[i], float), np.asarray(g.obb_center[j], float)
     leaves = np.flatnonzero(g.is_leaf)
     nl = np.asarray(g.node_link)
-    rest = [n for n in leaves if nl[n] == lk["parent"]] or [n for n in leaves if n not in set(moving)]
+    rest = [n for n in leaves if nl[n] == lk["parent"]] or list(np.setdiff1d(leaves, moving))
     cm = np.asarray(g.points[moving], float).reshape(-1, 3).mean(0)
     cr = np.asarray(g.points[rest], float).reshape(-1, 3).mean(0) if rest else cm
     return cm, cr
@@ -148,12 +136,13 @@ def true_ranges(g: PartGraph) -> list[TrueRange]:
     if g.node_link is None or not links:
         return []
     leaves = np.flatnonzero(g.is_leaf)
-    nl = np.asarray(g.node_link)
+    nl = np.asarray(g.node_link)[leaves]
+    parent_of = {lk["id"]: lk["parent"] for lk in links}
     out = []
     for lk in links:
         if lk.get("joint") not in _KINDS or lk.get("direction") is None:
             continue
-        moving = np.array([n for n in leaves if nl[n] in _desc(links, lk["id"])], dtype=np.int64)
+        moving = leaves[np.isin(nl, list(link_subtree(parent_of, lk["id"])))]
         if not len(moving):
             continue
         hinge = lk["joint"] == "hinge"
@@ -264,19 +253,8 @@ class RangePrior:
             out of bounds (one line naming the file).
         """
         p = Path(path)
-        try:
-            limits.check_file(p)
-            doc = json.loads(p.read_text(encoding="utf-8"))
-        except KinmoDataError:
-            raise
-        except FileNotFoundError:
-            raise KinmoDataError(p, "range prior missing (run `kinmo train all`)") from None
-        except (OSError, ValueError) as e:
-            raise KinmoDataError(p, f"malformed range prior: {e}") from None
-        if not isinstance(doc, dict) or doc.get("format") != PRIOR_FORMAT:
-            raise KinmoDataError(p, f"not a range prior (format is not {PRIOR_FORMAT!r})")
-        if not isinstance(doc.get("version"), int) or doc["version"] > PRIOR_VERSION:
-            raise KinmoDataError(p, f"range prior version {doc.get('version')!r} is not supported")
+        doc = read_json_document(p, PRIOR_FORMAT, PRIOR_VERSION, "range prior",
+                                 "range prior missing (run `kinmo train all`)")
         raw = doc.get("entries")
         if not isinstance(raw, list):
             raise KinmoDataError(p, "malformed range prior: 'entries' must be a list")
