@@ -119,9 +119,12 @@ def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path,
         assert scores["threshold"] == 0.0 and len(scores["joints"]) == 1
         j = scores["joints"][0]
         assert 0.0 <= j["score"] <= 1.0 and j["type"] == "R_V_S" and j["candidate"] == "edge"
-        assert j["score"] == pytest.approx(0.5 * j["feasibility"] + 0.3
-                                           * j["direction_agreement"]
-                                           + 0.2 * j["position_agreement"])
+        assert j["line_confidence"] == pytest.approx(0.5 * j["feasibility"] + 0.3
+                                                     * j["direction_agreement"]
+                                                     + 0.2 * j["position_agreement"])
+        # a joint's score: its line's confidence times its type's probability
+        assert 0.0 < j["type_prob"] <= 1.0
+        assert j["score"] == pytest.approx(j["line_confidence"] * j["type_prob"])
     with open(out / "summary.csv") as fh:
         summary = list(csv.DictReader(fh))
     assert summary[-1]["category"] == "all" and int(summary[-1]["kept"]) == len(SHAPES)
@@ -210,11 +213,14 @@ def test_cli_refinement_options_reach_the_scores(data, runs, tmp_path, monkeypat
     res = CliRunner().invoke(app, [
         "pseudo-label", str(data), "--model", str(runs[0]), "--axis-model", str(runs[1]),
         "--out", str(out), "--threshold", "0", "--quiet", "--keep-gnn", "--snap-angle", "10",
+        "--score", "line",
     ])
     assert res.exit_code == 0, res.output
     scores = [json.loads(p.read_text()) for p in sorted(out.glob("*/scores.json"))]
     assert scores
     for s in scores:
+        assert s["options"]["score"] == "line"
+        assert all(j["score"] == j["line_confidence"] for j in s["joints"])
         assert s["options"]["refine"]["keep_gnn"] is True
         assert s["options"]["refine"]["snap_angle_deg"] == 10.0
         # the fake GNN's vertical hinge: the vertical OBB edges within 10 deg plus its own line

@@ -22,7 +22,8 @@ def pseudo_label_cmd(
     model: Optional[Path] = typer.Option(None, "--model", "-m", help="Model bundle folder (`kinmo train all` writes runs/all/model) or a run folder of `kinmo train gnn` [default: the pretrained model, `kinmo models`]."),  # noqa: UP007
     axis_model: Optional[Path] = typer.Option(None, "--axis-model", "-a", help="Run folder of `kinmo train axis` (its ranker.json, or ../ranker/ranker.json, when present, selects the axes), or a folder holding only a ranker.json [default: the bundle's]."),  # noqa: UP007
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: one PartNet-Mobility folder per kept shape."),
-    threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, callback=_values.finite, help="Minimum refinement score of every joint of a kept shape."),
+    threshold: float = typer.Option(0.6, "--threshold", "-t", min=0.0, max=1.0, callback=_values.finite, help="Minimum score of every joint of a kept shape."),
+    score: str = typer.Option("joint", "--score", help="A joint's score: joint (its refined line's confidence times its type's probability) or line (the line's confidence alone)."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes (0: one per CPU, 1: no pool)."),
     cache: Optional[Path] = typer.Option(None, "--cache", help="A `kinmo prepare` cache of DIR (graphs are built when missing)."),  # noqa: UP007
     refine: RefineOptions = REFINE,
@@ -40,7 +41,8 @@ def pseudo_label_cmd(
     """Predict and refine the motions of every shape under DIR; keep the confident ones.
 
     A shape is kept when every predicted moving joint scores at least --threshold after
-    refinement (Liu et al. 2023, Sec. 3.3). Kept shapes become OUT/<id>/ in the
+    refinement (Liu et al. 2023, Sec. 3.3): its refined line's confidence times its type's
+    probability (--score joint) or the line's confidence alone (--score line). Kept shapes become OUT/<id>/ in the
     PartNet-Mobility format (mobility_v2.json, semantics.txt, mobility.urdf, textured_objs/,
     scores.json). OUT/summary.csv counts kept and rejected shapes per category,
     OUT/shapes.csv gives every shape's status and reason. Re-running resumes.
@@ -66,7 +68,7 @@ def pseudo_label_cmd(
         fail("no axis network and no ranker: give a model bundle with them, or --axis-model", 2)
     with cli_errors(2, also=(ValueError,)):
         config = PseudoLabelConfig(
-            threshold=threshold,
+            threshold=threshold, score=score,
             refine=rc,
             sign=sign, consistent=consistent, link="copy" if copy else link, device=device,
             collision=collision,
