@@ -16,6 +16,9 @@ name                  default        what
 ``file_bytes``        4 GiB          bytes of one input file (OBJ, GLB, JSON, URDF); the Rust
                                      OBJ reader gets it (``load_obj_bounded``: one limit)
 ``nodes``             100,000        nodes of one glTF scene graph
+``range_entries``     20,000         entries of one range-of-motion prior (``ranges.json``,
+                                     :mod:`kinmo.ranges`; one per fitted (kind, category, part
+                                     name) group: the pretrained one has 214)
 ====================  =============  ==========================================================
 
 The defaults accept every object of the shared PartNet-Mobility and PartNet data, flattened
@@ -41,6 +44,7 @@ DEFAULTS: dict[str, int] = {
     "triangles": 2_000_000,
     "file_bytes": 1 << 32,
     "nodes": 100_000,
+    "range_entries": 20_000,
 }
 
 _WHAT = {
@@ -49,6 +53,7 @@ _WHAT = {
     "triangles": "triangles per mesh",
     "file_bytes": "bytes per input file",
     "nodes": "nodes per glTF scene",
+    "range_entries": "entries per range prior",
 }
 
 

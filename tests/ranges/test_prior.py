@@ -84,6 +84,20 @@ def test_malformed_files_get_one_clear_line(tmp_path, entry, why):
     assert "ranges.json" in str(e.value) and "\n" not in str(e.value)
 
 
+def test_entry_count_is_bounded_by_its_own_limit(tmp_path, monkeypatch):
+    entry = {"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": 90.0}
+    f = tmp_path / "ranges.json"
+    f.write_text(json.dumps({"format": "kinmo-range-prior", "version": 1, "entries": [entry] * 3}))
+    assert len(RangePrior.load(f).entries) == 3
+    monkeypatch.setenv("KINMO_MAX_RANGE_ENTRIES", "2")
+    with pytest.raises(KinmoDataError, match="3 entries per range prior exceeds the limit of 2") as e:
+        RangePrior.load(f)
+    assert "\n" not in str(e.value)
+    monkeypatch.setenv("KINMO_MAX_PARTS", "2")  # the parts limit is not this one
+    monkeypatch.delenv("KINMO_MAX_RANGE_ENTRIES")
+    assert len(RangePrior.load(f).entries) == 3
+
+
 def test_other_formats_and_newer_versions_are_refused(tmp_path):
     f = tmp_path / "ranges.json"
     f.write_text(json.dumps({"format": "something-else", "version": 1, "entries": []}))

@@ -258,7 +258,7 @@ class RangePrior:
         raw = doc.get("entries")
         if not isinstance(raw, list):
             raise KinmoDataError(p, "malformed range prior: 'entries' must be a list")
-        limits.check("parts", len(raw), p)
+        limits.check("range_entries", len(raw), p)
         return cls([_entry(e, p) for e in raw])
 
 
