@@ -75,6 +75,11 @@ class RefineConfig(BaseModel):
     ranker : str or None
         Path of the ranker file (``ranker.json``, :func:`kinmo.refine.ranker.load_ranker`);
         required by ``selector="ranker"``.
+    vote_repeated : bool
+        kinmo extension (issue 34): with the learned selector, copies of a part attached to
+        the same reference part with the same predicted type (three or more: keys, buttons,
+        a column of drawers) take the direction most of them chose
+        (:mod:`kinmo.refine.repeated`).
     ranges : str or None
         kinmo extension (issue 35): path of the range-of-motion prior (``ranges.json``,
         :class:`kinmo.ranges.RangePrior`); after the selector, every moving joint gets its
@@ -99,6 +104,7 @@ class RefineConfig(BaseModel):
     merge_distance: float = Field(0.02, ge=0)
     selector: Literal["paper", "ranker"] = "paper"
     ranker: str | None = None
+    vote_repeated: bool = True
     ranges: str | None = None
 
     @model_validator(mode="after")

@@ -49,7 +49,7 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates
 
-__all__ = ["EdgeRefinement", "refine_edge", "select_edge"]
+__all__ = ["EdgeRefinement", "chosen_line", "refine_edge", "select_edge"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,13 @@ class EdgeRefinement:
     abstained : bool
         The best candidate disagreed with the GNN's direction
         (:attr:`RefineConfig.min_agreement`): ``origin`` and ``direction`` are the GNN's.
+    calibrated : float or None
+        The learned selector's calibrated confidence of the chosen line.
+    dir_prior : (C,) float64 or None
+        The learned selector's direction prior of every candidate (the GNN's mass on its
+        direction), an input of the calibrated confidence.
+    voted : bool
+        The choice was changed by the repeated-parts vote (:mod:`kinmo.refine.repeated`).
     """
 
     candidates: Candidates
@@ -75,6 +82,8 @@ class EdgeRefinement:
     direction: np.ndarray
     abstained: bool = False
     calibrated: float | None = None
+    dir_prior: np.ndarray | None = None
+    voted: bool = False
 
     @property
     def confidence(self) -> float:
@@ -173,12 +182,13 @@ def refine_edge(
     if cfg.min_agreement is not None and scores.direction[b] < cfg.min_agreement:
         return EdgeRefinement(cands, scores, np.asarray(gnn_origin, dtype=np.float64).copy(),
                               g, abstained=True)
-    return EdgeRefinement(cands, scores, *_chosen_line(graph, moving, cands, b, scores.sign[b]))
+    return EdgeRefinement(cands, scores, *chosen_line(graph, moving, cands, b, scores.sign[b]))
 
 
-def _chosen_line(graph: PartGraph, moving: int, cands: Candidates, b: int, sign: int
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Origin (nearest the moving OBB's centre) and signed direction of candidate ``b``."""
+def chosen_line(graph: PartGraph, moving: int, cands: Candidates, b: int, sign: int
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Origin (nearest the moving OBB's centre, (3,) float64) and signed unit direction
+    ((3,) float64) of candidate ``b`` of the moving part ``moving``, mesh frame."""
     d = cands.directions[b] * sign
     c = graph.obb_center[moving]
     return cands.origins[b] + float(np.dot(c - cands.origins[b], d)) * d, d
@@ -267,6 +277,7 @@ def select_edge(
                                                 sign, net_sign)
     scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
                              x[:, FEATURES.index("pos_prior")], p, np.asarray(sg, np.int64), b)
-    o, d = _chosen_line(graph, i, cands, b, int(sg[b]))
+    o, d = chosen_line(graph, i, cands, b, int(sg[b]))
     conf = ranker.confidence(float(p[b]), float(x[b, FEATURES.index("dir_prior")]))
-    return EdgeRefinement(cands, scores, o, d, calibrated=conf)
+    return EdgeRefinement(cands, scores, o, d, calibrated=conf,
+                          dir_prior=x[:, FEATURES.index("dir_prior")].copy())

@@ -56,6 +56,7 @@ from kinmo.mobility_tree import (
 )
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import EdgeRefinement, refine_edge, select_edge
+from kinmo.refine.repeated import vote_repeated
 
 logger = logging.getLogger(__name__)
 
@@ -343,6 +344,14 @@ def refine_predictions(
         kind[k] = r.kind
         n_c[k] = len(r.candidates)
         details[int(k)] = r
+    if ranker is not None and cfg.vote_repeated and details:
+        changed = vote_repeated(graph, pred.edges, types, details, ranker.confidence)
+        for k, r in changed.items():
+            origin[k], direction[k] = r.origin, r.direction
+            conf[k] = r.confidence
+            feas[k] = r.scores.feasibility[r.scores.best]
+            kind[k] = r.kind
+            details[k] = r
     return RefinedPredictions(pred.edges, pred.type_names, pred.type_prob, pred.type_index,
                               origin, direction, moving, conf, feas, kind, n_c, details)
 

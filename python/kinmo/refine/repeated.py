@@ -1,0 +1,150 @@
+"""Repeated parts move alike: a vote among the learned selector's choices (kinmo extension).
+
+Keys of a keyboard, buttons of a remote or a coffee machine, a column of drawers: parts of
+one shape that are copies of each other, attached to the same reference part and predicted
+the same motion type, move about or along the same direction. The learned selector
+(:func:`kinmo.refine.edge.select_edge`) decides every moving edge alone, and on a part whose
+category it has not been trained on its geometric terms can turn some copies and not others:
+out of fold (issue 34, ``docs/results/table1_four_settings.md``), the only keyboard of the
+shared data had 43 % of its 115 keys turned off the GNN's (right) vertical direction by the
+coarse selector.
+
+The rule, after every edge has been selected:
+
+1. **Groups.** Refined edges with the same reference part and predicted type, whose moving
+   parts' OBB half extents (sorted) agree within ``extent_tol`` relative to the larger, are
+   copies; groups of at least ``min_group`` edges vote (two doors of a cabinet are left to
+   the selector).
+2. **Vote.** Directions are compared in each member's own OBB frame (axes ordered by half
+   extent, signs dropped), so copies turned about the shape, like a box's four flaps, vote
+   alike. Every direction among the members' candidates (within ``angle_deg``) gets the sum over members of each member's highest ranker probability for
+   a candidate in that direction. The direction with the largest sum wins: the selector's
+   evidence pooled over the copies, where each copy alone may be unsure (a key's 19
+   candidates share the probability, 0.15 at most).
+3. **Follow.** A member off the winning direction takes its own most probable candidate
+   within ``angle_deg`` of it (its line's position stays its own), with that candidate's
+   calibrated confidence; a member without such a candidate keeps its choice.
+
+Frames: mesh frame, like the predictions. Directions are unit (3,) float64 vectors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Callable, Sequence
+
+import numpy as np
+
+from kinmo.data.graph import PartGraph
+from kinmo.refine.edge import EdgeRefinement, chosen_line
+
+__all__ = ["repeated_groups", "vote_repeated"]
+
+
+def repeated_groups(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
+                    members: Sequence[int], *, extent_tol: float = 0.25,
+                    min_group: int = 3) -> list[list[int]]:
+    """Groups of copies among the edges ``members`` (step 1 of the module's rule).
+
+    Parameters
+    ----------
+    graph : PartGraph
+    edges : (E, 2) int64
+        (moving, reference) node of every edge.
+    types : sequence of str
+        Predicted type of every edge.
+    members : sequence of int
+        The edges that may vote (the refined ones).
+    extent_tol : float
+        Largest relative difference of a sorted OBB half extent between copies.
+    min_group : int
+        Smallest group returned.
+
+    Returns
+    -------
+    list of list of int
+        Edge indices, each group in ascending order; groups in order of their first edge.
+    """
+    groups: list[list[int]] = []
+    reps: list[tuple[int, str, np.ndarray]] = []
+    for k in sorted(int(m) for m in members):
+        i, j = int(edges[k, 0]), int(edges[k, 1])
+        ext = np.sort(np.asarray(graph.obb_half_extents[i], float))
+        for g, (rj, rt, rext) in enumerate(reps):
+            if rj == j and rt == types[k] and np.all(
+                    np.abs(ext - rext) <= extent_tol * np.maximum(np.maximum(ext, rext), 1e-12)):
+                groups[g].append(k)
+                break
+        else:
+            reps.append((j, types[k], ext))
+            groups.append([k])
+    return [g for g in groups if len(g) >= min_group]
+
+
+def _local(graph: PartGraph, node: int, directions: np.ndarray) -> np.ndarray:
+    """Directions ``(C, 3)`` in the part's OBB frame, axes ordered by half extent, signs
+    dropped: copies turned or mirrored about the shape (a box's four flaps) compare equal."""
+    rows = np.asarray(graph.obb_axes[node], float)  # (3, 3): one axis per row
+    rows = rows[np.argsort(graph.obb_half_extents[node], kind="stable")]
+    return np.abs(np.asarray(directions, float) @ rows.T)
+
+
+def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
+                  details: dict[int, EdgeRefinement],
+                  confidence: Callable[[float, float], float], *, extent_tol: float = 0.25,
+                  min_group: int = 3, angle_deg: float = 10.0) -> dict[int, EdgeRefinement]:
+    """Apply the module's rule to the learned selector's choices.
+
+    Parameters
+    ----------
+    graph : PartGraph
+    edges : (E, 2) int64
+    types : sequence of str
+        Predicted type of every edge.
+    details : dict of int to EdgeRefinement
+        The selector's result per refined edge (``scores.total``: the ranker's probabilities;
+        ``dir_prior``: the GNN's direction prior per candidate).
+    confidence : callable (p, dir_prior) -> float
+        The ranker's calibrated confidence (:meth:`kinmo.refine.ranker.Ranker.confidence`).
+    extent_tol, min_group : see :func:`repeated_groups`
+    angle_deg : float
+        Directions within this angle (up to sign) are the same.
+
+    Returns
+    -------
+    dict of int to EdgeRefinement
+        The edges whose choice changed, with their new refinement (``voted`` True).
+    """
+    cos = float(np.cos(np.radians(angle_deg)))
+    valid = [k for k, r in details.items() if r.scores.best >= 0 and not r.abstained]
+    changed: dict[int, EdgeRefinement] = {}
+    for group in repeated_groups(graph, edges, types, valid, extent_tol=extent_tol,
+                                 min_group=min_group):
+        local = {k: _local(graph, int(edges[k, 0]), details[k].candidates.directions)
+                 for k in group}
+        reps: list[np.ndarray] = []
+        for k in group:
+            for d in local[k]:
+                if not any(float(d @ u) >= cos for u in reps):
+                    reps.append(d)
+        support = np.zeros(len(reps))
+        for k in group:
+            near = local[k] @ np.stack(reps).T >= cos  # (C, U)
+            support += np.where(near, details[k].scores.total[:, None], 0.0).max(0)
+        win = reps[int(np.argmax(support))]
+        for k in group:
+            r = details[k]
+            if float(_local(graph, int(edges[k, 0]), r.direction[None])[0] @ win) >= cos:
+                continue
+            ok = local[k] @ win >= cos
+            if not ok.any():
+                continue
+            p = np.where(ok, r.scores.total, -np.inf)
+            b = int(np.argmax(p))
+            scores = replace(r.scores, best=b)
+            o, d = chosen_line(graph, int(edges[k, 0]), r.candidates, b, int(r.scores.sign[b]))
+            pb = float(r.scores.total[b])
+            conf = confidence(pb) if r.dir_prior is None else confidence(pb, float(r.dir_prior[b]))
+            changed[k] = replace(r, scores=scores, origin=o, direction=d, calibrated=conf,
+                                 voted=True)
+    return changed

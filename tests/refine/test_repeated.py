@@ -1,0 +1,126 @@
+"""The repeated-parts vote (kinmo.refine.repeated): copies follow the majority's direction."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+
+from kinmo.refine.candidates import Candidates
+from kinmo.refine.edge import EdgeRefinement
+from kinmo.refine.repeated import repeated_groups, vote_repeated
+from kinmo.refine.scoring import CandidateScores
+
+UP, SIDE = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])
+
+
+def _keyboard(n_keys: int, extents=None):
+    """Node 0 the base, nodes 1..n keys (equal small boxes); edge k moves key k+1 on the base."""
+    half = np.array([[1.0, 0.1, 0.5]] + [[0.05, 0.02, 0.05]] * n_keys)
+    if extents is not None:
+        half[1:] = extents
+    centers = np.zeros((n_keys + 1, 3))
+    centers[1:, 0] = np.arange(n_keys) * 0.12
+    graph = SimpleNamespace(obb_half_extents=half, obb_center=centers,
+                            obb_axes=np.repeat(np.eye(3)[None], n_keys + 1, axis=0))
+    edges = np.array([[k + 1, 0] for k in range(n_keys)])
+    return graph, edges
+
+
+def _choice(prob_up: float, chose_up: bool) -> EdgeRefinement:
+    cands = Candidates(np.zeros((2, 3)), np.stack([UP, SIDE]), ("edge", "edge"), "T_V")
+    total = np.array([prob_up, 1.0 - prob_up])
+    b = 0 if chose_up else 1
+    scores = CandidateScores(np.ones(2), np.ones(2), np.ones(2), total, np.ones(2, np.int64), b)
+    d = UP if chose_up else SIDE
+    return EdgeRefinement(cands, scores, np.zeros(3), d.copy(), calibrated=float(total[b]),
+                          dir_prior=np.array([0.9, 0.1]))
+
+
+def _conf(p: float, prior: float = 1.0) -> float:
+    return 0.5 * p + 0.5 * prior
+
+
+def test_copies_turned_off_the_majority_follow_it():
+    graph, edges = _keyboard(5)
+    types = ["T_V"] * 5
+    details = {0: _choice(0.9, True), 1: _choice(0.8, True), 2: _choice(0.3, False),
+               3: _choice(0.7, True), 4: _choice(0.4, False)}
+    changed = vote_repeated(graph, edges, types, details, _conf)
+    assert sorted(changed) == [2, 4]
+    for k, r in changed.items():
+        assert r.voted and r.scores.best == 0
+        assert np.allclose(r.direction, UP)
+        assert r.calibrated == _conf(details[k].scores.total[0], 0.9)
+        # on the candidate's own line, at the point nearest the key's centre
+        o = r.candidates.origins[0]
+        assert np.allclose(np.cross(r.origin - o, UP), 0.0)
+        assert abs(np.dot(graph.obb_center[edges[k, 0]] - r.origin, UP)) < 1e-12
+
+
+def test_the_pooled_probability_decides_not_the_count():
+    graph, edges = _keyboard(5)
+    # three copies unsure towards the side (0.55 / 0.45), two sure of up (0.95)
+    details = {0: _choice(0.45, False), 1: _choice(0.45, False), 2: _choice(0.45, False),
+               3: _choice(0.95, True), 4: _choice(0.95, True)}
+    changed = vote_repeated(graph, edges, ["T_V"] * 5, details, _conf)
+    assert sorted(changed) == [0, 1, 2]
+    assert all(np.allclose(r.direction, UP) for r in changed.values())
+    # sure of the side, they stay and the others follow them
+    details = {0: _choice(0.1, False), 1: _choice(0.1, False), 2: _choice(0.1, False),
+               3: _choice(0.6, True), 4: _choice(0.6, True)}
+    changed = vote_repeated(graph, edges, ["T_V"] * 5, details, _conf)
+    assert sorted(changed) == [3, 4] and all(np.allclose(r.direction, SIDE) for r in changed.values())
+
+
+def test_pairs_types_references_and_sizes_do_not_group():
+    graph, edges = _keyboard(3)
+    details = {0: _choice(0.9, True), 1: _choice(0.8, True), 2: _choice(0.3, False)}
+    # two copies only (a double door): no vote
+    assert vote_repeated(graph, edges[:2], ["T_V"] * 2, {0: details[0], 1: details[2]}, _conf) == {}
+    # another predicted type breaks the group
+    assert vote_repeated(graph, edges, ["T_V", "T_V", "R_V_S"], details, _conf) == {}
+    # another reference part breaks the group
+    other = edges.copy()
+    other[2, 1] = 1
+    assert vote_repeated(graph, other, ["T_V"] * 3, details, _conf) == {}
+    # a part twice the size is not a copy
+    big, e3 = _keyboard(3, extents=[[0.05, 0.02, 0.05], [0.05, 0.02, 0.05], [0.1, 0.04, 0.1]])
+    assert repeated_groups(big, e3, ["T_V"] * 3, [0, 1, 2]) == []
+    assert vote_repeated(big, e3, ["T_V"] * 3, details, _conf) == {}
+    # but the three equal keys are one group
+    assert repeated_groups(graph, edges, ["T_V"] * 3, [0, 1, 2]) == [[0, 1, 2]]
+
+
+def test_a_member_without_a_candidate_near_the_winner_keeps_its_choice():
+    graph, edges = _keyboard(3)
+    lone = _choice(0.3, False)
+    lone = EdgeRefinement(Candidates(np.zeros((1, 3)), SIDE[None], ("edge",), "T_V"),
+                          CandidateScores(*(np.ones(1),) * 4, np.ones(1, np.int64), 0),
+                          np.zeros(3), SIDE.copy(), calibrated=0.5)
+    details = {0: _choice(0.9, True), 1: _choice(0.8, True), 2: lone}
+    assert vote_repeated(graph, edges, ["T_V"] * 3, details, _conf) == {}
+
+
+def test_copies_turned_about_the_shape_vote_in_their_own_frames():
+    """A box's flaps: copies whose hinges differ in the shape's frame but not in their own."""
+    graph, edges = _keyboard(4, extents=[[0.5, 0.02, 0.2]] * 4)
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # 90 deg about y
+    graph.obb_axes[3] = turn  # flap 3 (edge 2) is flap 1 turned a quarter about the vertical
+    graph.obb_axes[4] = turn
+    hinge_of = {0: SIDE, 1: SIDE, 2: turn[0], 3: turn[0]}  # each flap's long axis
+    details = {}
+    for k, h in hinge_of.items():
+        cands = Candidates(np.zeros((2, 3)), np.stack([h, UP]), ("edge", "edge"), "R_H_S")
+        total = np.array([0.8, 0.2])
+        scores = CandidateScores(*(np.ones(2),) * 3, total, np.ones(2, np.int64), 0)
+        details[k] = EdgeRefinement(cands, scores, np.zeros(3), h.copy(), calibrated=0.8)
+    # in the shape's frame two flaps hinge about x and two about z; in their own all agree
+    assert vote_repeated(graph, edges, ["R_H_S"] * 4, details, _conf) == {}
+    # one flap unsure and turned to the vertical follows the others' own-frame hinge
+    d2 = details[2]
+    details[2] = replace(d2, scores=replace(d2.scores, total=np.array([0.4, 0.6]), best=1),
+                         direction=UP.copy())
+    changed = vote_repeated(graph, edges, ["R_H_S"] * 4, details, _conf)
+    assert sorted(changed) == [2] and np.allclose(np.abs(changed[2].direction), np.abs(turn[0]))
