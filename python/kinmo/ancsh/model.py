@@ -16,7 +16,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kinmo.ancsh.pointnet2 import PointNet2Backbone
+from kinmo.ancsh.pointnet2 import GeometryPlan, PointNet2Backbone
 
 
 @dataclass
@@ -47,7 +47,9 @@ class ANCSH(nn.Module):
     n_centers, radii : see :class:`~kinmo.ancsh.pointnet2.PointNet2Backbone`.
 
     Shapes:
-        xyz (B, N, 3), centred and scaled to about unit size ->
+        xyz (B, N, 3), centred and scaled to about unit size, and optionally its
+        :class:`~kinmo.ancsh.pointnet2.GeometryPlan` (``model.backbone.plan(xyz)``; built by
+        the backbone when not given) ->
         ``seg_logits`` (B, N, K), ``npcs`` (B, N, K, 3) (one NPCS per part hypothesis, in
         [0, 1]), ``naocs`` (B, N, 3), ``heatmap`` (B, N) in [0, 1], ``unitvec`` (B, N, 3),
         ``axis`` (B, N, 3) unit, ``joint_logits`` (B, N, J + 1) (class 0: no joint).
@@ -79,8 +81,8 @@ class ANCSH(nn.Module):
         self.axis_head = head(3)
         self.joint_head = head(n_joints + 1)
 
-    def forward(self, xyz: torch.Tensor) -> dict[str, torch.Tensor]:
-        f = self.backbone(xyz).transpose(1, 2)  # (B, C, N)
+    def forward(self, xyz: torch.Tensor, plan: GeometryPlan | None = None) -> dict[str, torch.Tensor]:
+        f = self.backbone(xyz, plan).transpose(1, 2)  # (B, C, N)
         b, _, n = f.shape
         return {
             "seg_logits": self.seg_head(f).transpose(1, 2),

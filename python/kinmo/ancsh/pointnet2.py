@@ -4,12 +4,51 @@ anywhere and runs on CPU or GPU. The backbone of ANCSH (Li et al. CVPR 2020).
 Building blocks: farthest point sampling, ball query, grouping, set abstraction (SA) and
 feature propagation (FP) layers, and a segmentation-style backbone producing per-point
 features.
+
+**Geometry plans.** Which points become centres (farthest point sampling), which points each
+centre groups (ball query) and which coarse points each point interpolates from (3 nearest
+neighbours) depend only on the input coordinates. :func:`build_plan` computes them for all
+three SA and FP levels of a batch at once, outside autograd, as a :class:`GeometryPlan`
+(indices and interpolation weights) that :class:`PointNet2Backbone` takes with the
+coordinates; the network itself is then only gathers, convolutions and pooling. The plan is
+computed by the Rust core (:mod:`kinmo.geometry.pointnet`, parallel over the batch, on CPU:
+CUDA inputs are copied to the CPU for planning and the indices copied back), or, as a
+reference, by the PyTorch functions of this module (``backend="torch"``, the computation the
+forward pass did inline before plans). Called without a plan, the backbone builds one itself
+with the Rust core, so inference and old callers need no change. Training
+(:func:`kinmo.ancsh.fit.fit`) builds each batch's plan before the forward pass.
+
+**Reproducibility rule of plans** (Rust backend, :mod:`kinmo.geometry.pointnet`):
+
+- farthest point sampling starts at point 0 of every cloud and keeps float32 distances
+  evaluated as PyTorch evaluates them, taking the first point of largest distance: the
+  centres are exactly the reference's, cloud by cloud, whatever the batch or thread count;
+- a ball holds the first ``k`` points in index order whose float64 squared distance to the
+  centre is at most ``radius ** 2`` (padded with the first). The reference compares
+  ``torch.cdist``'s float32 distances, computed through a matrix product; the two can
+  disagree only for points within about ``1e-6`` of the radius (float ties at the boundary);
+- feature propagation interpolates from the 3 nearest coarse points by float64 distance,
+  ties by index, with weights ``1 / (d + 1e-8)`` normalised. The distances are exact, where
+  ``torch.cdist``'s matrix product leaves about ``1e-4`` for a point on a coarse point
+  (itself), so the reference gives such points a weight of ~0.99 on themselves where the plan
+  gives 1: the networks agree to about 1e-3 relative, not bit for bit.
+
+Every plan is deterministic: the same coordinates give the same plan on any machine.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
 import torch
 from torch import nn
+
+from kinmo.geometry import pointnet as _rust
+
+#: Where a plan is computed: the Rust core (default) or this module's PyTorch functions.
+Backend = Literal["rust", "torch"]
 
 
 def farthest_point_sample(xyz: torch.Tensor, n_samples: int, seed: int | None = 0) -> torch.Tensor:
@@ -84,6 +123,180 @@ def ball_query(radius: float, k: int, xyz: torch.Tensor, centers: torch.Tensor) 
     return torch.where(key == n, nearest, key)
 
 
+@dataclass(frozen=True)
+class SALevel:
+    """Indices of one set abstraction level.
+
+    Attributes
+    ----------
+    centers : (B, M) int64
+        The centres (farthest point sampling) among the level's ``N`` input points.
+    groups : (B, M, k) int64
+        Each centre's group (ball query), indices into ``N``.
+    """
+
+    centers: torch.Tensor
+    groups: torch.Tensor
+
+
+@dataclass(frozen=True)
+class FPLevel:
+    """Interpolation of one feature propagation level: ``N`` points from ``M`` coarse ones.
+
+    Attributes
+    ----------
+    index : (B, N, k) int64
+        The ``k = min(3, M)`` nearest coarse points, nearest first.
+    weight : (B, N, k) float32
+        Normalised inverse-distance weights ``1 / (d + 1e-8)``.
+    """
+
+    index: torch.Tensor
+    weight: torch.Tensor
+
+
+@dataclass(frozen=True)
+class GeometryPlan:
+    """The neighbourhoods of every level of a :class:`PointNet2Backbone` for one batch.
+
+    Attributes
+    ----------
+    sa : tuple of SALevel
+        Levels 1, 2, 3 (level ``l + 1`` indexes the centres of level ``l``).
+    fp : tuple of FPLevel
+        In the order the backbone runs them: level-2 centres from level-3 centres, level-1
+        centres from level-2 centres, input points from level-1 centres.
+    """
+
+    sa: tuple[SALevel, ...]
+    fp: tuple[FPLevel, ...]
+
+    def to(self, device: torch.device | str, non_blocking: bool = False) -> GeometryPlan:
+        """The plan with every tensor on ``device``."""
+        mv = lambda t: t.to(device, non_blocking=non_blocking)  # noqa: E731
+        return GeometryPlan(tuple(SALevel(mv(s.centers), mv(s.groups)) for s in self.sa),
+                            tuple(FPLevel(mv(f.index), mv(f.weight)) for f in self.fp))
+
+
+def _weights(d: torch.Tensor) -> torch.Tensor:
+    w = 1.0 / (d + 1e-8)
+    return w / w.sum(-1, keepdim=True)
+
+
+def plan_set_abstraction(xyz: torch.Tensor, n_centers: int, radius: float, k: int,
+                         backend: Backend = "rust") -> SALevel:
+    """The centres and groups of one SA level (module docstring).
+
+    Parameters
+    ----------
+    xyz : (B, N, 3) float tensor
+    n_centers : int
+        Centres wanted; ``min(n_centers, N)`` are taken.
+    radius : float
+    k : int
+    backend : {"rust", "torch"}
+
+    Returns
+    -------
+    SALevel
+        On ``xyz``'s device.
+    """
+    m = min(n_centers, xyz.shape[1])
+    with torch.no_grad():
+        if backend == "torch":
+            cidx = farthest_point_sample(xyz, m, seed=None)
+            return SALevel(cidx, ball_query(radius, k, xyz, gather_points(xyz, cidx)))
+        p = xyz.detach().to("cpu", torch.float32).numpy()
+        c = _rust.farthest_point_sample(p, m)
+        g = _rust.ball_query(p, np.take_along_axis(p, c[..., None], 1), radius, k)
+        return SALevel(torch.from_numpy(c).to(xyz.device), torch.from_numpy(g).to(xyz.device))
+
+
+def plan_propagation(xyz: torch.Tensor, coarse_xyz: torch.Tensor, backend: Backend = "rust") -> FPLevel:
+    """The interpolation of one FP level (module docstring).
+
+    Parameters
+    ----------
+    xyz : (B, N, 3) float tensor
+    coarse_xyz : (B, M, 3) float tensor
+    backend : {"rust", "torch"}
+
+    Returns
+    -------
+    FPLevel
+        On ``xyz``'s device.
+    """
+    k = min(3, coarse_xyz.shape[1])
+    with torch.no_grad():
+        if backend == "torch":
+            d, idx = torch.cdist(xyz, coarse_xyz).topk(k, dim=-1, largest=False)
+            return FPLevel(idx, _weights(d))
+        idx, d = _rust.k_nearest(coarse_xyz.detach().to("cpu", torch.float32).numpy(),
+                                 xyz.detach().to("cpu", torch.float32).numpy(), k)
+        return FPLevel(torch.from_numpy(idx).to(xyz.device), _weights(torch.from_numpy(d)).to(xyz.device))
+
+
+def build_plan(
+    xyz: torch.Tensor,
+    n_centers: tuple[int, ...],
+    radii: tuple[float, ...],
+    k: int,
+    backend: Backend = "rust",
+) -> GeometryPlan:
+    """The :class:`GeometryPlan` of a batch for a backbone of these sizes.
+
+    Parameters
+    ----------
+    xyz : (B, N, 3) float tensor
+        The backbone's input.
+    n_centers, radii : tuples of 3
+    k : int
+        Group size.
+    backend : {"rust", "torch"}
+        ``"rust"``: :mod:`kinmo.geometry.pointnet` on CPU (the module's reproducibility rule);
+        ``"torch"``: the reference functions of this module, on ``xyz``'s device.
+
+    Returns
+    -------
+    GeometryPlan
+        On ``xyz``'s device.
+    """
+    if backend not in ("rust", "torch"):
+        raise ValueError(f"unknown plan backend {backend!r} (rust or torch)")
+    if backend == "torch":
+        return _build_plan_torch(xyz, n_centers, radii, k)
+    with torch.no_grad():
+        p = xyz.detach().to("cpu", torch.float32).contiguous().numpy()
+    levels, clouds = [], [p]
+    for m, r in zip(n_centers, radii):
+        cur = clouds[-1]
+        c = _rust.farthest_point_sample(cur, min(m, cur.shape[1]))
+        nxt = np.take_along_axis(cur, c[..., None], 1)
+        levels.append((c, _rust.ball_query(cur, nxt, r, k)))
+        clouds.append(nxt)
+    fps = []
+    for fine, coarse in ((clouds[2], clouds[3]), (clouds[1], clouds[2]), (clouds[0], clouds[1])):
+        idx, d = _rust.k_nearest(coarse, fine, min(3, coarse.shape[1]))
+        fps.append((idx, d))
+    dev = xyz.device
+    return GeometryPlan(
+        tuple(SALevel(torch.from_numpy(c).to(dev), torch.from_numpy(g).to(dev)) for c, g in levels),
+        tuple(FPLevel(torch.from_numpy(i).to(dev), _weights(torch.from_numpy(d)).to(dev)) for i, d in fps))
+
+
+def _build_plan_torch(xyz: torch.Tensor, n_centers: tuple[int, ...], radii: tuple[float, ...],
+                      k: int) -> GeometryPlan:
+    with torch.no_grad():
+        clouds, levels = [xyz.detach()], []
+        for m, r in zip(n_centers, radii):
+            lv = plan_set_abstraction(clouds[-1], m, r, k, "torch")
+            levels.append(lv)
+            clouds.append(gather_points(clouds[-1], lv.centers))
+        fps = tuple(plan_propagation(fine, coarse, "torch")
+                    for fine, coarse in ((clouds[2], clouds[3]), (clouds[1], clouds[2]), (clouds[0], clouds[1])))
+    return GeometryPlan(tuple(levels), fps)
+
+
 class SharedMLP(nn.Sequential):
     """1x1 convolutions with batch norm and ReLU over the channel dimension.
 
@@ -103,6 +316,9 @@ class SharedMLP(nn.Sequential):
 class SetAbstraction(nn.Module):
     """PointNet++ set abstraction: FPS centres, ball-query groups, shared MLP, max-pool.
 
+    The centres and groups come from ``level`` (:func:`plan_set_abstraction`), planned here
+    with the Rust core when not given.
+
     Shapes:
         xyz (B, N, 3), features (B, N, C) or None
         -> new_xyz (B, M, 3), new_features (B, M, mlp[-1])
@@ -113,11 +329,12 @@ class SetAbstraction(nn.Module):
         self.n_centers, self.radius, self.k = n_centers, radius, k
         self.mlp = SharedMLP([in_channels + 3, *mlp])
 
-    def forward(self, xyz: torch.Tensor, features: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
-        m = min(self.n_centers, xyz.shape[1])
-        cidx = farthest_point_sample(xyz, m, seed=None)
-        centers = gather_points(xyz, cidx)
-        gidx = ball_query(self.radius, self.k, xyz, centers)  # (B, M, k)
+    def forward(self, xyz: torch.Tensor, features: torch.Tensor | None,
+                level: SALevel | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        if level is None:
+            level = plan_set_abstraction(xyz, self.n_centers, self.radius, self.k)
+        centers = gather_points(xyz, level.centers)
+        gidx = level.groups  # (B, M, k)
         rel = gather_points(xyz, gidx) - centers.unsqueeze(2)  # (B, M, k, 3)
         grouped = rel if features is None else torch.cat([rel, gather_points(features, gidx)], -1)
         out = self.mlp(grouped.permute(0, 3, 1, 2))  # (B, C, M, k)
@@ -127,6 +344,9 @@ class SetAbstraction(nn.Module):
 class FeaturePropagation(nn.Module):
     """PointNet++ feature propagation: inverse-distance interpolation from the 3 nearest
     coarse points, concatenated with the skip features, then a shared MLP.
+
+    The neighbours and weights come from ``level`` (:func:`plan_propagation`), planned here
+    with the Rust core when not given.
 
     Shapes:
         xyz (B, N, 3), coarse_xyz (B, M, 3), skip (B, N, C1) or None, coarse (B, M, C2)
@@ -138,13 +358,12 @@ class FeaturePropagation(nn.Module):
         self.mlp = SharedMLP([in_channels, *mlp], dims=1)
 
     def forward(
-        self, xyz: torch.Tensor, coarse_xyz: torch.Tensor, skip: torch.Tensor | None, coarse: torch.Tensor
+        self, xyz: torch.Tensor, coarse_xyz: torch.Tensor, skip: torch.Tensor | None, coarse: torch.Tensor,
+        level: FPLevel | None = None,
     ) -> torch.Tensor:
-        k = min(3, coarse_xyz.shape[1])
-        d, idx = torch.cdist(xyz, coarse_xyz).topk(k, dim=-1, largest=False)
-        w = 1.0 / (d + 1e-8)
-        w = w / w.sum(-1, keepdim=True)
-        interp = (gather_points(coarse, idx) * w.unsqueeze(-1)).sum(2)
+        if level is None:
+            level = plan_propagation(xyz, coarse_xyz)
+        interp = (gather_points(coarse, level.index) * level.weight.unsqueeze(-1)).sum(2)
         x = interp if skip is None else torch.cat([skip, interp], -1)
         return self.mlp(x.transpose(1, 2)).transpose(1, 2)
 
@@ -161,8 +380,13 @@ class PointNet2Backbone(nn.Module):
     radii : tuple of float
         Ball radii (input units; inputs are expected normalised to about unit size).
 
+    planner : {"rust", "torch"}
+        Backend of the plans the backbone builds itself (:meth:`plan`); ``"torch"`` is the
+        reference computation (benchmarks, tests).
+
     Shapes:
-        xyz (B, N, 3) -> per-point features (B, N, out_channels)
+        xyz (B, N, 3), optional plan (:class:`GeometryPlan` of ``xyz``, :meth:`plan`)
+        -> per-point features (B, N, out_channels)
     """
 
     def __init__(
@@ -171,9 +395,12 @@ class PointNet2Backbone(nn.Module):
         n_centers: tuple[int, int, int] = (512, 128, 32),
         radii: tuple[float, float, float] = (0.1, 0.2, 0.4),
         k: int = 32,
+        planner: Backend = "rust",
     ) -> None:
         super().__init__()
         w = width
+        self.n_centers, self.radii, self.k = tuple(n_centers), tuple(radii), k
+        self.planner: Backend = planner
         self.sa1 = SetAbstraction(n_centers[0], radii[0], k, 0, [w, w, 2 * w])
         self.sa2 = SetAbstraction(n_centers[1], radii[1], k, 2 * w, [2 * w, 2 * w, 4 * w])
         self.sa3 = SetAbstraction(n_centers[2], radii[2], k, 4 * w, [4 * w, 4 * w, 8 * w])
@@ -182,10 +409,19 @@ class PointNet2Backbone(nn.Module):
         self.fp1 = FeaturePropagation(2 * w, [2 * w, 2 * w])
         self.out_channels = 2 * w
 
-    def forward(self, xyz: torch.Tensor) -> torch.Tensor:
-        x1, f1 = self.sa1(xyz, None)
-        x2, f2 = self.sa2(x1, f1)
-        x3, f3 = self.sa3(x2, f2)
-        f2 = self.fp3(x2, x3, f2, f3)
-        f1 = self.fp2(x1, x2, f1, f2)
-        return self.fp1(xyz, x1, None, f1)
+    def plan(self, xyz: torch.Tensor) -> GeometryPlan:
+        """The :class:`GeometryPlan` of ``xyz (B, N, 3)`` for this backbone (``planner``)."""
+        return build_plan(xyz, self.n_centers, self.radii, self.k, self.planner)
+
+    def forward(self, xyz: torch.Tensor, plan: GeometryPlan | None = None) -> torch.Tensor:
+        if plan is None:
+            plan = self.plan(xyz)
+        elif plan.fp[2].index.shape[:2] != xyz.shape[:2]:
+            raise ValueError(f"the plan is of a batch of {tuple(plan.fp[2].index.shape[:2])} points, "
+                             f"the input of {tuple(xyz.shape[:2])}")
+        x1, f1 = self.sa1(xyz, None, plan.sa[0])
+        x2, f2 = self.sa2(x1, f1, plan.sa[1])
+        x3, f3 = self.sa3(x2, f2, plan.sa[2])
+        f2 = self.fp3(x2, x3, f2, f3, plan.fp[0])
+        f1 = self.fp2(x1, x2, f1, f2, plan.fp[1])
+        return self.fp1(xyz, x1, None, f1, plan.fp[2])

@@ -78,24 +78,23 @@ fn dist2_f64(a: &Point, b: &Point) -> f64 {
 }
 
 fn fps_into(points: &[Point], out: &mut [i64]) {
+    // structure of arrays, so that the distance update vectorises
+    let xs: Vec<f32> = points.iter().map(|p| p[0]).collect();
+    let ys: Vec<f32> = points.iter().map(|p| p[1]).collect();
+    let zs: Vec<f32> = points.iter().map(|p| p[2]).collect();
     let mut dist = vec![f32::INFINITY; points.len()];
     let mut far = 0usize;
     for slot in out.iter_mut() {
         *slot = far as i64;
         let c = points[far];
         let mut best = f32::NEG_INFINITY;
-        let mut next = 0usize;
-        for (i, (p, d)) in points.iter().zip(dist.iter_mut()).enumerate() {
-            let e = dist2_f32(p, &c);
-            if e < *d {
-                *d = e;
-            }
-            if *d > best {
-                best = *d;
-                next = i;
-            }
+        for (((d, x), y), z) in dist.iter_mut().zip(&xs).zip(&ys).zip(&zs) {
+            let e = dist2_f32(&[*x, *y, *z], &c);
+            *d = if e < *d { e } else { *d };
+            best = if *d > best { *d } else { best };
         }
-        far = next;
+        // the first point of largest distance
+        far = dist.iter().position(|&d| d == best).unwrap_or(0);
     }
 }
 
@@ -146,17 +145,41 @@ pub fn farthest_point_sample_batch(
     Ok(())
 }
 
-fn ball_into(points: &[Point], centers: &[Point], r2: f64, k: usize, out: &mut [i64]) {
+/// Point indices sorted by x (then index), with their x coordinates in `f64`: the points
+/// within `dx` of a query in x form one run of this order.
+fn x_order(points: &[Point]) -> (Vec<usize>, Vec<f64>) {
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]).then(a.cmp(&b)));
+    let xs = order.iter().map(|&i| f64::from(points[i][0])).collect();
+    (order, xs)
+}
+
+fn ball_into(points: &[Point], centers: &[Point], radius: f64, k: usize, out: &mut [i64]) {
+    let r2 = radius * radius;
+    let (order, xs) = x_order(points);
+    let mut inside: Vec<usize> = Vec::new();
     for (c, o) in centers.iter().zip(out.chunks_mut(k)) {
-        let mut count = 0usize;
-        for (i, p) in points.iter().enumerate() {
-            if dist2_f64(p, c) <= r2 {
-                o[count] = i as i64;
-                count += 1;
-                if count == k {
-                    break;
-                }
+        // only points with (x - cx)^2 <= r^2 can be within the radius: |dx| <= r, widened by
+        // one ulp-scale margin, then checked exactly
+        let cx = f64::from(c[0]);
+        let lo = xs.partition_point(|&x| x < cx - radius * (1.0 + 1e-9));
+        let hi = xs.partition_point(|&x| x <= cx + radius * (1.0 + 1e-9));
+        inside.clear();
+        inside.extend(
+            order[lo..hi]
+                .iter()
+                .copied()
+                .filter(|&i| dist2_f64(&points[i], c) <= r2),
+        );
+        let count = inside.len().min(k);
+        if count > 0 {
+            if inside.len() > k {
+                inside.select_nth_unstable(k - 1);
             }
+            inside[..count].sort_unstable();
+        }
+        for (s, &i) in o.iter_mut().zip(&inside[..count]) {
+            *s = i as i64;
         }
         let fill = if count == 0 {
             nearest(points, c) as i64
@@ -235,15 +258,16 @@ pub fn ball_query_batch(
     }
     check_finite("points", points)?;
     check_finite("centers", centers)?;
-    let r2 = radius * radius;
     out.par_chunks_mut(m * k)
         .zip(points.par_chunks(n).zip(centers.par_chunks(m)))
-        .for_each(|(o, (p, c))| ball_into(p, c, r2, k, o));
+        .for_each(|(o, (p, c))| ball_into(p, c, radius, k, o));
     Ok(())
 }
 
 fn knn_into(points: &[Point], queries: &[Point], k: usize, idx: &mut [i64], dist: &mut [f32]) {
-    // (squared distance, index), kept sorted ascending; ties keep the earlier index first
+    let (order, xs) = x_order(points);
+    let m = points.len();
+    // (squared distance, index), kept sorted ascending, ties by index
     let mut best: Vec<(f64, usize)> = Vec::with_capacity(k + 1);
     for ((q, io), dout) in queries
         .iter()
@@ -251,13 +275,38 @@ fn knn_into(points: &[Point], queries: &[Point], k: usize, idx: &mut [i64], dist
         .zip(dist.chunks_mut(k))
     {
         best.clear();
-        for (i, p) in points.iter().enumerate() {
-            let d = dist2_f64(p, q);
-            if best.len() == k && d >= best[k - 1].0 {
+        let qx = f64::from(q[0]);
+        // walk outwards in x from the query, nearer side first; stop once the x gap alone
+        // exceeds the k-th best squared distance (the gap's square never exceeds the full
+        // squared distance, rounding included)
+        let start = xs.partition_point(|&x| x < qx);
+        let (mut lo, mut hi) = (start, start);
+        loop {
+            let gap_lo = if lo > 0 {
+                qx - xs[lo - 1]
+            } else {
+                f64::INFINITY
+            };
+            let gap_hi = if hi < m { xs[hi] - qx } else { f64::INFINITY };
+            let (gap, j) = if gap_lo <= gap_hi {
+                if lo == 0 {
+                    break;
+                }
+                lo -= 1;
+                (gap_lo, lo)
+            } else {
+                hi += 1;
+                (gap_hi, hi - 1)
+            };
+            if best.len() == k && gap * gap > best[k - 1].0 {
+                break;
+            }
+            let i = order[j];
+            let d = dist2_f64(&points[i], q);
+            if best.len() == k && (d, i) >= best[k - 1] {
                 continue;
             }
-            // insert after every entry with distance <= d (stable in index order)
-            let at = best.partition_point(|&(e, _)| e <= d);
+            let at = best.partition_point(|&e| e < (d, i));
             best.insert(at, (d, i));
             best.truncate(k);
         }
