@@ -131,7 +131,7 @@ class SALevel:
     ----------
     centers : (B, M) int64
         The centres (farthest point sampling) among the level's ``N`` input points.
-    groups : (B, M, k) int64
+    groups : (B, M, min(k, N)) int64
         Each centre's group (ball query), indices into ``N``.
     """
 
@@ -208,7 +208,7 @@ def plan_set_abstraction(xyz: torch.Tensor, n_centers: int, radius: float, k: in
             return SALevel(cidx, ball_query(radius, k, xyz, gather_points(xyz, cidx)))
         p = xyz.detach().to("cpu", torch.float32).numpy()
         c = _rust.farthest_point_sample(p, m)
-        g = _rust.ball_query(p, np.take_along_axis(p, c[..., None], 1), radius, k)
+        g = _rust.ball_query(p, np.take_along_axis(p, c[..., None], 1), radius, min(k, p.shape[1]))
         return SALevel(torch.from_numpy(c).to(xyz.device), torch.from_numpy(g).to(xyz.device))
 
 
@@ -272,7 +272,7 @@ def build_plan(
         cur = clouds[-1]
         c = _rust.farthest_point_sample(cur, min(m, cur.shape[1]))
         nxt = np.take_along_axis(cur, c[..., None], 1)
-        levels.append((c, _rust.ball_query(cur, nxt, r, k)))
+        levels.append((c, _rust.ball_query(cur, nxt, r, min(k, cur.shape[1]))))
         clouds.append(nxt)
     fps = []
     for fine, coarse in ((clouds[2], clouds[3]), (clouds[1], clouds[2]), (clouds[0], clouds[1])):
