@@ -66,13 +66,13 @@ def train_step(
     grad_clip: float = 0.0,
     weight: float = 1.0,
     module: torch.nn.Module | None = None,
+    reference: bool = False,
 ) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor], dict[str, torch.Tensor]]:
     """One optimisation step of ANCSH on a batch of :class:`~kinmo.ancsh.dataset.ANCSHFrames`
     items.
 
-    The items are collated, the batch's neighbourhoods planned on the CPU
-    (``model.backbone.plan``: the Rust core, or the PyTorch reference when the backbone's
-    ``planner`` is ``"torch"``) and moved to ``device`` with the batch; then forward, loss
+    The items are collated, the batch's neighbourhoods planned on the CPU by the Rust core
+    (``model.backbone.plan``) and moved to ``device`` with the batch; then forward, loss
     (:func:`~kinmo.ancsh.model.ancsh_loss`), backward and ``optimizer``'s step
     (:func:`kinmo.train.loop.optimizer_step`).
 
@@ -91,6 +91,10 @@ def train_step(
     module : torch.nn.Module, optional
         What runs the forward pass (``DistributedDataParallel`` of ``model``); default
         ``model``.
+    reference : bool
+        Run the computation before geometry plans instead (:meth:`ANCSH.forward_reference
+        <kinmo.ancsh.model.ANCSH.forward_reference>`, no plan; ``module`` is not used): the
+        "before" of ``bench/bench_ancsh.py`` and the tests.
 
     Returns
     -------
@@ -102,10 +106,14 @@ def train_step(
         The collated batch on ``device``.
     """
     batch = default_collate(items)
-    with torch.no_grad():
-        plan = model.backbone.plan(batch["xyz"]).to(device)
-    batch = {k: v.to(device) for k, v in batch.items()}
-    pred = (module or model)(batch["xyz"], plan)
+    if reference:
+        batch = {k: v.to(device) for k, v in batch.items()}
+        pred = model.forward_reference(batch["xyz"])
+    else:
+        with torch.no_grad():
+            plan = model.backbone.plan(batch["xyz"]).to(device)
+        batch = {k: v.to(device) for k, v in batch.items()}
+        pred = (module or model)(batch["xyz"], plan)
     terms = ancsh_loss(pred, batch)
     optimizer_step(optimizer, terms["total"], model, weight, grad_clip)
     return terms, pred, batch

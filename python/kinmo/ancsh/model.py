@@ -16,7 +16,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kinmo.ancsh.pointnet2 import GeometryPlan, PointNet2Backbone
+from kinmo.ancsh.pointnet2 import GeometryPlan, PointNet2Backbone, pointwise
 
 
 @dataclass
@@ -82,7 +82,27 @@ class ANCSH(nn.Module):
         self.joint_head = head(n_joints + 1)
 
     def forward(self, xyz: torch.Tensor, plan: GeometryPlan | None = None) -> dict[str, torch.Tensor]:
-        f = self.backbone(xyz, plan).transpose(1, 2)  # (B, C, N)
+        f = self.backbone(xyz, plan)  # (B, N, C), channels-last
+        b, n, _ = f.shape
+
+        def head(layers: nn.Sequential) -> torch.Tensor:
+            return pointwise(layers, f)  # the 1x1 convolutions as matrix products
+
+        return {
+            "seg_logits": head(self.seg_head),
+            "npcs": torch.sigmoid(head(self.npcs_head)).reshape(b, n, self.n_parts, 3),
+            "naocs": torch.sigmoid(head(self.naocs_head)),
+            "heatmap": torch.sigmoid(head(self.heatmap_head)).squeeze(-1),
+            "unitvec": F.normalize(head(self.unitvec_head), dim=-1),
+            "axis": F.normalize(head(self.axis_head), dim=-1),
+            "joint_logits": head(self.joint_head),
+        }
+
+    def forward_reference(self, xyz: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The computation before geometry plans (``PointNet2Backbone.forward_reference``,
+        channels-first heads): the reference of tests and ``bench/bench_ancsh.py``; same
+        parameters and outputs as :meth:`forward` up to float rounding and the plan's rule."""
+        f = self.backbone.forward_reference(xyz).transpose(1, 2)  # (B, C, N)
         b, _, n = f.shape
         return {
             "seg_logits": self.seg_head(f).transpose(1, 2),

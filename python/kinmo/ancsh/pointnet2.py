@@ -3,7 +3,9 @@ anywhere and runs on CPU or GPU. The backbone of ANCSH (Li et al. CVPR 2020).
 
 Building blocks: farthest point sampling, ball query, grouping, set abstraction (SA) and
 feature propagation (FP) layers, and a segmentation-style backbone producing per-point
-features.
+features. Features are channels-last (``(B, N, C)``): the shared MLPs' 1x1 convolutions run
+as dense matrix products over all positions (:func:`pointwise`), with the parameters and
+state dict of convolution layers.
 
 **Geometry plans.** Which points become centres (farthest point sampling), which points each
 centre groups (ball query) and which coarse points each point interpolates from (3 nearest
@@ -13,10 +15,12 @@ three SA and FP levels of a batch at once, outside autograd, as a :class:`Geomet
 coordinates; the network itself is then only gathers, convolutions and pooling. The plan is
 computed by the Rust core (:mod:`kinmo.geometry.pointnet`, parallel over the batch, on CPU:
 CUDA inputs are copied to the CPU for planning and the indices copied back), or, as a
-reference, by the PyTorch functions of this module (``backend="torch"``, the computation the
-forward pass did inline before plans). Called without a plan, the backbone builds one itself
-with the Rust core, so inference and old callers need no change. Training
-(:func:`kinmo.ancsh.fit.fit`) builds each batch's plan before the forward pass.
+reference, by the PyTorch functions of this module (``backend="torch"``). Called without a
+plan, the backbone builds one itself with the Rust core, so inference and old callers need no
+change. Training (:func:`kinmo.ancsh.fit.train_step`) builds each batch's plan before the
+forward pass. The computation before plans (neighbourhoods inside each layer, channels-first
+convolutions) is kept as ``forward_reference`` of the layers and the backbone, the reference
+of the tests and of ``bench/bench_ancsh.py``.
 
 **Reproducibility rule of plans** (Rust backend, :mod:`kinmo.geometry.pointnet`):
 
@@ -38,11 +42,13 @@ Every plan is deterministic: the same coordinates give the same plan on any mach
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from kinmo.geometry import pointnet as _rust
@@ -297,11 +303,56 @@ def _build_plan_torch(xyz: torch.Tensor, n_centers: tuple[int, ...], radii: tupl
     return GeometryPlan(tuple(levels), fps)
 
 
+def batch_norm_rows(bn: nn.modules.batchnorm._BatchNorm, h: torch.Tensor) -> torch.Tensor:
+    """``bn`` (a ``BatchNorm1d`` / ``2d``) applied to ``h (P, C)``, one row per position.
+
+    The same normalisation, running averages and batch counter as ``bn`` on the
+    channels-first tensor of those ``P`` positions (statistics are over every position of
+    the batch either way).
+    """
+    factor = 0.0
+    if bn.training and bn.track_running_stats and bn.num_batches_tracked is not None:
+        bn.num_batches_tracked.add_(1)
+        factor = 1.0 / float(bn.num_batches_tracked) if bn.momentum is None else bn.momentum
+    batch_stats = bn.training or bn.running_mean is None
+    return F.batch_norm(h, bn.running_mean if not bn.training or bn.track_running_stats else None,
+                        bn.running_var if not bn.training or bn.track_running_stats else None,
+                        bn.weight, bn.bias, batch_stats, factor, bn.eps)
+
+
+def pointwise(layers: Sequence[nn.Module], x: torch.Tensor) -> torch.Tensor:
+    """Kernel-size-1 convolutions, batch norms and ReLUs applied to channels-last ``x``.
+
+    Each 1x1 ``Conv1d`` / ``Conv2d`` is the matrix product with its weight (and bias), each
+    batch norm :func:`batch_norm_rows`: the same function and parameters as the layers on the
+    channels-first tensor, without its transposes and with dense matrix products.
+
+    Shapes:
+        x (..., C_in) -> (..., C_out)
+    """
+    shape = x.shape[:-1]
+    h = x.reshape(-1, x.shape[-1])
+    for layer in layers:
+        if isinstance(layer, (nn.Conv1d, nn.Conv2d)):
+            h = F.linear(h, layer.weight.reshape(layer.out_channels, -1), layer.bias)
+        elif isinstance(layer, nn.modules.batchnorm._BatchNorm):
+            h = batch_norm_rows(layer, h)
+        elif isinstance(layer, nn.ReLU):
+            h = F.relu(h, inplace=layer.inplace)
+        else:
+            raise TypeError(f"pointwise: unsupported layer {type(layer).__name__}")
+    return h.reshape(*shape, h.shape[-1])
+
+
 class SharedMLP(nn.Sequential):
     """1x1 convolutions with batch norm and ReLU over the channel dimension.
 
+    The layers are ``Conv{dims}d`` / ``BatchNorm{dims}d`` / ``ReLU`` (the parameters and
+    state dict of the reference PointNet++), applied to channels-last inputs with
+    :func:`pointwise`.
+
     Shapes:
-        input (B, C_in, ...) -> output (B, C_out, ...) with ``len(...)`` of 1 or 2.
+        input (..., C_in) -> output (..., C_out)
     """
 
     def __init__(self, channels: list[int], dims: int = 2) -> None:
@@ -311,6 +362,9 @@ class SharedMLP(nn.Sequential):
         for cin, cout in zip(channels[:-1], channels[1:]):
             layers += [conv(cin, cout, 1, bias=False), bn(cout), nn.ReLU(inplace=True)]
         super().__init__(*layers)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return pointwise(self, x)
 
 
 class SetAbstraction(nn.Module):
@@ -337,7 +391,19 @@ class SetAbstraction(nn.Module):
         gidx = level.groups  # (B, M, k)
         rel = gather_points(xyz, gidx) - centers.unsqueeze(2)  # (B, M, k, 3)
         grouped = rel if features is None else torch.cat([rel, gather_points(features, gidx)], -1)
-        out = self.mlp(grouped.permute(0, 3, 1, 2))  # (B, C, M, k)
+        return centers, self.mlp(grouped).max(2).values  # (B, M, k, C) -> (B, M, C)
+
+    def forward_reference(self, xyz: torch.Tensor, features: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
+        """The computation before geometry plans (kept as the reference of tests and
+        ``bench/bench_ancsh.py``): PyTorch FPS and ball query inline, channels-first 1x1
+        convolutions."""
+        m = min(self.n_centers, xyz.shape[1])
+        cidx = farthest_point_sample(xyz, m, seed=None)
+        centers = gather_points(xyz, cidx)
+        gidx = ball_query(self.radius, self.k, xyz, centers)  # (B, M, k)
+        rel = gather_points(xyz, gidx) - centers.unsqueeze(2)  # (B, M, k, 3)
+        grouped = rel if features is None else torch.cat([rel, gather_points(features, gidx)], -1)
+        out = nn.Sequential.forward(self.mlp, grouped.permute(0, 3, 1, 2))  # (B, C, M, k)
         return centers, out.max(-1).values.transpose(1, 2)
 
 
@@ -365,7 +431,20 @@ class FeaturePropagation(nn.Module):
             level = plan_propagation(xyz, coarse_xyz)
         interp = (gather_points(coarse, level.index) * level.weight.unsqueeze(-1)).sum(2)
         x = interp if skip is None else torch.cat([skip, interp], -1)
-        return self.mlp(x.transpose(1, 2)).transpose(1, 2)
+        return self.mlp(x)
+
+    def forward_reference(
+        self, xyz: torch.Tensor, coarse_xyz: torch.Tensor, skip: torch.Tensor | None, coarse: torch.Tensor
+    ) -> torch.Tensor:
+        """The computation before geometry plans (see :meth:`SetAbstraction.forward_reference`):
+        ``torch.cdist`` nearest neighbours inline, channels-first 1x1 convolutions."""
+        k = min(3, coarse_xyz.shape[1])
+        d, idx = torch.cdist(xyz, coarse_xyz).topk(k, dim=-1, largest=False)
+        w = 1.0 / (d + 1e-8)
+        w = w / w.sum(-1, keepdim=True)
+        interp = (gather_points(coarse, idx) * w.unsqueeze(-1)).sum(2)
+        x = interp if skip is None else torch.cat([skip, interp], -1)
+        return nn.Sequential.forward(self.mlp, x.transpose(1, 2)).transpose(1, 2)
 
 
 class PointNet2Backbone(nn.Module):
@@ -379,10 +458,8 @@ class PointNet2Backbone(nn.Module):
         Centres of the three SA levels.
     radii : tuple of float
         Ball radii (input units; inputs are expected normalised to about unit size).
-
-    planner : {"rust", "torch"}
-        Backend of the plans the backbone builds itself (:meth:`plan`); ``"torch"`` is the
-        reference computation (benchmarks, tests).
+    k : int
+        Group size of the ball queries.
 
     Shapes:
         xyz (B, N, 3), optional plan (:class:`GeometryPlan` of ``xyz``, :meth:`plan`)
@@ -395,12 +472,10 @@ class PointNet2Backbone(nn.Module):
         n_centers: tuple[int, int, int] = (512, 128, 32),
         radii: tuple[float, float, float] = (0.1, 0.2, 0.4),
         k: int = 32,
-        planner: Backend = "rust",
     ) -> None:
         super().__init__()
         w = width
         self.n_centers, self.radii, self.k = tuple(n_centers), tuple(radii), k
-        self.planner: Backend = planner
         self.sa1 = SetAbstraction(n_centers[0], radii[0], k, 0, [w, w, 2 * w])
         self.sa2 = SetAbstraction(n_centers[1], radii[1], k, 2 * w, [2 * w, 2 * w, 4 * w])
         self.sa3 = SetAbstraction(n_centers[2], radii[2], k, 4 * w, [4 * w, 4 * w, 8 * w])
@@ -409,9 +484,9 @@ class PointNet2Backbone(nn.Module):
         self.fp1 = FeaturePropagation(2 * w, [2 * w, 2 * w])
         self.out_channels = 2 * w
 
-    def plan(self, xyz: torch.Tensor) -> GeometryPlan:
-        """The :class:`GeometryPlan` of ``xyz (B, N, 3)`` for this backbone (``planner``)."""
-        return build_plan(xyz, self.n_centers, self.radii, self.k, self.planner)
+    def plan(self, xyz: torch.Tensor, backend: Backend = "rust") -> GeometryPlan:
+        """The :class:`GeometryPlan` of ``xyz (B, N, 3)`` for this backbone (:func:`build_plan`)."""
+        return build_plan(xyz, self.n_centers, self.radii, self.k, backend)
 
     def forward(self, xyz: torch.Tensor, plan: GeometryPlan | None = None) -> torch.Tensor:
         if plan is None:
@@ -425,3 +500,15 @@ class PointNet2Backbone(nn.Module):
         f2 = self.fp3(x2, x3, f2, f3, plan.fp[0])
         f1 = self.fp2(x1, x2, f1, f2, plan.fp[1])
         return self.fp1(xyz, x1, None, f1, plan.fp[2])
+
+    def forward_reference(self, xyz: torch.Tensor) -> torch.Tensor:
+        """The computation before geometry plans, the reference of tests and benchmarks: the
+        neighbourhoods computed inside each layer by this module's PyTorch functions, the 1x1
+        convolutions channels-first. Same parameters, same function as :meth:`forward` up to
+        the plan's rule (module docstring) and float rounding."""
+        x1, f1 = self.sa1.forward_reference(xyz, None)
+        x2, f2 = self.sa2.forward_reference(x1, f1)
+        x3, f3 = self.sa3.forward_reference(x2, f2)
+        f2 = self.fp3.forward_reference(x2, x3, f2, f3)
+        f1 = self.fp2.forward_reference(x1, x2, f1, f2)
+        return self.fp1.forward_reference(xyz, x1, None, f1)
