@@ -145,32 +145,150 @@ pub fn farthest_point_sample_batch(
     Ok(())
 }
 
-/// Point indices sorted by x (then index), with their x coordinates in `f64`: the points
-/// within `dx` of a query in x form one run of this order.
-fn x_order(points: &[Point]) -> (Vec<usize>, Vec<f64>) {
-    let mut order: Vec<usize> = (0..points.len()).collect();
-    order.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]).then(a.cmp(&b)));
-    let xs = order.iter().map(|&i| f64::from(points[i][0])).collect();
-    (order, xs)
+/// Safety factor on cell sizes and search bounds: rounding in the cell arithmetic is far
+/// below it, so no point is ever missed.
+const MARGIN: f64 = 1e-9;
+
+/// A uniform grid of cubic cells over one cloud: each cell lists its points in index order.
+struct Grid {
+    lo: [f64; 3],
+    h: f64,
+    dims: [usize; 3],
+    /// `starts[c]..starts[c + 1]` indexes `items` for cell `c`.
+    starts: Vec<usize>,
+    items: Vec<u32>,
+}
+
+/// The bounding box `(low, high)` of a cloud, in `f64`.
+fn bounds(points: &[Point]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(f64::from(p[a]));
+            hi[a] = hi[a].max(f64::from(p[a]));
+        }
+    }
+    (lo, hi)
+}
+
+impl Grid {
+    /// Cells of side at least `h`, doubled until there are at most `4 n + 8` cells.
+    fn new(points: &[Point], h: f64) -> Self {
+        let (lo, hi) = bounds(points);
+        let ext = [0, 1, 2].map(|a| (hi[a] - lo[a]).max(0.0));
+        let cap = 4 * points.len() + 8;
+        let mut h = if h.is_finite() && h > 0.0 { h } else { 1.0 };
+        let mut dims;
+        loop {
+            dims = ext.map(|e| (e / h).floor().min(cap as f64) as usize + 1);
+            if dims[0].saturating_mul(dims[1]).saturating_mul(dims[2]) <= cap {
+                break;
+            }
+            h *= 2.0;
+        }
+        let mut grid = Grid {
+            lo,
+            h,
+            dims,
+            starts: vec![0; dims[0] * dims[1] * dims[2] + 1],
+            items: vec![0; points.len()],
+        };
+        let cells: Vec<usize> = points.iter().map(|p| grid.cell_index(p)).collect();
+        for &c in &cells {
+            grid.starts[c + 1] += 1;
+        }
+        for c in 0..grid.starts.len() - 1 {
+            grid.starts[c + 1] += grid.starts[c];
+        }
+        let mut fill = grid.starts.clone();
+        for (i, &c) in cells.iter().enumerate() {
+            grid.items[fill[c]] = i as u32;
+            fill[c] += 1;
+        }
+        grid
+    }
+
+    /// The cell coordinates of a point (clamped to the grid).
+    fn cell(&self, p: &Point) -> [usize; 3] {
+        [0, 1, 2].map(|a| {
+            let t = ((f64::from(p[a]) - self.lo[a]) / self.h).floor();
+            (t.max(0.0) as usize).min(self.dims[a] - 1)
+        })
+    }
+
+    fn cell_index(&self, p: &Point) -> usize {
+        let c = self.cell(p);
+        (c[0] * self.dims[1] + c[1]) * self.dims[2] + c[2]
+    }
+
+    /// The distance from `q` (in cell `c`) to the nearest face, with cells beyond it, of the
+    /// box of cells within Chebyshev distance `ring` of `c` (infinite when the box covers
+    /// the grid): a lower bound of the distance to every point outside the box.
+    fn gap(&self, q: &Point, c: [usize; 3], ring: usize) -> f64 {
+        let mut gap = f64::INFINITY;
+        for a in 0..3 {
+            let qa = f64::from(q[a]);
+            if c[a] > ring {
+                gap = gap.min(qa - (self.lo[a] + (c[a] - ring) as f64 * self.h));
+            }
+            if c[a] + ring + 1 < self.dims[a] {
+                gap = gap.min(self.lo[a] + (c[a] + ring + 1) as f64 * self.h - qa);
+            }
+        }
+        gap.max(0.0)
+    }
+
+    /// Call `f` with the points of every cell at Chebyshev distance exactly `ring` from
+    /// cell `c`.
+    fn ring(&self, c: [usize; 3], ring: usize, mut f: impl FnMut(u32)) {
+        let r = ring as isize;
+        let range = |a: usize| {
+            let lo = (c[a] as isize - r).max(0) as usize;
+            let hi = ((c[a] as isize + r) as usize).min(self.dims[a] - 1);
+            (lo, hi)
+        };
+        let (x0, x1) = range(0);
+        let (y0, y1) = range(1);
+        let (z0, z1) = range(2);
+        let on_ring = |v: usize, a: usize| (v as isize - c[a] as isize).abs() == r;
+        for x in x0..=x1 {
+            for y in y0..=y1 {
+                let edge = on_ring(x, 0) || on_ring(y, 1);
+                let mut z = z0;
+                while z <= z1 {
+                    if edge || on_ring(z, 2) {
+                        let cell = (x * self.dims[1] + y) * self.dims[2] + z;
+                        for &i in &self.items[self.starts[cell]..self.starts[cell + 1]] {
+                            f(i);
+                        }
+                        z += 1;
+                    } else {
+                        // interior of this column: jump to the far face
+                        z = (c[2] as isize + r) as usize;
+                    }
+                }
+            }
+        }
+    }
 }
 
 fn ball_into(points: &[Point], centers: &[Point], radius: f64, k: usize, out: &mut [i64]) {
     let r2 = radius * radius;
-    let (order, xs) = x_order(points);
-    let mut inside: Vec<usize> = Vec::new();
+    // a point within the radius is at most one cell away (cells a hair larger than it)
+    let grid = Grid::new(points, radius * (1.0 + MARGIN));
+    let mut inside: Vec<u32> = Vec::new();
     for (c, o) in centers.iter().zip(out.chunks_mut(k)) {
-        // only points with (x - cx)^2 <= r^2 can be within the radius: |dx| <= r, widened by
-        // one ulp-scale margin, then checked exactly
-        let cx = f64::from(c[0]);
-        let lo = xs.partition_point(|&x| x < cx - radius * (1.0 + 1e-9));
-        let hi = xs.partition_point(|&x| x <= cx + radius * (1.0 + 1e-9));
         inside.clear();
-        inside.extend(
-            order[lo..hi]
-                .iter()
-                .copied()
-                .filter(|&i| dist2_f64(&points[i], c) <= r2),
-        );
+        // cells are at least the radius: its ball lies in the 3 x 3 x 3 cells around
+        let cc = grid.cell(c);
+        for ring in 0..2 {
+            grid.ring(cc, ring, |i| {
+                if dist2_f64(&points[i as usize], c) <= r2 {
+                    inside.push(i);
+                }
+            });
+        }
         let count = inside.len().min(k);
         if count > 0 {
             if inside.len() > k {
@@ -179,7 +297,7 @@ fn ball_into(points: &[Point], centers: &[Point], radius: f64, k: usize, out: &m
             inside[..count].sort_unstable();
         }
         for (s, &i) in o.iter_mut().zip(&inside[..count]) {
-            *s = i as i64;
+            *s = i64::from(i);
         }
         let fill = if count == 0 {
             nearest(points, c) as i64
@@ -264,9 +382,22 @@ pub fn ball_query_batch(
     Ok(())
 }
 
+/// Offer point `i` at `p` to the `k` best `(squared distance, index)` of query `q`.
+fn keep_nearest(best: &mut Vec<(f64, usize)>, k: usize, p: &Point, q: &Point, i: u32) {
+    let (d, i) = (dist2_f64(p, q), i as usize);
+    if best.len() == k && (d, i) >= best[k - 1] {
+        return;
+    }
+    let at = best.partition_point(|&e| e < (d, i));
+    best.insert(at, (d, i));
+    best.truncate(k);
+}
+
 fn knn_into(points: &[Point], queries: &[Point], k: usize, idx: &mut [i64], dist: &mut [f32]) {
-    let (order, xs) = x_order(points);
-    let m = points.len();
+    // about as many cells as points in the bounding box
+    let (lo, hi) = bounds(points);
+    let ext = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+    let grid = Grid::new(points, ext / (points.len() as f64).cbrt().max(1.0));
     // (squared distance, index), kept sorted ascending, ties by index
     let mut best: Vec<(f64, usize)> = Vec::with_capacity(k + 1);
     for ((q, io), dout) in queries
@@ -275,40 +406,20 @@ fn knn_into(points: &[Point], queries: &[Point], k: usize, idx: &mut [i64], dist
         .zip(dist.chunks_mut(k))
     {
         best.clear();
-        let qx = f64::from(q[0]);
-        // walk outwards in x from the query, nearer side first; stop once the x gap alone
-        // exceeds the k-th best squared distance (the gap's square never exceeds the full
-        // squared distance, rounding included)
-        let start = xs.partition_point(|&x| x < qx);
-        let (mut lo, mut hi) = (start, start);
+        let qc = grid.cell(q);
+        let mut ring = 0usize;
         loop {
-            let gap_lo = if lo > 0 {
-                qx - xs[lo - 1]
-            } else {
-                f64::INFINITY
-            };
-            let gap_hi = if hi < m { xs[hi] - qx } else { f64::INFINITY };
-            let (gap, j) = if gap_lo <= gap_hi {
-                if lo == 0 {
-                    break;
-                }
-                lo -= 1;
-                (gap_lo, lo)
-            } else {
-                hi += 1;
-                (gap_hi, hi - 1)
-            };
-            if best.len() == k && gap * gap > best[k - 1].0 {
+            grid.ring(qc, ring, |i| {
+                keep_nearest(&mut best, k, &points[i as usize], q, i)
+            });
+            // every point outside the cells searched so far is farther than the query's
+            // distance to the nearest face of their box that has cells beyond it: stop once
+            // the k-th best is strictly nearer than that
+            let bound = grid.gap(q, qc, ring) * (1.0 - MARGIN);
+            if bound.is_infinite() || (best.len() == k && best[k - 1].0 < bound * bound) {
                 break;
             }
-            let i = order[j];
-            let d = dist2_f64(&points[i], q);
-            if best.len() == k && (d, i) >= best[k - 1] {
-                continue;
-            }
-            let at = best.partition_point(|&e| e < (d, i));
-            best.insert(at, (d, i));
-            best.truncate(k);
+            ring += 1;
         }
         for ((d2, i), (io, dout)) in best.iter().zip(io.iter_mut().zip(dout.iter_mut())) {
             *io = *i as i64;
