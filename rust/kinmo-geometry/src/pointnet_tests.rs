@@ -158,6 +158,33 @@ fn k_nearest_matches_a_stable_sort() {
 }
 
 #[test]
+fn grids_are_exact_on_flat_clouds_far_queries_and_tiny_radii() {
+    // a flat cloud (z = 0), a line (y = z = 0), queries far outside, radii far below the
+    // spacing (cells enlarged) and far above the extent
+    let flat: Vec<Point> = cloud(11, 300).iter().map(|p| [p[0], p[1], 0.0]).collect();
+    let line: Vec<Point> = cloud(12, 100).iter().map(|p| [p[0], 0.0, 0.0]).collect();
+    let far: Vec<Point> = cloud(13, 40)
+        .iter()
+        .map(|p| [p[0] * 7.0, p[1] * 7.0, p[2] * 7.0])
+        .collect();
+    for p in [&flat, &line, &cloud(14, 250)] {
+        let queries: Vec<Point> = far.iter().chain(p.iter().take(30)).copied().collect();
+        for r in [1e-7, 0.01, 0.3, 50.0] {
+            let got = ball_query(p, &queries, r, 5).unwrap();
+            for (c, row) in queries.iter().zip(got.chunks(5)) {
+                assert_eq!(row, &ball_reference(p, c, r, 5)[..]);
+            }
+        }
+        for k in [1, 3, 7] {
+            let (got, _) = k_nearest(p, &queries, k).unwrap();
+            for (q, row) in queries.iter().zip(got.chunks(k)) {
+                assert_eq!(row, &knn_reference(p, q, k)[..]);
+            }
+        }
+    }
+}
+
+#[test]
 fn bad_arguments_are_errors_naming_them() {
     let p = cloud(1, 10);
     let msg = |e: GeometryError| e.to_string();
