@@ -6,7 +6,7 @@ batches (one pass over the scans when ``None``), with the loss of
 :func:`kinmo.ancsh.model.ancsh_loss` (Li et al. CVPR 2020, Sec. 4). The batch order comes from
 ``numpy.random.default_rng([seed, stage_index])`` and the learning rate follows
 ``config.schedule`` per step (:func:`lr_at`). Each batch's PointNet++ neighbourhoods (its
-:class:`~kinmo.ancsh.pointnet2.GeometryPlan`: farthest point sampling, ball query, nearest
+:class:`~kinmo.ancsh.plan.GeometryPlan`: farthest point sampling, ball query, nearest
 neighbours of every level) are computed for the whole batch by the Rust core before the
 forward pass (:func:`train_step`), so the step is bound by the network. Under ``torchrun`` every rank draws the whole
 global batch and keeps its shard (:mod:`kinmo.train.distributed`). Each epoch gives one row

@@ -16,7 +16,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kinmo.ancsh.pointnet2 import GeometryPlan, PointNet2Backbone, pointwise
+from kinmo.ancsh.plan import GeometryPlan
+from kinmo.ancsh.pointnet2 import PointNet2Backbone, pointwise
 
 
 @dataclass
@@ -48,7 +49,7 @@ class ANCSH(nn.Module):
 
     Shapes:
         xyz (B, N, 3), centred and scaled to about unit size, and optionally its
-        :class:`~kinmo.ancsh.pointnet2.GeometryPlan` (``model.backbone.plan(xyz)``; built by
+        :class:`~kinmo.ancsh.plan.GeometryPlan` (``model.backbone.plan(xyz)``; built by
         the backbone when not given) ->
         ``seg_logits`` (B, N, K), ``npcs`` (B, N, K, 3) (one NPCS per part hypothesis, in
         [0, 1]), ``naocs`` (B, N, 3), ``heatmap`` (B, N) in [0, 1], ``unitvec`` (B, N, 3),

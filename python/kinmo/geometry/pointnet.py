@@ -3,10 +3,10 @@
 Farthest point sampling, ball query and k nearest neighbours (Qi et al. NeurIPS 2017), the
 index computations of PointNet++'s set abstraction and feature propagation, for one cloud
 ``(N, 3)`` or a batch ``(B, N, 3)``, in parallel over the batch. Coordinates are float32 (the
-network's precision; other dtypes are converted). Used by :mod:`kinmo.ancsh.pointnet2` to
+network's precision; other dtypes are converted). Used by :mod:`kinmo.ancsh.plan` to
 plan a batch's neighbourhoods before the forward pass.
 
-Numerical rules (those of the PyTorch reference in :mod:`kinmo.ancsh.pointnet2`):
+Numerical rules (those of the PyTorch reference in :mod:`kinmo.ancsh.plan`):
 farthest point sampling starts at point 0, keeps float32 distances evaluated as PyTorch does
 and picks the first point of largest distance, so it equals the reference exactly; ball
 query and nearest neighbours compare float64 squared distances of the float32 coordinates,
