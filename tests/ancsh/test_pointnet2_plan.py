@@ -13,6 +13,16 @@ import torch
 from kinmo.ancsh.fit import train_step
 from kinmo.ancsh.model import ANCSH, ancsh_loss
 from kinmo.ancsh.pointnet2 import FPLevel, GeometryPlan, PointNet2Backbone, build_plan
+from kinmo.parallel import torch_threads
+
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    """Float rounding of the comparisons below does not depend on the suite's thread count."""
+    with torch_threads(1):
+        yield
+
 
 SIZES = [  # (width, centres, points, batch): tiny, the quick preset, the paper preset
     (8, (16, 8, 4), 64, 2),
@@ -87,11 +97,12 @@ def test_forward_and_losses_equal_the_reference_path(width, centers, n, b, train
     ref = ref_model.forward_reference(xyz)  # the computation before plans
     plan = model.backbone.plan(xyz)
     # the same network: with the reference's interpolation weights, equal up to float rounding
+    # (~1e-5; sums in another order: matrix products instead of convolutions)
     same_weights = GeometryPlan(plan.sa, tuple(FPLevel(a.index, r.weight) for a, r in
                                                zip(plan.fp, model.backbone.plan(xyz, "torch").fp)))
     out = model(xyz, same_weights)
     for k in out:
-        torch.testing.assert_close(out[k], ref[k], rtol=1e-4, atol=1e-4)
+        torch.testing.assert_close(out[k], ref[k], rtol=1e-3, atol=1e-3)
     # batch-norm running statistics and their counters move alike
     for (name, a), r in zip(model.named_buffers(), ref_model.buffers()):
         torch.testing.assert_close(a, r, rtol=1e-5, atol=1e-6, msg=name)
@@ -119,11 +130,12 @@ def test_gradients_equal_the_reference_gradients():
     plan = model.backbone.plan(xyz)
     same_weights = GeometryPlan(plan.sa, tuple(FPLevel(a.index, r.weight) for a, r in
                                                zip(plan.fp, model.backbone.plan(xyz, "torch").fp)))
-    for p, tol in ((same_weights, 1e-4), (plan, 5e-2)):
+    for p, tol in ((same_weights, 2e-3), (plan, 5e-2)):
         m = copy.deepcopy(model)
         ancsh_loss(m(xyz, p), target)["total"].backward()
         rel = float((_grads(m) - _grads(ref)).norm() / _grads(ref).norm())
-        # the same network: 2e-5; exact interpolation distances (module docstring): ~2e-2
+        # the same network: 2e-5 to 5e-4 (float rounding); exact interpolation distances
+        # (kinmo.ancsh.plan docstring): ~2e-2
         assert rel < tol, rel
 
 

@@ -120,3 +120,14 @@ def test_bad_arguments_are_value_errors_naming_them():
         k_nearest(x, bad, 1)
     with pytest.raises(ValueError, match="more than the limit"):
         ball_query(x, x, 0.1, 2**40)
+
+
+def test_huge_views_are_refused_before_copying():
+    huge = np.broadcast_to(np.zeros((1, 1, 3), np.float32), (2**16, 2**15, 3))  # 6 * 2**30 values
+    small = np.zeros((2**16, 1, 3), np.float32)
+    with pytest.raises(ValueError, match=r"points: an array of shape \(65536, 32768, 3\)"):
+        farthest_point_sample(huge, 1)
+    with pytest.raises(ValueError, match="centers: an array of shape"):
+        ball_query(small, huge, 0.1, 1)
+    with pytest.raises(ValueError, match="queries: an array of shape"):
+        k_nearest(small, huge, 1)

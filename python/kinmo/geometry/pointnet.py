@@ -23,7 +23,7 @@ __all__ = ["ball_query", "farthest_point_sample", "k_nearest"]
 
 
 def _clouds(x: np.ndarray, what: str) -> tuple[np.ndarray, bool]:
-    a = np.ascontiguousarray(x, dtype=np.float32)
+    a = np.asarray(x, dtype=np.float32)  # views stay views: the core checks sizes before copying
     if a.ndim == 2:
         return a[None], True
     if a.ndim != 3:
