@@ -158,7 +158,8 @@ class FPLevel:
 
 @dataclass(frozen=True)
 class GeometryPlan:
-    """The neighbourhoods of every level of a :class:`PointNet2Backbone` for one batch.
+    """The neighbourhoods of every level of a
+    :class:`~kinmo.ancsh.pointnet2.PointNet2Backbone` for one batch.
 
     Attributes
     ----------

@@ -22,6 +22,11 @@
 //!   `radius²` in `f64`. A ball holds the first `k` points *in index order* within the
 //!   radius; fewer than `k` are padded with the first; a centre with none at all gets its
 //!   nearest point `k` times. Nearest neighbours are ordered by distance, then by index.
+//!
+//! Ball query and nearest neighbours visit the cells of a uniform grid around each centre or
+//! query (cells a hair larger than the radius; rings of cells until the k-th distance is
+//! below the distance to the unsearched cells), so they are exact, the same as a brute-force
+//! scan, at a fraction of its cost. Farthest point sampling is the plain `O(M N)` loop.
 
 use rayon::prelude::*;
 
