@@ -17,9 +17,26 @@ Seconds are medians over repeats. The JSON goes to ``bench/results/bench_ancsh.j
 Run with one BLAS thread on shared machines (``OPENBLAS_NUM_THREADS=1``; the script sets it
 when unset).
 
+**Training step** (``--scans DIR``, issue 38): the seconds of one ANCSH training step
+(:func:`kinmo.ancsh.fit.train_step` on a batch drawn as :func:`kinmo.ancsh.fit.fit` draws it:
+item sampling, collation, the batch's PointNet++ neighbourhoods, forward, loss, backward,
+Adam), for the ``quick`` and ``paper`` presets, **before** (``reference=True``: the
+computation before geometry plans, neighbourhoods by PyTorch inside the layers and
+channels-first 1x1 convolutions, :meth:`kinmo.ancsh.model.ANCSH.forward_reference`) and
+**after** (the batch's Rust geometry plan, then the channels-last network), interleaved in
+one process: medians, steps per second and the after/before speed-up, plus the planning
+alone (Rust and the PyTorch functions). It reads pre-rendered scans, no
+PyBullet and no dataset needed: ``DIR`` holds ``labeled/<key>/<frame>.npz`` (the cache of
+the ANCSH stage, ``kinmo train ancsh --scans``) and ``ancsh_parts.json`` (the objects'
+ANCSH parts), written by ``--write-scans DIR`` (a few megabytes, to carry to a GPU machine).
+Without ``ancsh_parts.json`` (a training run's own scans folder), ``--data`` and
+``--category`` give the parts. JSON: ``bench/results/bench_ancsh_step.json``.
+
 Usage::
 
     python bench/bench_ancsh.py [--data DIR] [--frames 6] [--repeats 3] [--threads 1] [--device cpu]
+    python bench/bench_ancsh.py --write-scans SCANS [--category Laptop] [--objects 4] [--frames 8]
+    python bench/bench_ancsh.py --scans SCANS [--steps 10] [--rounds 3] [--presets quick paper] [--device cuda]
 """
 
 from __future__ import annotations
@@ -47,15 +64,165 @@ def _median_time(fn, repeats: int) -> float:
     return statistics.median(times)
 
 
+PARTS_FILE = "ancsh_parts.json"
+
+
+def write_scans(args: argparse.Namespace) -> None:
+    """Render ``--objects`` fitting objects of ``--category`` into ``DIR/labeled`` (the ANCSH
+    stage's layout) and write their ANCSH parts to ``DIR/ancsh_parts.json``."""
+    from kinmo.ancsh.config import preset
+    from kinmo.ancsh.dataset import scan_category
+    from kinmo.ancsh.scans import render_objects
+
+    out = args.write_scans
+    cat = scan_category(args.data / "partnet-mobility", args.category)
+    if cat.structure is None or not cat.fitting:
+        raise SystemExit(f"no object of {args.category} fits an ANCSH structure")
+    keys = cat.fitting[: args.objects]
+    cfg = preset("quick", render_workers=args.render_workers, seed=0)
+    with tempfile.TemporaryDirectory(prefix="bench-ancsh-objects-") as tmp:
+        files, failed = render_objects({k: cat.folders[k] for k in keys}, Path(tmp) / "objects",
+                                       out / "labeled", args.frames, cfg, progress=False)
+    if failed:
+        raise SystemExit(f"render failed: {failed}")
+    st = cat.structure
+    doc = {"category": cat.category,
+           "structure": {"parents": list(st.parents), "joint_types": list(st.joint_types)},
+           "objects": {k: {"link_part": {str(a): b for a, b in cat.parts[k].link_part.items()},
+                           "joint_links": list(cat.parts[k].joint_links)} for k in keys}}
+    (out / PARTS_FILE).write_text(json.dumps(doc, indent=1) + "\n")
+    size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
+    print(f"wrote {len(files)} scans of {len(keys)} {cat.category} objects {keys} to {out} "
+          f"({size / 2**20:.1f} MiB)")
+
+
+def _read_scans(args: argparse.Namespace):
+    """The frame files and ANCSH parts of ``--scans`` (``ancsh_parts.json``, else ``--data``)."""
+    from kinmo.ancsh.dataset import scan_category
+    from kinmo.ancsh.structure import KinematicStructure, ObjectParts
+
+    root = args.scans
+    files = sorted(root.glob("labeled/*/*.npz")) or sorted(root.glob("*/*.npz"))
+    if not files:
+        raise SystemExit(f"{root}: no scans (labeled/<key>/<frame>.npz)")
+    pf = root / PARTS_FILE
+    if pf.is_file():
+        doc = json.loads(pf.read_text())
+        st = KinematicStructure(tuple(doc["structure"]["parents"]), tuple(doc["structure"]["joint_types"]))
+        parts = {k: ObjectParts(st, {int(a): int(b) for a, b in v["link_part"].items()}, tuple(v["joint_links"]))
+                 for k, v in doc["objects"].items()}
+        return files, parts, st
+    cat = scan_category(args.data / "partnet-mobility", args.category)
+    keys = {f.parent.name for f in files}
+    return [f for f in files if f.parent.name in cat.fitting], {k: cat.parts[k] for k in keys if k in cat.fitting}, \
+        cat.structure
+
+
+def bench_steps(args: argparse.Namespace) -> None:
+    """The training-step mode (module docstring)."""
+    import copy
+
+    import numpy as np
+    import torch
+
+    from kinmo.ancsh.config import preset
+    from kinmo.ancsh.dataset import ANCSHFrames, load_samples
+    from kinmo.ancsh.fit import train_step
+    from kinmo.ancsh.inference import build_model
+    from kinmo.parallel import torch_threads
+
+    files, parts, st = _read_scans(args)
+    device = torch.device(args.device)
+    results: dict = {"mode": "train_step", "device": str(device), "scans": str(args.scans),
+                     "n_scans": len(files), "structure": st.signature(), "steps_per_round": args.steps,
+                     "rounds": args.rounds, "cpus": os.cpu_count(), "presets": {}}
+    if device.type == "cuda":
+        results["gpu"] = torch.cuda.get_device_name(device)
+    for name in args.presets:
+        cfg = preset(name)
+        threads = cfg.threads if args.threads is None else args.threads
+        samples, _ = load_samples(files, parts, st, cfg.theta, cfg.cache_points, cfg.seed)
+        ds = ANCSHFrames(samples, cfg.n_points, cfg.seed, cfg.jitter)
+        torch.manual_seed(0)
+        base = build_model(cfg, st)
+        models, opts = {}, {}
+        for mode in ("before", "after"):
+            m = copy.deepcopy(base).to(device).train()
+            models[mode] = m
+            opts[mode] = torch.optim.Adam(m.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        rng = np.random.default_rng(0)
+
+        def step(mode: str) -> float:
+            idx = rng.integers(0, len(ds), cfg.batch_size)
+            t0 = time.perf_counter()
+            items = [ds.sample(int(i), rng) for i in idx]
+            terms, _, _ = train_step(models[mode], opts[mode], items, device, cfg.grad_clip,
+                                     reference=mode == "before")
+            float(terms["total"].detach())  # as fit: the loss is read every step (synchronises)
+            return time.perf_counter() - t0
+
+        times: dict[str, list[float]] = {"before": [], "after": []}
+        with torch_threads(threads):
+            for mode in ("before", "after"):  # warm-up
+                for _ in range(3):
+                    step(mode)
+            for r in range(args.rounds):  # interleaved, alternating which goes first
+                for mode in (("before", "after") if r % 2 == 0 else ("after", "before")):
+                    times[mode] += [step(mode) for _ in range(args.steps)]
+            xyz = torch.stack([ds.sample(i % len(ds), rng)["xyz"] for i in range(cfg.batch_size)]).to(device)
+            bb = models["after"].backbone
+            plan_s = {backend: _median_time(lambda: bb.plan(xyz, backend), 5 * args.rounds)
+                      for backend in ("torch", "rust")}
+        before, after = statistics.median(times["before"]), statistics.median(times["after"])
+        results["presets"][name] = {
+            "n_points": cfg.n_points, "width": cfg.width, "n_centers": list(cfg.n_centers),
+            "batch_size": cfg.batch_size, "torch_threads": threads,
+            "before_step_s": before, "after_step_s": after,
+            "before_steps_per_s": 1 / before, "after_steps_per_s": 1 / after,
+            "speedup": before / after,
+            "before_step_s_all": times["before"], "after_step_s_all": times["after"],
+            "plan_torch_s": plan_s["torch"], "plan_rust_s": plan_s["rust"],
+        }
+        print(f"{name}: before {before * 1000:.1f} ms/step ({1 / before:.2f} steps/s), after {after * 1000:.1f} "
+              f"ms/step ({1 / after:.2f} steps/s): {before / after:.2f}x; planning alone: torch "
+              f"{plan_s['torch'] * 1000:.1f} ms, rust {plan_s['rust'] * 1000:.1f} ms ({threads} torch threads)",
+              flush=True)
+    out = args.out or REPO / "bench" / "results" / "bench_ancsh_step.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"wrote {out}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=Path(os.environ.get("KINMO_DATA", REPO.parent / "shared" / "data")))
-    ap.add_argument("--frames", type=int, default=6, help="Scans per object.")
+    ap.add_argument("--frames", type=int, default=None,
+                    help="Scans per object (default 6; --write-scans: 8).")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--threads", type=int, default=1, help="torch CPU threads.")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="torch CPU threads (default 1; --scans: the preset's).")
     ap.add_argument("--device", default="cpu")
-    ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "bench_ancsh.json")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="JSON (default bench/results/bench_ancsh.json, --scans: bench_ancsh_step.json).")
+    ap.add_argument("--write-scans", type=Path, default=None, metavar="DIR",
+                    help="Render --objects objects of --category into DIR for --scans, and stop.")
+    ap.add_argument("--scans", type=Path, default=None, metavar="DIR",
+                    help="Training-step mode on the pre-rendered scans in DIR.")
+    ap.add_argument("--category", default="Laptop", help="--write-scans / --scans without ancsh_parts.json.")
+    ap.add_argument("--objects", type=int, default=4, help="--write-scans: objects to render.")
+    ap.add_argument("--render-workers", type=int, default=0, help="--write-scans: render processes (0: one per CPU).")
+    ap.add_argument("--steps", type=int, default=10, help="--scans: steps per round and setting.")
+    ap.add_argument("--rounds", type=int, default=3, help="--scans: interleaved rounds of before / after.")
+    ap.add_argument("--presets", nargs="+", default=["quick", "paper"], help="--scans: presets to time.")
     args = ap.parse_args()
+    if args.write_scans is not None:
+        args.frames = 8 if args.frames is None else args.frames
+        return write_scans(args)
+    if args.scans is not None:
+        return bench_steps(args)
+    args.frames = 6 if args.frames is None else args.frames
+    args.threads = 1 if args.threads is None else args.threads
+    args.out = args.out or REPO / "bench" / "results" / "bench_ancsh.json"
 
     import numpy as np
     import torch

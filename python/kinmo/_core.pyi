@@ -21,6 +21,7 @@ import numpy.typing as npt
 __version__: str
 
 F64 = npt.NDArray[np.float64]
+F32 = npt.NDArray[np.float32]
 I64 = npt.NDArray[np.int64]
 Mesh = tuple[F64, I64]
 
@@ -129,6 +130,23 @@ def apply_motions(
     """``(C, N, 3)``: every candidate motion applied to ``points (N, 3)``, parallel.
 
     ``ValueError`` naming ``origins x points`` when ``C * N * 3`` exceeds ``2**30``."""
+
+# --- pointnet (rust/kinmo-py/src/pointnet.rs) --------------------------------------------
+
+def farthest_point_sample(points: F32, m: int) -> I64:
+    """``(B, m)`` indices: farthest point sampling of each cloud of ``points (B, N, 3)``
+    float32, starting at point 0, distances in float32 as PyTorch evaluates them, the first
+    point of largest distance next. ``ValueError`` for ``m`` outside ``[1, N]`` or NaN/inf."""
+
+def ball_query(points: F32, centers: F32, radius: float, k: int) -> I64:
+    """``(B, M, k)`` indices into ``points (B, N, 3)``: for each centre of ``centers
+    (B, M, 3)``, the first ``k`` points in index order within ``radius`` (squared distances in
+    float64), padded with the first; the nearest point ``k`` times when none is within it."""
+
+def k_nearest(points: F32, queries: F32, k: int) -> tuple[I64, F32]:
+    """``(indices (B, N, k), distances (B, N, k) float32)``: the ``k`` nearest of ``points
+    (B, M, 3)`` to each of ``queries (B, N, 3)``, by distance (float64) then index.
+    ``ValueError`` for ``k`` outside ``[1, M]``."""
 
 # --- sweep (rust/kinmo-py/src/sweep.rs) --------------------------------------------------
 

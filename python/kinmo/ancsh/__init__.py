@@ -9,6 +9,8 @@ Modules:
 - :mod:`kinmo.ancsh.dataset`: training samples (NPCS, NAOCS, joint targets) from rendered
   scans, and the point-sampling dataset;
 - :mod:`kinmo.ancsh.targets`: per-point joint targets (association, heatmap, unit vectors);
+- :mod:`kinmo.ancsh.plan`: PointNet++ geometry plans (each batch's farthest point
+  sampling, ball queries and nearest neighbours, by the Rust core, before the network);
 - :mod:`kinmo.ancsh.pointnet2`: a pure-PyTorch PointNet++ backbone;
 - :mod:`kinmo.ancsh.model`: the ANCSH heads and loss;
 - :mod:`kinmo.ancsh.pose_fitting`: RANSAC + Umeyama similarity fitting;

@@ -5,7 +5,10 @@
 batches (one pass over the scans when ``None``), with the loss of
 :func:`kinmo.ancsh.model.ancsh_loss` (Li et al. CVPR 2020, Sec. 4). The batch order comes from
 ``numpy.random.default_rng([seed, stage_index])`` and the learning rate follows
-``config.schedule`` per step (:func:`lr_at`). Under ``torchrun`` every rank draws the whole
+``config.schedule`` per step (:func:`lr_at`). Each batch's PointNet++ neighbourhoods (its
+:class:`~kinmo.ancsh.plan.GeometryPlan`: farthest point sampling, ball query, nearest
+neighbours of every level) are computed for the whole batch by the Rust core before the
+forward pass (:func:`train_step`), so the step is bound by the network. Under ``torchrun`` every rank draws the whole
 global batch and keeps its shard (:mod:`kinmo.train.distributed`). Each epoch gives one row
 of ``metrics.csv`` (:data:`METRIC_COLUMNS`, :func:`metrics_csv`). The run set-up around it
 (data, rendering, stages, checkpoints) is :func:`kinmo.ancsh.train.train_ancsh`.
@@ -20,6 +23,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from torch.utils.data import default_collate
 
 from kinmo.ancsh.config import ANCSHConfig
 from kinmo.ancsh.dataset import ANCSHFrames
@@ -28,7 +32,7 @@ from kinmo.train import distributed
 from kinmo.parallel import torch_threads
 from kinmo.train.loop import optimizer_step, rows_csv, training_bar
 
-__all__ = ["METRIC_COLUMNS", "fit", "lr_at", "metrics_csv"]
+__all__ = ["METRIC_COLUMNS", "fit", "lr_at", "metrics_csv", "train_step"]
 
 #: Columns of ``metrics.csv``: one row per epoch of each stage.
 METRIC_COLUMNS: tuple[str, ...] = (
@@ -52,6 +56,67 @@ def lr_at(config: ANCSHConfig, step: int, total: int, epoch: int) -> float:
     if config.schedule == "step":
         return config.lr * config.step_gamma ** (epoch // config.step_size)
     return config.lr
+
+
+def train_step(
+    model: ANCSH,
+    optimizer: torch.optim.Optimizer,
+    items: list[dict[str, torch.Tensor]],
+    device: torch.device,
+    grad_clip: float = 0.0,
+    weight: float = 1.0,
+    module: torch.nn.Module | None = None,
+    reference: bool = False,
+) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor], dict[str, torch.Tensor]]:
+    """One optimisation step of ANCSH on a batch of :class:`~kinmo.ancsh.dataset.ANCSHFrames`
+    items.
+
+    The items are collated, the batch's neighbourhoods planned on the CPU by the Rust core
+    (``model.backbone.plan``) and moved to ``device`` with the batch; then forward, loss
+    (:func:`~kinmo.ancsh.model.ancsh_loss`), backward and ``optimizer``'s step
+    (:func:`kinmo.train.loop.optimizer_step`).
+
+    Parameters
+    ----------
+    model : ANCSH
+        On ``device``.
+    optimizer : torch.optim.Optimizer
+    items : list of dict
+        Dataset items (:meth:`ANCSHFrames.sample`).
+    device : torch.device
+    grad_clip : float
+        Gradient norm clip (0: off).
+    weight : float
+        This rank's loss weight (:func:`kinmo.train.distributed.shard`; 1 in one process).
+    module : torch.nn.Module, optional
+        What runs the forward pass (``DistributedDataParallel`` of ``model``); default
+        ``model``.
+    reference : bool
+        Run the computation before geometry plans instead (:meth:`ANCSH.forward_reference
+        <kinmo.ancsh.model.ANCSH.forward_reference>`, no plan; ``module`` is not used): the
+        "before" of ``bench/bench_ancsh.py`` and the tests.
+
+    Returns
+    -------
+    terms : dict of scalar tensors
+        The loss terms and ``total``.
+    pred : dict of tensors
+        The network's output.
+    batch : dict of tensors
+        The collated batch on ``device``.
+    """
+    batch = default_collate(items)
+    if reference:
+        batch = {k: v.to(device) for k, v in batch.items()}
+        pred = model.forward_reference(batch["xyz"])
+    else:
+        with torch.no_grad():
+            plan = model.backbone.plan(batch["xyz"]).to(device)
+        batch = {k: v.to(device) for k, v in batch.items()}
+        pred = (module or model)(batch["xyz"], plan)
+    terms = ancsh_loss(pred, batch)
+    optimizer_step(optimizer, terms["total"], model, weight, grad_clip)
+    return terms, pred, batch
 
 
 def fit(
@@ -97,8 +162,6 @@ def fit(
 def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, device: torch.device,
          stage: str, stage_index: int, on_epoch: Callable[[dict[str, Any]], None] | None,
          progress: bool) -> list[dict[str, Any]]:
-    from torch.utils.data import default_collate
-
     steps = config.steps_per_epoch or max(1, math.ceil(len(dataset) / config.batch_size))
     total = steps * epochs
     opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
@@ -128,11 +191,7 @@ def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, d
                     g["lr"] = lr
                 # every rank draws the whole global batch (same random stream), keeps its shard
                 items, weight = distributed.shard([dataset.sample(i, rng) for i in idx])
-                batch = default_collate(items)
-                batch = {k: v.to(device) for k, v in batch.items()}
-                pred = ddp(batch["xyz"])
-                terms = ancsh_loss(pred, batch)
-                optimizer_step(opt, terms["total"], model, weight, config.grad_clip)
+                terms, pred, batch = train_step(model, opt, items, device, config.grad_clip, weight, ddp)
                 step += 1
                 share = weight / dist_info.world_size  # this rank's share of the global batch
                 for k in sums:

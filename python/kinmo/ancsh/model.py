@@ -16,7 +16,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kinmo.ancsh.pointnet2 import PointNet2Backbone
+from kinmo.ancsh.plan import GeometryPlan
+from kinmo.ancsh.pointnet2 import PointNet2Backbone, pointwise
 
 
 @dataclass
@@ -47,7 +48,9 @@ class ANCSH(nn.Module):
     n_centers, radii : see :class:`~kinmo.ancsh.pointnet2.PointNet2Backbone`.
 
     Shapes:
-        xyz (B, N, 3), centred and scaled to about unit size ->
+        xyz (B, N, 3), centred and scaled to about unit size, and optionally its
+        :class:`~kinmo.ancsh.plan.GeometryPlan` (``model.backbone.plan(xyz)``; built by
+        the backbone when not given) ->
         ``seg_logits`` (B, N, K), ``npcs`` (B, N, K, 3) (one NPCS per part hypothesis, in
         [0, 1]), ``naocs`` (B, N, 3), ``heatmap`` (B, N) in [0, 1], ``unitvec`` (B, N, 3),
         ``axis`` (B, N, 3) unit, ``joint_logits`` (B, N, J + 1) (class 0: no joint).
@@ -79,8 +82,28 @@ class ANCSH(nn.Module):
         self.axis_head = head(3)
         self.joint_head = head(n_joints + 1)
 
-    def forward(self, xyz: torch.Tensor) -> dict[str, torch.Tensor]:
-        f = self.backbone(xyz).transpose(1, 2)  # (B, C, N)
+    def forward(self, xyz: torch.Tensor, plan: GeometryPlan | None = None) -> dict[str, torch.Tensor]:
+        f = self.backbone(xyz, plan)  # (B, N, C), channels-last
+        b, n, _ = f.shape
+
+        def head(layers: nn.Sequential) -> torch.Tensor:
+            return pointwise(layers, f)  # the 1x1 convolutions as matrix products
+
+        return {
+            "seg_logits": head(self.seg_head),
+            "npcs": torch.sigmoid(head(self.npcs_head)).reshape(b, n, self.n_parts, 3),
+            "naocs": torch.sigmoid(head(self.naocs_head)),
+            "heatmap": torch.sigmoid(head(self.heatmap_head)).squeeze(-1),
+            "unitvec": F.normalize(head(self.unitvec_head), dim=-1),
+            "axis": F.normalize(head(self.axis_head), dim=-1),
+            "joint_logits": head(self.joint_head),
+        }
+
+    def forward_reference(self, xyz: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The computation before geometry plans (``PointNet2Backbone.forward_reference``,
+        channels-first heads): the reference of tests and ``bench/bench_ancsh.py``; same
+        parameters and outputs as :meth:`forward` up to float rounding and the plan's rule."""
+        f = self.backbone.forward_reference(xyz).transpose(1, 2)  # (B, C, N)
         b, _, n = f.shape
         return {
             "seg_logits": self.seg_head(f).transpose(1, 2),

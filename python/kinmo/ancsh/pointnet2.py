@@ -1,94 +1,99 @@
 """PointNet++ in pure PyTorch (Qi et al. NeurIPS 2017): no compiled CUDA ops, so it installs
 anywhere and runs on CPU or GPU. The backbone of ANCSH (Li et al. CVPR 2020).
 
-Building blocks: farthest point sampling, ball query, grouping, set abstraction (SA) and
-feature propagation (FP) layers, and a segmentation-style backbone producing per-point
-features.
+Building blocks: set abstraction (SA) and feature propagation (FP) layers and a
+segmentation-style backbone producing per-point features. The neighbourhoods of every level
+(farthest point sampling, ball query, 3 nearest neighbours) come from a
+:class:`~kinmo.ancsh.plan.GeometryPlan` computed before the network
+(:mod:`kinmo.ancsh.plan`, the Rust core); called without one, the backbone builds it itself,
+so inference and old callers need no change. Training (:func:`kinmo.ancsh.fit.train_step`)
+builds each batch's plan before the forward pass. Features are channels-last
+(``(B, N, C)``): the shared MLPs' 1x1 convolutions run as dense matrix products over all
+positions (:func:`pointwise`), with the parameters and state dict of convolution layers.
+
+The computation before plans (neighbourhoods by PyTorch inside each layer, channels-first
+convolutions) is kept as ``forward_reference`` of the layers and the backbone: the reference
+of the tests and the "before" of ``bench/bench_ancsh.py``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
+import torch.nn.functional as F
 from torch import nn
 
+from kinmo.ancsh.plan import (
+    Backend,
+    FPLevel,
+    GeometryPlan,
+    SALevel,
+    ball_query,
+    build_plan,
+    farthest_point_sample,
+    gather_points,
+    plan_propagation,
+    plan_set_abstraction,
+)
 
-def farthest_point_sample(xyz: torch.Tensor, n_samples: int, seed: int | None = 0) -> torch.Tensor:
-    """Iterative farthest point sampling.
+__all__ = [
+    "FPLevel", "FeaturePropagation", "GeometryPlan", "PointNet2Backbone", "SALevel", "SetAbstraction",
+    "SharedMLP", "ball_query", "batch_norm_rows", "build_plan", "farthest_point_sample", "gather_points",
+    "pointwise",
+]
 
-    Parameters
-    ----------
-    xyz : (B, N, 3) float tensor
-    n_samples : int
-        M <= N.
-    seed : int or None
-        First point chosen: index 0 when ``seed`` is None, else drawn with a generator seeded
-        by ``seed`` (reproducible).
 
-    Returns
-    -------
-    (B, M) int64 tensor of indices into N.
+def batch_norm_rows(bn: nn.modules.batchnorm._BatchNorm, h: torch.Tensor) -> torch.Tensor:
+    """``bn`` (a ``BatchNorm1d`` / ``2d``) applied to ``h (P, C)``, one row per position.
+
+    The same normalisation, running averages and batch counter as ``bn`` on the
+    channels-first tensor of those ``P`` positions (statistics are over every position of
+    the batch either way).
     """
-    b, n, _ = xyz.shape
-    device = xyz.device
-    idx = torch.zeros(b, n_samples, dtype=torch.long, device=device)
-    dist = torch.full((b, n), float("inf"), device=device, dtype=xyz.dtype)
-    if seed is None:
-        far = torch.zeros(b, dtype=torch.long, device=device)
-    else:
-        g = torch.Generator().manual_seed(seed)
-        far = torch.randint(0, n, (b,), generator=g).to(device)
-    ar = torch.arange(b, device=device)
-    for i in range(n_samples):
-        idx[:, i] = far
-        centroid = xyz[ar, far].unsqueeze(1)
-        d = ((xyz - centroid) ** 2).sum(-1)
-        dist = torch.minimum(dist, d)
-        far = dist.argmax(-1)
-    return idx
+    factor = 0.0
+    if bn.training and bn.track_running_stats and bn.num_batches_tracked is not None:
+        bn.num_batches_tracked.add_(1)
+        factor = 1.0 / float(bn.num_batches_tracked) if bn.momentum is None else bn.momentum
+    batch_stats = bn.training or bn.running_mean is None
+    return F.batch_norm(h, bn.running_mean if not bn.training or bn.track_running_stats else None,
+                        bn.running_var if not bn.training or bn.track_running_stats else None,
+                        bn.weight, bn.bias, batch_stats, factor, bn.eps)
 
 
-def gather_points(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
-    """Gather ``x (B, N, C)`` at ``idx (B, ...)`` -> ``(B, ..., C)``."""
-    b = x.shape[0]
-    flat = idx.reshape(b, -1)
-    out = torch.gather(x, 1, flat.unsqueeze(-1).expand(-1, -1, x.shape[-1]))
-    return out.reshape(*idx.shape, x.shape[-1])
+def pointwise(layers: Sequence[nn.Module], x: torch.Tensor) -> torch.Tensor:
+    """Kernel-size-1 convolutions, batch norms and ReLUs applied to channels-last ``x``.
 
+    Each 1x1 ``Conv1d`` / ``Conv2d`` is the matrix product with its weight (and bias), each
+    batch norm :func:`batch_norm_rows`: the same function and parameters as the layers on the
+    channels-first tensor, without its transposes and with dense matrix products.
 
-def ball_query(radius: float, k: int, xyz: torch.Tensor, centers: torch.Tensor) -> torch.Tensor:
-    """Indices of up to ``k`` points within ``radius`` of each centre.
-
-    Slots beyond the number of neighbours repeat the first neighbour (the centre itself is
-    always a neighbour when centres are a subset of ``xyz``), as in the reference PointNet++.
-
-    Parameters
-    ----------
-    radius : float
-    k : int
-    xyz : (B, N, 3)
-    centers : (B, M, 3)
-
-    Returns
-    -------
-    (B, M, k) int64
+    Shapes:
+        x (..., C_in) -> (..., C_out)
     """
-    n = xyz.shape[1]
-    d2 = torch.cdist(centers, xyz).pow(2)  # (B, M, N)
-    ar = torch.arange(n, device=xyz.device).expand_as(d2)
-    key = torch.where(d2 <= radius * radius, ar, torch.full_like(ar, n))
-    key = key.sort(dim=-1).values[..., :k]
-    first = key[..., :1].expand_as(key)
-    key = torch.where(key == n, first, key)
-    # a centre with no neighbour at all (cannot happen for subset centres): use nearest
-    nearest = d2.argmin(-1, keepdim=True).expand_as(key)
-    return torch.where(key == n, nearest, key)
+    shape = x.shape[:-1]
+    h = x.reshape(-1, x.shape[-1])
+    for layer in layers:
+        if isinstance(layer, (nn.Conv1d, nn.Conv2d)):
+            h = F.linear(h, layer.weight.reshape(layer.out_channels, -1), layer.bias)
+        elif isinstance(layer, nn.modules.batchnorm._BatchNorm):
+            h = batch_norm_rows(layer, h)
+        elif isinstance(layer, nn.ReLU):
+            h = F.relu(h, inplace=layer.inplace)
+        else:
+            raise TypeError(f"pointwise: unsupported layer {type(layer).__name__}")
+    return h.reshape(*shape, h.shape[-1])
 
 
 class SharedMLP(nn.Sequential):
     """1x1 convolutions with batch norm and ReLU over the channel dimension.
 
+    The layers are ``Conv{dims}d`` / ``BatchNorm{dims}d`` / ``ReLU`` (the parameters and
+    state dict of the reference PointNet++), applied to channels-last inputs with
+    :func:`pointwise`.
+
     Shapes:
-        input (B, C_in, ...) -> output (B, C_out, ...) with ``len(...)`` of 1 or 2.
+        input (..., C_in) -> output (..., C_out)
     """
 
     def __init__(self, channels: list[int], dims: int = 2) -> None:
@@ -99,9 +104,15 @@ class SharedMLP(nn.Sequential):
             layers += [conv(cin, cout, 1, bias=False), bn(cout), nn.ReLU(inplace=True)]
         super().__init__(*layers)
 
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return pointwise(self, x)
+
 
 class SetAbstraction(nn.Module):
     """PointNet++ set abstraction: FPS centres, ball-query groups, shared MLP, max-pool.
+
+    The centres and groups come from ``level`` (:func:`plan_set_abstraction`), planned here
+    with the Rust core when not given.
 
     Shapes:
         xyz (B, N, 3), features (B, N, C) or None
@@ -113,20 +124,36 @@ class SetAbstraction(nn.Module):
         self.n_centers, self.radius, self.k = n_centers, radius, k
         self.mlp = SharedMLP([in_channels + 3, *mlp])
 
-    def forward(self, xyz: torch.Tensor, features: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, xyz: torch.Tensor, features: torch.Tensor | None,
+                level: SALevel | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        if level is None:
+            level = plan_set_abstraction(xyz, self.n_centers, self.radius, self.k)
+        centers = gather_points(xyz, level.centers)
+        gidx = level.groups  # (B, M, k)
+        rel = gather_points(xyz, gidx) - centers.unsqueeze(2)  # (B, M, k, 3)
+        grouped = rel if features is None else torch.cat([rel, gather_points(features, gidx)], -1)
+        return centers, self.mlp(grouped).max(2).values  # (B, M, k, C) -> (B, M, C)
+
+    def forward_reference(self, xyz: torch.Tensor, features: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
+        """The computation before geometry plans (kept as the reference of tests and
+        ``bench/bench_ancsh.py``): PyTorch FPS and ball query inline, channels-first 1x1
+        convolutions."""
         m = min(self.n_centers, xyz.shape[1])
         cidx = farthest_point_sample(xyz, m, seed=None)
         centers = gather_points(xyz, cidx)
         gidx = ball_query(self.radius, self.k, xyz, centers)  # (B, M, k)
         rel = gather_points(xyz, gidx) - centers.unsqueeze(2)  # (B, M, k, 3)
         grouped = rel if features is None else torch.cat([rel, gather_points(features, gidx)], -1)
-        out = self.mlp(grouped.permute(0, 3, 1, 2))  # (B, C, M, k)
+        out = nn.Sequential.forward(self.mlp, grouped.permute(0, 3, 1, 2))  # (B, C, M, k)
         return centers, out.max(-1).values.transpose(1, 2)
 
 
 class FeaturePropagation(nn.Module):
     """PointNet++ feature propagation: inverse-distance interpolation from the 3 nearest
     coarse points, concatenated with the skip features, then a shared MLP.
+
+    The neighbours and weights come from ``level`` (:func:`plan_propagation`), planned here
+    with the Rust core when not given.
 
     Shapes:
         xyz (B, N, 3), coarse_xyz (B, M, 3), skip (B, N, C1) or None, coarse (B, M, C2)
@@ -138,15 +165,27 @@ class FeaturePropagation(nn.Module):
         self.mlp = SharedMLP([in_channels, *mlp], dims=1)
 
     def forward(
+        self, xyz: torch.Tensor, coarse_xyz: torch.Tensor, skip: torch.Tensor | None, coarse: torch.Tensor,
+        level: FPLevel | None = None,
+    ) -> torch.Tensor:
+        if level is None:
+            level = plan_propagation(xyz, coarse_xyz)
+        interp = (gather_points(coarse, level.index) * level.weight.unsqueeze(-1)).sum(2)
+        x = interp if skip is None else torch.cat([skip, interp], -1)
+        return self.mlp(x)
+
+    def forward_reference(
         self, xyz: torch.Tensor, coarse_xyz: torch.Tensor, skip: torch.Tensor | None, coarse: torch.Tensor
     ) -> torch.Tensor:
+        """The computation before geometry plans (see :meth:`SetAbstraction.forward_reference`):
+        ``torch.cdist`` nearest neighbours inline, channels-first 1x1 convolutions."""
         k = min(3, coarse_xyz.shape[1])
         d, idx = torch.cdist(xyz, coarse_xyz).topk(k, dim=-1, largest=False)
         w = 1.0 / (d + 1e-8)
         w = w / w.sum(-1, keepdim=True)
         interp = (gather_points(coarse, idx) * w.unsqueeze(-1)).sum(2)
         x = interp if skip is None else torch.cat([skip, interp], -1)
-        return self.mlp(x.transpose(1, 2)).transpose(1, 2)
+        return nn.Sequential.forward(self.mlp, x.transpose(1, 2)).transpose(1, 2)
 
 
 class PointNet2Backbone(nn.Module):
@@ -160,9 +199,12 @@ class PointNet2Backbone(nn.Module):
         Centres of the three SA levels.
     radii : tuple of float
         Ball radii (input units; inputs are expected normalised to about unit size).
+    k : int
+        Group size of the ball queries.
 
     Shapes:
-        xyz (B, N, 3) -> per-point features (B, N, out_channels)
+        xyz (B, N, 3), optional plan (:class:`GeometryPlan` of ``xyz``, :meth:`plan`)
+        -> per-point features (B, N, out_channels)
     """
 
     def __init__(
@@ -174,6 +216,7 @@ class PointNet2Backbone(nn.Module):
     ) -> None:
         super().__init__()
         w = width
+        self.n_centers, self.radii, self.k = tuple(n_centers), tuple(radii), k
         self.sa1 = SetAbstraction(n_centers[0], radii[0], k, 0, [w, w, 2 * w])
         self.sa2 = SetAbstraction(n_centers[1], radii[1], k, 2 * w, [2 * w, 2 * w, 4 * w])
         self.sa3 = SetAbstraction(n_centers[2], radii[2], k, 4 * w, [4 * w, 4 * w, 8 * w])
@@ -182,10 +225,31 @@ class PointNet2Backbone(nn.Module):
         self.fp1 = FeaturePropagation(2 * w, [2 * w, 2 * w])
         self.out_channels = 2 * w
 
-    def forward(self, xyz: torch.Tensor) -> torch.Tensor:
-        x1, f1 = self.sa1(xyz, None)
-        x2, f2 = self.sa2(x1, f1)
-        x3, f3 = self.sa3(x2, f2)
-        f2 = self.fp3(x2, x3, f2, f3)
-        f1 = self.fp2(x1, x2, f1, f2)
-        return self.fp1(xyz, x1, None, f1)
+    def plan(self, xyz: torch.Tensor, backend: Backend = "rust") -> GeometryPlan:
+        """The :class:`GeometryPlan` of ``xyz (B, N, 3)`` for this backbone (:func:`build_plan`)."""
+        return build_plan(xyz, self.n_centers, self.radii, self.k, backend)
+
+    def forward(self, xyz: torch.Tensor, plan: GeometryPlan | None = None) -> torch.Tensor:
+        if plan is None:
+            plan = self.plan(xyz)
+        elif plan.fp[2].index.shape[:2] != xyz.shape[:2]:
+            raise ValueError(f"the plan is of a batch of {tuple(plan.fp[2].index.shape[:2])} points, "
+                             f"the input of {tuple(xyz.shape[:2])}")
+        x1, f1 = self.sa1(xyz, None, plan.sa[0])
+        x2, f2 = self.sa2(x1, f1, plan.sa[1])
+        x3, f3 = self.sa3(x2, f2, plan.sa[2])
+        f2 = self.fp3(x2, x3, f2, f3, plan.fp[0])
+        f1 = self.fp2(x1, x2, f1, f2, plan.fp[1])
+        return self.fp1(xyz, x1, None, f1, plan.fp[2])
+
+    def forward_reference(self, xyz: torch.Tensor) -> torch.Tensor:
+        """The computation before geometry plans, the reference of tests and benchmarks: the
+        neighbourhoods computed inside each layer by :mod:`kinmo.ancsh.plan`'s PyTorch functions, the 1x1
+        convolutions channels-first. Same parameters, same function as :meth:`forward` up to
+        the plan's rule (:mod:`kinmo.ancsh.plan`) and float rounding."""
+        x1, f1 = self.sa1.forward_reference(xyz, None)
+        x2, f2 = self.sa2.forward_reference(x1, f1)
+        x3, f3 = self.sa3.forward_reference(x2, f2)
+        f2 = self.fp3.forward_reference(x2, x3, f2, f3)
+        f1 = self.fp2.forward_reference(x1, x2, f1, f2)
+        return self.fp1.forward_reference(xyz, x1, None, f1)

@@ -12,6 +12,8 @@ the GIL released. Frames are those of the input; PartNet objects are y-up.
 - :mod:`kinmo.geometry.interaction`: interaction regions between two parts.
 - :mod:`kinmo.geometry.motion`: batched candidate motions.
 - :mod:`kinmo.geometry.sweep`: swept-collision feasibility and line-to-mesh distance.
+- :mod:`kinmo.geometry.pointnet`: PointNet++ neighbourhoods (farthest point sampling, ball
+  query, k nearest neighbours) of float32 point-cloud batches.
 """
 
 from kinmo.geometry.contact import contact_pairs, mesh_distance
@@ -20,6 +22,7 @@ from kinmo.geometry.interaction import InteractionRegion, interaction_region
 from kinmo.geometry.mesh import load_obj, load_objs
 from kinmo.geometry.motion import apply_motions, motion_transforms
 from kinmo.geometry.obb import OBB, fit_obb, fit_obb_batch
+from kinmo.geometry.pointnet import ball_query, farthest_point_sample, k_nearest
 from kinmo.geometry.sampling import sample_surface, sample_surface_groups
 from kinmo.geometry.sweep import SweepObstacle, line_mesh_distance, sweep_collisions
 
@@ -28,11 +31,14 @@ __all__ = [
     "InteractionRegion",
     "SweepObstacle",
     "apply_motions",
+    "ball_query",
     "contact_pairs",
     "convex_hull",
+    "farthest_point_sample",
     "fit_obb",
     "fit_obb_batch",
     "interaction_region",
+    "k_nearest",
     "line_mesh_distance",
     "load_obj",
     "load_objs",

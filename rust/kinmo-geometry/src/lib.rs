@@ -13,6 +13,7 @@ pub mod interaction;
 pub mod mesh;
 pub mod motion;
 pub mod obb;
+pub mod pointnet;
 pub mod sampling;
 pub mod sweep;
 

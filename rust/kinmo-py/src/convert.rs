@@ -18,7 +18,7 @@ use nalgebra::{Point3, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
-    PyUntypedArrayMethods,
+    PyReadonlyArray3, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -126,6 +126,35 @@ pub fn points_from_array(
         .chunks_exact(3)
         .map(|c| Point3::new(c[0], c[1], c[2]))
         .collect())
+}
+
+/// Read a `(B, N, 3)` float32 array as `B` clouds of `N` points, row-major
+/// (`points[b * N + i]`), checking the shape and size. Finiteness is checked by the
+/// geometry functions that read them (`kinmo_geometry::pointnet`).
+///
+/// # Errors
+/// `ValueError` naming `what`: wrong shape, or more than [`MAX_VALUES`] values.
+pub fn clouds_from_array(
+    arr: &PyReadonlyArray3<'_, f32>,
+    what: &str,
+) -> PyResult<(Vec<[f32; 3]>, usize, usize)> {
+    let shape = arr.shape();
+    if shape[2] != 3 {
+        return Err(shape_error(what, "(B, N, 3)", shape));
+    }
+    check_values(what, shape)?;
+    let view = arr.as_array();
+    let points = match view.as_slice() {
+        Some(s) => s
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect::<Vec<_>>(),
+        None => {
+            let flat: Vec<f32> = view.iter().copied().collect();
+            flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        }
+    };
+    Ok((points, shape[0], shape[1]))
 }
 
 /// Read an `(F, 3)` int64 array as triangles indexing `n_vertices` vertices.

@@ -14,6 +14,7 @@ mod interaction;
 mod mesh;
 mod motion;
 mod obb;
+mod pointnet;
 mod sampling;
 mod sweep;
 
@@ -24,6 +25,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     mesh::register(m)?;
     sampling::register(m)?;
     obb::register(m)?;
+    pointnet::register(m)?;
     hull::register(m)?;
     contact::register(m)?;
     interaction::register(m)?;
