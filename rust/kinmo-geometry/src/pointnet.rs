@@ -23,11 +23,14 @@
 //!   radius; fewer than `k` are padded with the first; a centre with none at all gets its
 //!   nearest point `k` times. Nearest neighbours are ordered by distance, then by index.
 //!
-//! Ball query and nearest neighbours visit the cells of a uniform grid around each centre or
-//! query (cells a hair larger than the radius; rings of cells until the k-th distance is
-//! below the distance to the unsearched cells), so they are exact, the same as a brute-force
-//! scan, at a fraction of its cost. Farthest point sampling is the plain `O(M N)` loop.
+//! Ball query and nearest neighbours search a `kiddo` k-d tree of each cloud, then test the
+//! points found with the distance above, so they are exact, the same as a brute-force scan,
+//! at a fraction of its cost. Farthest point sampling is the plain `O(M N)` loop.
 
+use std::num::NonZeroUsize;
+
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
 
 use crate::error::{GeometryError, Result};
@@ -150,150 +153,59 @@ pub fn farthest_point_sample_batch(
     Ok(())
 }
 
-/// Safety factor on cell sizes and search bounds: rounding in the cell arithmetic is far
-/// below it, so no point is ever missed.
-const MARGIN: f64 = 1e-9;
+/// A `kiddo` k-d tree over one cloud (item: the point's index), coordinates widened to `f64`.
+type KdTree = ImmutableKdTree<f64, u32, 3, 32>;
 
-/// A uniform grid of cubic cells over one cloud: each cell lists its points in index order.
-struct Grid {
-    lo: [f64; 3],
-    h: f64,
-    dims: [usize; 3],
-    /// `starts[c]..starts[c + 1]` indexes `items` for cell `c`.
-    starts: Vec<usize>,
-    items: Vec<u32>,
+fn kd_tree(points: &[Point]) -> KdTree {
+    let coords: Vec<[f64; 3]> = points.iter().map(widen).collect();
+    ImmutableKdTree::new_from_slice(&coords)
 }
 
-/// The bounding box `(low, high)` of a cloud, in `f64`.
-fn bounds(points: &[Point]) -> ([f64; 3], [f64; 3]) {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for a in 0..3 {
-            lo[a] = lo[a].min(f64::from(p[a]));
-            hi[a] = hi[a].max(f64::from(p[a]));
-        }
-    }
-    (lo, hi)
+#[inline]
+fn widen(p: &Point) -> [f64; 3] {
+    p.map(f64::from)
 }
 
-impl Grid {
-    /// Cells of side at least `h`, doubled until there are at most `4 n + 8` cells.
-    fn new(points: &[Point], h: f64) -> Self {
-        let (lo, hi) = bounds(points);
-        let ext = [0, 1, 2].map(|a| (hi[a] - lo[a]).max(0.0));
-        let cap = 4 * points.len() + 8;
-        let mut h = if h.is_finite() && h > 0.0 { h } else { 1.0 };
-        let mut dims;
-        loop {
-            dims = ext.map(|e| (e / h).floor().min(cap as f64) as usize + 1);
-            if dims[0].saturating_mul(dims[1]).saturating_mul(dims[2]) <= cap {
-                break;
-            }
-            h *= 2.0;
-        }
-        let mut grid = Grid {
-            lo,
-            h,
-            dims,
-            starts: vec![0; dims[0] * dims[1] * dims[2] + 1],
-            items: vec![0; points.len()],
-        };
-        let cells: Vec<usize> = points.iter().map(|p| grid.cell_index(p)).collect();
-        for &c in &cells {
-            grid.starts[c + 1] += 1;
-        }
-        for c in 0..grid.starts.len() - 1 {
-            grid.starts[c + 1] += grid.starts[c];
-        }
-        let mut fill = grid.starts.clone();
-        for (i, &c) in cells.iter().enumerate() {
-            grid.items[fill[c]] = i as u32;
-            fill[c] += 1;
-        }
-        grid
-    }
+/// Tree searches reach this factor beyond the squared distance asked for, and every point
+/// found is then tested with [`dist2_f64`]: rounding inside the tree never adds or drops a
+/// point.
+const SLACK: f64 = 1.0 + 1e-9;
 
-    /// The cell coordinates of a point (clamped to the grid).
-    fn cell(&self, p: &Point) -> [usize; 3] {
-        [0, 1, 2].map(|a| {
-            let t = ((f64::from(p[a]) - self.lo[a]) / self.h).floor();
-            (t.max(0.0) as usize).min(self.dims[a] - 1)
-        })
-    }
+/// The points of `tree` (built over `points`) within squared distance `r2` of `q`, by
+/// [`dist2_f64`], in arbitrary order.
+fn within(tree: &KdTree, points: &[Point], q: &Point, r2: f64) -> Vec<u32> {
+    tree.within_unsorted::<SquaredEuclidean>(&widen(q), r2 * SLACK)
+        .into_iter()
+        .map(|nb| nb.item)
+        .filter(|&i| dist2_f64(&points[i as usize], q) <= r2)
+        .collect()
+}
 
-    fn cell_index(&self, p: &Point) -> usize {
-        let c = self.cell(p);
-        (c[0] * self.dims[1] + c[1]) * self.dims[2] + c[2]
-    }
-
-    /// The distance from `q` (in cell `c`) to the nearest face, with cells beyond it, of the
-    /// box of cells within Chebyshev distance `ring` of `c` (infinite when the box covers
-    /// the grid): a lower bound of the distance to every point outside the box.
-    fn gap(&self, q: &Point, c: [usize; 3], ring: usize) -> f64 {
-        let mut gap = f64::INFINITY;
-        for a in 0..3 {
-            let qa = f64::from(q[a]);
-            if c[a] > ring {
-                gap = gap.min(qa - (self.lo[a] + (c[a] - ring) as f64 * self.h));
-            }
-            if c[a] + ring + 1 < self.dims[a] {
-                gap = gap.min(self.lo[a] + (c[a] + ring + 1) as f64 * self.h - qa);
-            }
-        }
-        gap.max(0.0)
-    }
-
-    /// Call `f` with the points of every cell at Chebyshev distance exactly `ring` from
-    /// cell `c`.
-    fn ring(&self, c: [usize; 3], ring: usize, mut f: impl FnMut(u32)) {
-        let r = ring as isize;
-        let range = |a: usize| {
-            let lo = (c[a] as isize - r).max(0) as usize;
-            let hi = ((c[a] as isize + r) as usize).min(self.dims[a] - 1);
-            (lo, hi)
-        };
-        let (x0, x1) = range(0);
-        let (y0, y1) = range(1);
-        let (z0, z1) = range(2);
-        let on_ring = |v: usize, a: usize| (v as isize - c[a] as isize).abs() == r;
-        for x in x0..=x1 {
-            for y in y0..=y1 {
-                let edge = on_ring(x, 0) || on_ring(y, 1);
-                let mut z = z0;
-                while z <= z1 {
-                    if edge || on_ring(z, 2) {
-                        let cell = (x * self.dims[1] + y) * self.dims[2] + z;
-                        for &i in &self.items[self.starts[cell]..self.starts[cell + 1]] {
-                            f(i);
-                        }
-                        z += 1;
-                    } else {
-                        // interior of this column: jump to the far face
-                        z = (c[2] as isize + r) as usize;
-                    }
-                }
-            }
-        }
-    }
+/// The `k` (at most the cloud's size) nearest points to `q` as `(squared distance, index)`,
+/// ascending by distance then index: the tree's `k` nearest give the `k`-th distance, and
+/// every point within it competes, so ties at the `k`-th distance go to the lower indices.
+fn k_best(tree: &KdTree, points: &[Point], q: &Point, k: usize) -> Vec<(f64, usize)> {
+    let k = k.min(points.len()).max(1);
+    let qty = NonZeroUsize::new(k).unwrap_or(NonZeroUsize::MIN);
+    let dk = tree
+        .nearest_n::<SquaredEuclidean>(&widen(q), qty)
+        .iter()
+        .map(|nb| dist2_f64(&points[nb.item as usize], q))
+        .fold(0.0, f64::max);
+    let mut best: Vec<(f64, usize)> = within(tree, points, q, dk)
+        .into_iter()
+        .map(|i| (dist2_f64(&points[i as usize], q), i as usize))
+        .collect();
+    best.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    best.truncate(k);
+    best
 }
 
 fn ball_into(points: &[Point], centers: &[Point], radius: f64, k: usize, out: &mut [i64]) {
     let r2 = radius * radius;
-    // a point within the radius is at most one cell away (cells a hair larger than it)
-    let grid = Grid::new(points, radius * (1.0 + MARGIN));
-    let mut inside: Vec<u32> = Vec::new();
+    let tree = kd_tree(points);
     for (c, o) in centers.iter().zip(out.chunks_mut(k)) {
-        inside.clear();
-        // cells are at least the radius: its ball lies in the 3 x 3 x 3 cells around
-        let cc = grid.cell(c);
-        for ring in 0..2 {
-            grid.ring(cc, ring, |i| {
-                if dist2_f64(&points[i as usize], c) <= r2 {
-                    inside.push(i);
-                }
-            });
-        }
+        let mut inside = within(&tree, points, c, r2);
         let count = inside.len().min(k);
         if count > 0 {
             if inside.len() > k {
@@ -305,7 +217,7 @@ fn ball_into(points: &[Point], centers: &[Point], radius: f64, k: usize, out: &m
             *s = i64::from(i);
         }
         let fill = if count == 0 {
-            nearest(points, c) as i64
+            k_best(&tree, points, c, 1)[0].1 as i64
         } else {
             o[0]
         };
@@ -313,20 +225,6 @@ fn ball_into(points: &[Point], centers: &[Point], radius: f64, k: usize, out: &m
             *s = fill;
         }
     }
-}
-
-/// Index of the nearest point to `c` (the first of equally near ones).
-fn nearest(points: &[Point], c: &Point) -> usize {
-    let mut best = f64::INFINITY;
-    let mut arg = 0usize;
-    for (i, p) in points.iter().enumerate() {
-        let d = dist2_f64(p, c);
-        if d < best {
-            best = d;
-            arg = i;
-        }
-    }
-    arg
 }
 
 /// Ball query: for each centre, the first `k` points (index order) within `radius`, padded
@@ -387,46 +285,17 @@ pub fn ball_query_batch(
     Ok(())
 }
 
-/// Offer point `i` at `p` to the `k` best `(squared distance, index)` of query `q`.
-fn keep_nearest(best: &mut Vec<(f64, usize)>, k: usize, p: &Point, q: &Point, i: u32) {
-    let (d, i) = (dist2_f64(p, q), i as usize);
-    if best.len() == k && (d, i) >= best[k - 1] {
-        return;
-    }
-    let at = best.partition_point(|&e| e < (d, i));
-    best.insert(at, (d, i));
-    best.truncate(k);
-}
-
 fn knn_into(points: &[Point], queries: &[Point], k: usize, idx: &mut [i64], dist: &mut [f32]) {
-    // about as many cells as points in the bounding box
-    let (lo, hi) = bounds(points);
-    let ext = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    let grid = Grid::new(points, ext / (points.len() as f64).cbrt().max(1.0));
-    // (squared distance, index), kept sorted ascending, ties by index
-    let mut best: Vec<(f64, usize)> = Vec::with_capacity(k + 1);
+    let tree = kd_tree(points);
     for ((q, io), dout) in queries
         .iter()
         .zip(idx.chunks_mut(k))
         .zip(dist.chunks_mut(k))
     {
-        best.clear();
-        let qc = grid.cell(q);
-        let mut ring = 0usize;
-        loop {
-            grid.ring(qc, ring, |i| {
-                keep_nearest(&mut best, k, &points[i as usize], q, i)
-            });
-            // every point outside the cells searched so far is farther than the query's
-            // distance to the nearest face of their box that has cells beyond it: stop once
-            // the k-th best is strictly nearer than that
-            let bound = grid.gap(q, qc, ring) * (1.0 - MARGIN);
-            if bound.is_infinite() || (best.len() == k && best[k - 1].0 < bound * bound) {
-                break;
-            }
-            ring += 1;
-        }
-        for ((d2, i), (io, dout)) in best.iter().zip(io.iter_mut().zip(dout.iter_mut())) {
+        for ((d2, i), (io, dout)) in k_best(&tree, points, q, k)
+            .iter()
+            .zip(io.iter_mut().zip(dout.iter_mut()))
+        {
             *io = *i as i64;
             *dout = d2.sqrt() as f32;
         }

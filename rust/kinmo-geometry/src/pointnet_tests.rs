@@ -158,7 +158,7 @@ fn k_nearest_matches_a_stable_sort() {
 }
 
 #[test]
-fn grids_are_exact_on_flat_clouds_far_queries_and_tiny_radii() {
+fn searches_are_exact_on_flat_clouds_far_queries_and_tiny_radii() {
     // a flat cloud (z = 0), a line (y = z = 0), queries far outside, radii far below the
     // spacing (cells enlarged) and far above the extent
     let flat: Vec<Point> = cloud(11, 300).iter().map(|p| [p[0], p[1], 0.0]).collect();
