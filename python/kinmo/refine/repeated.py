@@ -17,15 +17,18 @@ The rule, after every edge has been selected:
    the selector).
 2. **Vote.** Directions are compared in each member's own OBB frame (axes ordered by half
    extent, signs dropped), so copies turned about the shape, like a box's four flaps, vote
-   alike. Every direction among the members' candidates (within ``angle_deg``) gets the sum over members of each member's highest ranker probability for
-   a candidate in that direction. The direction with the largest sum wins: the selector's
-   evidence pooled over the copies, where each copy alone may be unsure (a key's 19
-   candidates share the probability, 0.15 at most).
+   alike. Every direction among the members' candidates (within ``angle_deg``) gets the
+   sum over members of each member's highest ranker probability for a candidate in that
+   direction. The direction with the largest sum wins: the selector's evidence pooled over
+   the copies, where each copy alone may be unsure (a key's 19 candidates share the
+   probability, 0.15 at most).
 3. **Follow.** A member off the winning direction takes its own most probable candidate
    within ``angle_deg`` of it (its line's position stays its own), with that candidate's
    calibrated confidence; a member without such a candidate keeps its choice.
 
 Frames: mesh frame, like the predictions. Directions are unit (3,) float64 vectors.
+Cost: edges are bucketed by (reference part, type) first, so grouping is linear in the
+refined edges times the groups of one bucket.
 """
 
 from __future__ import annotations
@@ -65,19 +68,28 @@ def repeated_groups(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
     list of list of int
         Edge indices, each group in ascending order; groups in order of their first edge.
     """
-    groups: list[list[int]] = []
-    reps: list[tuple[int, str, np.ndarray]] = []
+    buckets: dict[tuple[int, str], list[int]] = {}
     for k in sorted(int(m) for m in members):
-        i, j = int(edges[k, 0]), int(edges[k, 1])
-        ext = np.sort(np.asarray(graph.obb_half_extents[i], float))
-        for g, (rj, rt, rext) in enumerate(reps):
-            if rj == j and rt == types[k] and np.all(
-                    np.abs(ext - rext) <= extent_tol * np.maximum(np.maximum(ext, rext), 1e-12)):
-                groups[g].append(k)
-                break
-        else:
-            reps.append((j, types[k], ext))
-            groups.append([k])
+        buckets.setdefault((int(edges[k, 1]), types[k]), []).append(k)
+    groups: list[list[int]] = []
+    for ks in buckets.values():
+        if len(ks) < min_group:
+            continue
+        ext = np.sort(np.asarray(graph.obb_half_extents, float)[edges[ks, 0]], axis=1)
+        reps: list[int] = []  # row of each group's first member
+        mine: list[list[int]] = []
+        for n, k in enumerate(ks):
+            if reps:
+                r = ext[reps]
+                tol = extent_tol * np.maximum(np.maximum(r, ext[n]), 1e-12)
+                close = np.all(np.abs(r - ext[n]) <= tol, axis=1)
+                if close.any():
+                    mine[int(np.argmax(close))].append(k)
+                    continue
+            reps.append(n)
+            mine.append([k])
+        groups += mine
+    groups.sort(key=lambda g: g[0])
     return [g for g in groups if len(g) >= min_group]
 
 
@@ -122,14 +134,14 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
                                  min_group=min_group):
         local = {k: _local(graph, int(edges[k, 0]), details[k].candidates.directions)
                  for k in group}
-        reps: list[np.ndarray] = []
+        reps = np.zeros((0, 3))
         for k in group:
             for d in local[k]:
-                if not any(float(d @ u) >= cos for u in reps):
-                    reps.append(d)
+                if not (reps @ d >= cos).any():
+                    reps = np.vstack([reps, d])
         support = np.zeros(len(reps))
         for k in group:
-            near = local[k] @ np.stack(reps).T >= cos  # (C, U)
+            near = local[k] @ reps.T >= cos  # (C, U)
             support += np.where(near, details[k].scores.total[:, None], 0.0).max(0)
         win = reps[int(np.argmax(support))]
         for k in group:
