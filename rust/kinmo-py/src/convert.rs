@@ -128,6 +128,15 @@ pub fn points_from_array(
         .collect())
 }
 
+/// Check `1 <= value < 2**64` (a Python int of any size): `ValueError` "`{what}` must be
+/// >= 1, got `{value}`" otherwise (`what` names the argument, e.g. `"k:"`).
+pub fn positive(value: i128, what: &str) -> PyResult<usize> {
+    usize::try_from(value)
+        .ok()
+        .filter(|&v| v >= 1)
+        .ok_or_else(|| PyValueError::new_err(format!("{what} must be >= 1, got {value}")))
+}
+
 /// Read a `(B, N, 3)` float32 array as `B` clouds of `N` points, row-major
 /// (`points[b * N + i]`), checking the shape and size. Finiteness is checked by the
 /// geometry functions that read them (`kinmo_geometry::pointnet`).

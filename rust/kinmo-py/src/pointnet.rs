@@ -6,19 +6,11 @@ use numpy::{PyArray2, PyArray3, PyReadonlyArray3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use crate::convert::{array2, array3, check_values, clouds_from_array};
+use crate::convert::{array2, array3, check_values, clouds_from_array, positive};
 use crate::errors::detach;
 
 /// `(indices (B, N, k) int64, distances (B, N, k) float32)`.
 type Neighbours<'py> = (Bound<'py, PyArray3<i64>>, Bound<'py, PyArray3<f32>>);
-
-/// Check `1 <= value < 2**64` (a Python int of any size), naming `what`.
-fn positive(value: i128, what: &str) -> PyResult<usize> {
-    usize::try_from(value)
-        .ok()
-        .filter(|&v| v >= 1)
-        .ok_or_else(|| PyValueError::new_err(format!("{what}: must be >= 1, got {value}")))
-}
 
 /// Check that two batches have the same size.
 fn same_batch(a: usize, b: usize, what: &str) -> PyResult<()> {
@@ -40,12 +32,8 @@ fn farthest_point_sample<'py>(
     m: i128,
 ) -> PyResult<Bound<'py, PyArray2<i64>>> {
     let (p, b, n) = clouds_from_array(&points, "points")?;
-    let m = positive(m, "m")?;
-    if m > n {
-        return Err(PyValueError::new_err(format!(
-            "m: the number of samples must be in [1, {n}] (the number of points), got {m}"
-        )));
-    }
+    // m <= N is checked by the core, with the same message
+    let m = positive(m, "m:")?;
     let len = check_values("m", &[b, m])?;
     let out = detach(py, "farthest_point_sample", || {
         let mut out = vec![0i64; len];
@@ -71,7 +59,7 @@ fn ball_query<'py>(
     let (p, b, n) = clouds_from_array(&points, "points")?;
     let (c, bc, m) = clouds_from_array(&centers, "centers")?;
     same_batch(b, bc, "centers")?;
-    let k = positive(k, "k")?;
+    let k = positive(k, "k:")?;
     let len = check_values("k", &[b, m, k])?;
     let out = detach(py, "ball_query", || {
         let mut out = vec![0i64; len];
@@ -95,7 +83,7 @@ fn k_nearest<'py>(
     let (p, b, m) = clouds_from_array(&points, "points")?;
     let (q, bq, n) = clouds_from_array(&queries, "queries")?;
     same_batch(b, bq, "queries")?;
-    let k = positive(k, "k")?;
+    let k = positive(k, "k:")?;
     let len = check_values("k", &[b, n, k])?;
     let (idx, dist) = detach(py, "k_nearest", || {
         let mut idx = vec![0i64; len];

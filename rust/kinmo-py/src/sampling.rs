@@ -5,18 +5,11 @@ use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use crate::convert::{mesh_from_arrays, meshes_from_list, zeros};
+use crate::convert::{mesh_from_arrays, meshes_from_list, positive, zeros};
 use crate::errors::detach;
 
 /// `(points (n, 3) float64, face_index (n,) int64)`.
 type Samples<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<i64>>);
-
-/// Check `n >= 1` (taken as a Python int of any size).
-fn count(n: i128) -> PyResult<usize> {
-    usize::try_from(n).ok().filter(|&n| n >= 1).ok_or_else(|| {
-        PyValueError::new_err(format!("n: the number of points must be >= 1, got {n}"))
-    })
-}
 
 /// Check `0 <= seed < 2**64`.
 fn seed(seed: i128) -> PyResult<u64> {
@@ -36,7 +29,7 @@ fn sample_surface<'py>(
     n: i128,
     seed: i128,
 ) -> PyResult<Samples<'py>> {
-    let n = count(n)?;
+    let n = positive(n, "n: the number of points")?;
     let seed = self::seed(seed)?;
     let mesh = mesh_from_arrays(&vertices, &faces, "mesh")?;
     // Outputs are numpy arrays filled in place (no intermediate buffers).
@@ -66,7 +59,7 @@ fn sample_surface_groups<'py>(
     n: i128,
     seed: i128,
 ) -> PyResult<Bound<'py, PyArray3<f64>>> {
-    let n = count(n)?;
+    let n = positive(n, "n: the number of points")?;
     let seed = self::seed(seed)?;
     let meshes = meshes_from_list(meshes, "meshes")?;
     let groups = groups
