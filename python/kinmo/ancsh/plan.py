@@ -185,6 +185,23 @@ def _weights(d: torch.Tensor) -> torch.Tensor:
     return w / w.sum(-1, keepdim=True)
 
 
+def _cpu(xyz: torch.Tensor) -> np.ndarray:
+    """``(B, N, 3)`` coordinates as a float32 CPU array for the Rust core."""
+    return xyz.detach().to("cpu", torch.float32).contiguous().numpy()
+
+
+def _rust_sa(p: np.ndarray, n_centers: int, radius: float, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Centres ``(B, M)`` and groups ``(B, M, min(k, N))`` of the clouds ``p (B, N, 3)``."""
+    c = _rust.farthest_point_sample(p, min(n_centers, p.shape[1]))
+    return c, _rust.ball_query(p, np.take_along_axis(p, c[..., None], 1), radius, min(k, p.shape[1]))
+
+
+def _rust_fp(fine: np.ndarray, coarse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ``min(3, M)`` nearest of ``coarse (B, M, 3)`` to each of ``fine (B, N, 3)``:
+    indices and distances."""
+    return _rust.k_nearest(coarse, fine, min(3, coarse.shape[1]))
+
+
 def plan_set_abstraction(xyz: torch.Tensor, n_centers: int, radius: float, k: int,
                          backend: Backend = "rust") -> SALevel:
     """The centres and groups of one SA level (module docstring).
@@ -203,14 +220,11 @@ def plan_set_abstraction(xyz: torch.Tensor, n_centers: int, radius: float, k: in
     SALevel
         On ``xyz``'s device.
     """
-    m = min(n_centers, xyz.shape[1])
     with torch.no_grad():
         if backend == "torch":
-            cidx = farthest_point_sample(xyz, m, seed=None)
+            cidx = farthest_point_sample(xyz, min(n_centers, xyz.shape[1]), seed=None)
             return SALevel(cidx, ball_query(radius, k, xyz, gather_points(xyz, cidx)))
-        p = xyz.detach().to("cpu", torch.float32).numpy()
-        c = _rust.farthest_point_sample(p, m)
-        g = _rust.ball_query(p, np.take_along_axis(p, c[..., None], 1), radius, min(k, p.shape[1]))
+        c, g = _rust_sa(_cpu(xyz), n_centers, radius, k)
         return SALevel(torch.from_numpy(c).to(xyz.device), torch.from_numpy(g).to(xyz.device))
 
 
@@ -228,13 +242,11 @@ def plan_propagation(xyz: torch.Tensor, coarse_xyz: torch.Tensor, backend: Backe
     FPLevel
         On ``xyz``'s device.
     """
-    k = min(3, coarse_xyz.shape[1])
     with torch.no_grad():
         if backend == "torch":
-            d, idx = torch.cdist(xyz, coarse_xyz).topk(k, dim=-1, largest=False)
+            d, idx = torch.cdist(xyz, coarse_xyz).topk(min(3, coarse_xyz.shape[1]), dim=-1, largest=False)
             return FPLevel(idx, _weights(d))
-        idx, d = _rust.k_nearest(coarse_xyz.detach().to("cpu", torch.float32).numpy(),
-                                 xyz.detach().to("cpu", torch.float32).numpy(), k)
+        idx, d = _rust_fp(_cpu(xyz), _cpu(coarse_xyz))
         return FPLevel(torch.from_numpy(idx).to(xyz.device), _weights(torch.from_numpy(d)).to(xyz.device))
 
 
@@ -255,8 +267,9 @@ def build_plan(
     k : int
         Group size.
     backend : {"rust", "torch"}
-        ``"rust"``: :mod:`kinmo.geometry.pointnet` on CPU (the module's reproducibility rule);
-        ``"torch"``: the reference functions of this module, on ``xyz``'s device.
+        ``"rust"``: :mod:`kinmo.geometry.pointnet` on CPU (the module's reproducibility rule;
+        the levels are planned on one CPU copy of ``xyz``, so a CUDA batch crosses to the
+        CPU once); ``"torch"``: the reference functions of this module, on ``xyz``'s device.
 
     Returns
     -------
@@ -267,23 +280,21 @@ def build_plan(
         raise ValueError(f"unknown plan backend {backend!r} (rust or torch)")
     if backend == "torch":
         return _build_plan_torch(xyz, n_centers, radii, k)
-    with torch.no_grad():
-        p = xyz.detach().to("cpu", torch.float32).contiguous().numpy()
-    levels, clouds = [], [p]
+    levels, clouds = [], [_cpu(xyz)]
     for m, r in zip(n_centers, radii):
-        cur = clouds[-1]
-        c = _rust.farthest_point_sample(cur, min(m, cur.shape[1]))
-        nxt = np.take_along_axis(cur, c[..., None], 1)
-        levels.append((c, _rust.ball_query(cur, nxt, r, min(k, cur.shape[1]))))
-        clouds.append(nxt)
-    fps = []
-    for fine, coarse in ((clouds[2], clouds[3]), (clouds[1], clouds[2]), (clouds[0], clouds[1])):
-        idx, d = _rust.k_nearest(coarse, fine, min(3, coarse.shape[1]))
-        fps.append((idx, d))
+        c, g = _rust_sa(clouds[-1], m, r, k)
+        levels.append((c, g))
+        clouds.append(np.take_along_axis(clouds[-1], c[..., None], 1))
+    fps = [_rust_fp(fine, coarse) for fine, coarse in _fp_pairs(clouds)]
     dev = xyz.device
     return GeometryPlan(
         tuple(SALevel(torch.from_numpy(c).to(dev), torch.from_numpy(g).to(dev)) for c, g in levels),
         tuple(FPLevel(torch.from_numpy(i).to(dev), _weights(torch.from_numpy(d)).to(dev)) for i, d in fps))
+
+
+def _fp_pairs(clouds: list) -> tuple:
+    """(fine, coarse) clouds of the FP levels, in the backbone's order (:class:`GeometryPlan`)."""
+    return (clouds[2], clouds[3]), (clouds[1], clouds[2]), (clouds[0], clouds[1])
 
 
 def _build_plan_torch(xyz: torch.Tensor, n_centers: tuple[int, ...], radii: tuple[float, ...],
@@ -294,6 +305,5 @@ def _build_plan_torch(xyz: torch.Tensor, n_centers: tuple[int, ...], radii: tupl
             lv = plan_set_abstraction(clouds[-1], m, r, k, "torch")
             levels.append(lv)
             clouds.append(gather_points(clouds[-1], lv.centers))
-        fps = tuple(plan_propagation(fine, coarse, "torch")
-                    for fine, coarse in ((clouds[2], clouds[3]), (clouds[1], clouds[2]), (clouds[0], clouds[1])))
+        fps = tuple(plan_propagation(fine, coarse, "torch") for fine, coarse in _fp_pairs(clouds))
     return GeometryPlan(tuple(levels), fps)

@@ -136,12 +136,11 @@ class SetAbstraction(nn.Module):
 
     def forward_reference(self, xyz: torch.Tensor, features: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
         """The computation before geometry plans (kept as the reference of tests and
-        ``bench/bench_ancsh.py``): PyTorch FPS and ball query inline, channels-first 1x1
-        convolutions."""
-        m = min(self.n_centers, xyz.shape[1])
-        cidx = farthest_point_sample(xyz, m, seed=None)
-        centers = gather_points(xyz, cidx)
-        gidx = ball_query(self.radius, self.k, xyz, centers)  # (B, M, k)
+        ``bench/bench_ancsh.py``): the neighbourhoods planned in the layer by the PyTorch
+        reference (:func:`plan_set_abstraction`, ``"torch"``), channels-first 1x1 convolutions."""
+        level = plan_set_abstraction(xyz, self.n_centers, self.radius, self.k, "torch")
+        centers = gather_points(xyz, level.centers)
+        gidx = level.groups  # (B, M, k)
         rel = gather_points(xyz, gidx) - centers.unsqueeze(2)  # (B, M, k, 3)
         grouped = rel if features is None else torch.cat([rel, gather_points(features, gidx)], -1)
         out = nn.Sequential.forward(self.mlp, grouped.permute(0, 3, 1, 2))  # (B, C, M, k)
@@ -178,12 +177,10 @@ class FeaturePropagation(nn.Module):
         self, xyz: torch.Tensor, coarse_xyz: torch.Tensor, skip: torch.Tensor | None, coarse: torch.Tensor
     ) -> torch.Tensor:
         """The computation before geometry plans (see :meth:`SetAbstraction.forward_reference`):
-        ``torch.cdist`` nearest neighbours inline, channels-first 1x1 convolutions."""
-        k = min(3, coarse_xyz.shape[1])
-        d, idx = torch.cdist(xyz, coarse_xyz).topk(k, dim=-1, largest=False)
-        w = 1.0 / (d + 1e-8)
-        w = w / w.sum(-1, keepdim=True)
-        interp = (gather_points(coarse, idx) * w.unsqueeze(-1)).sum(2)
+        ``torch.cdist`` nearest neighbours in the layer (:func:`plan_propagation`, ``"torch"``),
+        channels-first 1x1 convolutions."""
+        level = plan_propagation(xyz, coarse_xyz, "torch")
+        interp = (gather_points(coarse, level.index) * level.weight.unsqueeze(-1)).sum(2)
         x = interp if skip is None else torch.cat([skip, interp], -1)
         return nn.Sequential.forward(self.mlp, x.transpose(1, 2)).transpose(1, 2)
 
