@@ -338,20 +338,15 @@ def refine_predictions(
         else:
             r = refine_edge(graph, i, j, types[k], pred.axis_direction[k], pred.axis_origin[k],
                             axis_model, cfg, rng=np.random.default_rng([cfg.seed, int(k)]))
+        details[int(k)] = r
+    if ranker is not None and cfg.vote_repeated and details:
+        details.update(vote_repeated(graph, pred.edges, types, details, ranker.confidence))
+    for k, r in details.items():
         origin[k], direction[k] = r.origin, r.direction
         conf[k] = r.confidence
         feas[k] = r.scores.feasibility[r.scores.best] if r.scores.best >= 0 else np.nan
         kind[k] = r.kind
         n_c[k] = len(r.candidates)
-        details[int(k)] = r
-    if ranker is not None and cfg.vote_repeated and details:
-        changed = vote_repeated(graph, pred.edges, types, details, ranker.confidence)
-        for k, r in changed.items():
-            origin[k], direction[k] = r.origin, r.direction
-            conf[k] = r.confidence
-            feas[k] = r.scores.feasibility[r.scores.best]
-            kind[k] = r.kind
-            details[k] = r
     return RefinedPredictions(pred.edges, pred.type_names, pred.type_prob, pred.type_index,
                               origin, direction, moving, conf, feas, kind, n_c, details)
 

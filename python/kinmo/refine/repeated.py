@@ -146,7 +146,7 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
         win = reps[int(np.argmax(support))]
         for k in group:
             r = details[k]
-            if float(_local(graph, int(edges[k, 0]), r.direction[None])[0] @ win) >= cos:
+            if float(local[k][r.scores.best] @ win) >= cos:  # its chosen line is a candidate
                 continue
             ok = local[k] @ win >= cos
             if not ok.any():
