@@ -10,6 +10,7 @@ cross-entropy for segmentation and joint association, L2 for the regressions.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
@@ -84,11 +85,19 @@ class ANCSH(nn.Module):
 
     def forward(self, xyz: torch.Tensor, plan: GeometryPlan | None = None) -> dict[str, torch.Tensor]:
         f = self.backbone(xyz, plan)  # (B, N, C), channels-last
-        b, n, _ = f.shape
+        # the 1x1 convolutions as matrix products
+        return self._outputs(lambda layers: pointwise(layers, f), *f.shape[:2])
 
-        def head(layers: nn.Sequential) -> torch.Tensor:
-            return pointwise(layers, f)  # the 1x1 convolutions as matrix products
+    def forward_reference(self, xyz: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The computation before geometry plans (``PointNet2Backbone.forward_reference``,
+        channels-first heads): the reference of tests and ``bench/bench_ancsh.py``; same
+        parameters and outputs as :meth:`forward` up to float rounding and the plan's rule."""
+        f = self.backbone.forward_reference(xyz).transpose(1, 2)  # (B, C, N)
+        return self._outputs(lambda layers: layers(f).transpose(1, 2), f.shape[0], f.shape[2])
 
+    def _outputs(self, head: Callable[[nn.Sequential], torch.Tensor], b: int, n: int
+                 ) -> dict[str, torch.Tensor]:
+        """The outputs, with ``head(layers)`` giving one head's raw ``(B, N, C_out)``."""
         return {
             "seg_logits": head(self.seg_head),
             "npcs": torch.sigmoid(head(self.npcs_head)).reshape(b, n, self.n_parts, 3),
@@ -97,22 +106,6 @@ class ANCSH(nn.Module):
             "unitvec": F.normalize(head(self.unitvec_head), dim=-1),
             "axis": F.normalize(head(self.axis_head), dim=-1),
             "joint_logits": head(self.joint_head),
-        }
-
-    def forward_reference(self, xyz: torch.Tensor) -> dict[str, torch.Tensor]:
-        """The computation before geometry plans (``PointNet2Backbone.forward_reference``,
-        channels-first heads): the reference of tests and ``bench/bench_ancsh.py``; same
-        parameters and outputs as :meth:`forward` up to float rounding and the plan's rule."""
-        f = self.backbone.forward_reference(xyz).transpose(1, 2)  # (B, C, N)
-        b, _, n = f.shape
-        return {
-            "seg_logits": self.seg_head(f).transpose(1, 2),
-            "npcs": torch.sigmoid(self.npcs_head(f)).transpose(1, 2).reshape(b, n, self.n_parts, 3),
-            "naocs": torch.sigmoid(self.naocs_head(f)).transpose(1, 2),
-            "heatmap": torch.sigmoid(self.heatmap_head(f)).squeeze(1),
-            "unitvec": F.normalize(self.unitvec_head(f), dim=1).transpose(1, 2),
-            "axis": F.normalize(self.axis_head(f), dim=1).transpose(1, 2),
-            "joint_logits": self.joint_head(f).transpose(1, 2),
         }
 
 
