@@ -190,10 +190,13 @@ def _cpu(xyz: torch.Tensor) -> np.ndarray:
     return xyz.detach().to("cpu", torch.float32).contiguous().numpy()
 
 
-def _rust_sa(p: np.ndarray, n_centers: int, radius: float, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Centres ``(B, M)`` and groups ``(B, M, min(k, N))`` of the clouds ``p (B, N, 3)``."""
+def _rust_sa(p: np.ndarray, n_centers: int, radius: float, k: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centres ``(B, M)``, groups ``(B, M, min(k, N))`` and the centres' coordinates
+    ``(B, M, 3)`` (the next level's cloud) of the clouds ``p (B, N, 3)``."""
     c = _rust.farthest_point_sample(p, min(n_centers, p.shape[1]))
-    return c, _rust.ball_query(p, np.take_along_axis(p, c[..., None], 1), radius, min(k, p.shape[1]))
+    xyz = np.take_along_axis(p, c[..., None], 1)
+    return c, _rust.ball_query(p, xyz, radius, min(k, p.shape[1])), xyz
 
 
 def _rust_fp(fine: np.ndarray, coarse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -224,7 +227,7 @@ def plan_set_abstraction(xyz: torch.Tensor, n_centers: int, radius: float, k: in
         if backend == "torch":
             cidx = farthest_point_sample(xyz, min(n_centers, xyz.shape[1]), seed=None)
             return SALevel(cidx, ball_query(radius, k, xyz, gather_points(xyz, cidx)))
-        c, g = _rust_sa(_cpu(xyz), n_centers, radius, k)
+        c, g, _ = _rust_sa(_cpu(xyz), n_centers, radius, k)
         return SALevel(torch.from_numpy(c).to(xyz.device), torch.from_numpy(g).to(xyz.device))
 
 
@@ -282,9 +285,9 @@ def build_plan(
         return _build_plan_torch(xyz, n_centers, radii, k)
     levels, clouds = [], [_cpu(xyz)]
     for m, r in zip(n_centers, radii):
-        c, g = _rust_sa(clouds[-1], m, r, k)
+        c, g, nxt = _rust_sa(clouds[-1], m, r, k)
         levels.append((c, g))
-        clouds.append(np.take_along_axis(clouds[-1], c[..., None], 1))
+        clouds.append(nxt)
     fps = [_rust_fp(fine, coarse) for fine, coarse in _fp_pairs(clouds)]
     dev = xyz.device
     return GeometryPlan(
