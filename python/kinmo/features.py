@@ -54,7 +54,9 @@ __all__ = [
     "collate",
     "edge_features",
     "graph_tensors",
+    "canonical_obb_axes",
     "moving_fine_mask",
+    "quarter_turn",
     "rotating_fine_mask",
     "yaw_rotation",
 ]
@@ -199,6 +201,15 @@ class GraphTensors:
         """Map normalised-frame points ``(..., 3)`` back to the mesh frame (float64)."""
         return np.asarray(points, dtype=np.float64) * self.scale + self.center
 
+    def turned(self, k: int) -> GraphTensors:
+        """The shape turned ``k`` quarter turns about the vertical through the normalised
+        frame's origin (:func:`quarter_turn`), its OBB axes signed as a fit of the turned shape
+        signs them (:func:`canonical_obb_axes`): the tensors of the same object given turned
+        (issue 36: the facing augmentation of :attr:`kinmo.train.config.TrainConfig.augment_turn`)."""
+        out = self.rotated(quarter_turn(k))
+        out.obb_axes = canonical_obb_axes(out.obb_axes)
+        return out
+
     def rotated(self, rotation: np.ndarray) -> GraphTensors:
         """The same shape rotated about the normalised frame's origin (an augmentation).
 
@@ -225,6 +236,47 @@ class GraphTensors:
             out.axis_origin = self.axis_origin @ rt
             out.axis_direction = self.axis_direction @ rt
         return out
+
+
+def quarter_turn(k: int) -> np.ndarray:
+    """Rotation by ``k`` quarter turns about the vertical (+y), exact: ``(3, 3) float64`` of
+    0 and +-1 (:func:`yaw_rotation` of ``k * pi / 2`` without its rounding)."""
+    k = int(k) % 4
+    c, s = (1.0, 0.0, -1.0, 0.0)[k], (0.0, 1.0, 0.0, -1.0)[k]
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def canonical_obb_axes(axes: torch.Tensor) -> torch.Tensor:
+    """OBB axis rows signed as :mod:`kinmo.geometry.obb` signs them (its step 6): rows 0 and 1
+    with their largest-magnitude component positive (exact ties: ``y``, then ``x``, then
+    ``z``), row 2 their cross product.
+
+    Turning a shape permutes and negates coordinates, so its rotated OBB axes are those the
+    Rust fit gives the turned shape up to these signs (and up to the order of rows whose
+    half-extents tie, which this keeps).
+
+    Parameters
+    ----------
+    axes : (V, 3, 3) float tensor
+        Rows are the axes.
+
+    Returns
+    -------
+    (V, 3, 3) tensor, same dtype
+    """
+    a = axes.clone()
+    if a.numel() == 0:
+        return a
+    order = torch.tensor([1, 0, 2])  # tie order y, x, z
+    for r in range(2):
+        row = a[:, r, :]
+        mag = row.abs()[:, order]
+        big = mag.max(dim=1, keepdim=True).values
+        first = torch.argmax((mag >= big).to(torch.int8), dim=1)  # first of the tied, in y, x, z order
+        lead = row[:, order].gather(1, first[:, None])[:, 0]
+        a[:, r, :] = torch.where((lead < 0)[:, None], -row, row)
+    a[:, 2, :] = torch.linalg.cross(a[:, 0, :], a[:, 1, :])
+    return a
 
 
 def yaw_rotation(angle: float) -> np.ndarray:

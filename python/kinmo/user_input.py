@@ -49,7 +49,7 @@ from kinmo.predict import predict_dataset
 from kinmo.progress import plain
 from kinmo.view import view_folder
 
-__all__ = ["predict_user_input", "stage_partnet"]
+__all__ = ["asset_frame", "predict_user_input", "stage_partnet"]
 
 logger = logging.getLogger(__name__)
 
@@ -106,6 +106,32 @@ def stage_partnet(path: str | Path, folder: str | Path, category: str = "unknown
     return folder
 
 
+def asset_frame(path: str | Path, parts: Sequence[Part], up: str | None = None) -> AssetFrame:
+    """How ``kinmo predict FILE`` reads an asset's frame: the one rule (module docs, "Frames").
+
+    Parameters
+    ----------
+    path : str or Path
+        The asset (its format gives the default up axis, :func:`kinmo.assets.asset_up`).
+    parts : sequence of Part
+        Its parts, asset frame and units (:func:`kinmo.assets.read_parts`).
+    up : {"y", "z"}, optional
+        The up axis the user gave (``--up``); ``None``: the format's, with a warning when the
+        support faces suggest the other one (:func:`kinmo.data.frames.guess_up`).
+
+    Returns
+    -------
+    AssetFrame
+        The map into kinmo's frame (y-up, centred, diagonal 2).
+    """
+    up = up if up is not None else asset_up(path)
+    suggested = guess_up([(v, f) for _, v, f in parts], up)
+    if suggested is not None:
+        logger.warning("%s: read as %s-up, but it stands on faces that say %s-up (give --up %s if so)",
+                       plain(path), up, suggested, suggested)
+    return AssetFrame.fit([v for _, v, _ in parts], up)
+
+
 def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence[str] | None = None,
                        category: str = "unknown", up: str | None = None,
                        package_path: Sequence[str | Path] = (), **predict_kw):
@@ -153,12 +179,7 @@ def predict_user_input(path: str | Path, run, out: str | Path, formats: Sequence
     check_outputs_apart(out, [path], written=[stem, ".staging", "predictions.csv"])
     staging = out / ".staging"
     parts = read_parts(path, ReadOptions(tuple(Path(p) for p in package_path)))
-    up = up if up is not None else asset_up(path)
-    suggested = guess_up([(v, f) for _, v, f in parts], up)
-    if suggested is not None:
-        logger.warning("%s: read as %s-up, but it stands on faces that say %s-up (give --up %s if so)",
-                       plain(path), up, suggested, suggested)
-    frame = AssetFrame.fit([v for _, v, _ in parts], up)
+    frame = asset_frame(path, parts, up)
     shutil.rmtree(staging, ignore_errors=True)  # a killed run's leftovers
     shape_dir = stage_partnet(path, staging / "shapes" / stem, category, parts=parts, frame=frame)
     fmts = list(dict.fromkeys(["mobility_v2", *(DEFAULT_FORMATS if formats is None else formats)]))

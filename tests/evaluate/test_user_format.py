@@ -10,9 +10,11 @@ import pytest
 from kinmo.data.model import JointType
 from kinmo.data.readers import find_shapes, read_shape
 from kinmo.evaluate.user_format import (
+    WRITE_UPS,
     PredJoint,
     TrueJoint,
     acute_angle,
+    input_rotation,
     match_joints,
     moved_nodes,
     score,
@@ -109,6 +111,8 @@ def test_matching_is_one_to_one_at_iou_half():
                 "error": ""}, {"n_true": 2, "n_pred": 0, "angles": [], "type_ok": [], "error": "x"}])
     assert s["recall"] == 0.5 and s["mean_angle"] == 5.0 and s["type_accuracy"] == 0.5
     assert s["failed"] == 1 and s["true_joints"] == 4
+    # issue 36: right type within 10 degrees, of all true joints; unmatched predictions per object
+    assert s["fully_right"] == 0.25 and s["false_movers_per_object"] == 0.5
 
 
 def test_the_command_scores_one_object_and_names_its_outputs_on_one_line(objects, tmp_path):
@@ -150,3 +154,52 @@ def test_matched_joints_are_scored_on_their_ranges_too():
     assert s["range_iou_slider"] == pytest.approx(0.5) and s["range_end_slider"] == pytest.approx(0.5)
     assert s["range_cont_acc"] == 1.0 and s["range_ok_hinge"] == 1.0
     json.dumps(row)  # rows are written to user_format.json
+
+
+def test_input_rotations_are_exact_quarter_turns_and_the_z_up_writing():
+    for up in WRITE_UPS:
+        for k in range(5):
+            r = input_rotation(k, up)
+            assert set(np.unique(r)) <= {-1.0, 0.0, 1.0} and np.linalg.det(r) == 1.0
+            np.testing.assert_array_equal(r, input_rotation(k % 4, up))
+    np.testing.assert_array_equal(input_rotation(0, "y"), np.eye(3))
+    # a quarter turn about +y takes the front (+z) to +x; written z-up, +y becomes the file's +z
+    np.testing.assert_array_equal(input_rotation(1) @ [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(input_rotation(0, "z") @ [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="up axis"):
+        input_rotation(0, "x")
+
+
+def test_a_turned_glb_holds_the_object_turned_about_its_box_centre(objects, tmp_path):
+    s = objects[0]
+    nodes = user_nodes(s, "generic")
+    plain = {n: v for n, v, _ in read_parts(write_user_glb(s, nodes, tmp_path / "a.glb"))}
+    rot = input_rotation(3, "z")
+    turned = {n: v for n, v, _ in read_parts(write_user_glb(s, nodes, tmp_path / "b.glb", transform=rot))}
+    allv = np.concatenate(list(plain.values()))
+    c = (allv.min(0) + allv.max(0)) / 2
+    for name, v in plain.items():
+        np.testing.assert_allclose(turned[name], (v - c) @ rot.T + c, atol=1e-5)
+
+
+def test_the_command_scores_turned_and_z_up_glbs_and_refuses_a_bad_up(objects, tmp_path):
+    """`--turn 1 --write-up z`: written turned and z-up, read without --up as `kinmo predict
+    FILE` reads it, scored once turned back; the partnet variant is left out."""
+    from typer.testing import CliRunner
+
+    from kinmo.cli import app
+    from kinmo.train.split import Split
+    from conftest import write_untrained_models
+
+    gnn, _ = write_untrained_models(tmp_path / "models")
+    Split([], [objects[0].id]).save(tmp_path / "split.json")
+    base = ["eval", "user-format", "-m", str(gnn), "-d", str(objects[0].path.parent),
+            "--split", str(tmp_path / "split.json"), "--variants", "generic,partnet", "-q"]
+    r = CliRunner().invoke(app, [*base, "-o", str(tmp_path / "uf"), "--turn", "1", "--write-up", "z"])
+    assert r.exit_code == 0, r.output
+    res = json.loads((tmp_path / "uf" / "user_format.json").read_text())
+    assert res["turn"] == 1 and res["write_up"] == "z" and list(res["scores"]) == ["generic"]
+    assert "fully_right" in res["scores"]["generic"]
+    r = CliRunner().invoke(app, [*base, "-o", str(tmp_path / "uf2"), "--write-up", "w"])
+    assert r.exit_code == 2 and "up axis must be one of y, z" in r.output
+    assert not (tmp_path / "uf2").exists()

@@ -105,3 +105,51 @@ def test_bad_graphs_raise_kinmo_data_error():
     g.edge_axis_direction[k] = np.nan
     with pytest.raises(KinmoDataError, match="axis"):
         graph_tensors(g)
+
+
+def _box_surface(rng, half, n=600):
+    """Points on the surface of an axis-aligned box of half-extents ``half``."""
+    p = rng.uniform(-1.0, 1.0, size=(n, 3))
+    face = rng.integers(0, 3, size=n)
+    p[np.arange(n), face] = np.sign(rng.uniform(-1.0, 1.0, size=n))
+    return p * half
+
+
+def test_quarter_turns_are_exact_and_obb_signs_match_a_fit_of_the_turned_points():
+    from kinmo.features import canonical_obb_axes, quarter_turn
+    from kinmo.geometry.obb import fit_obb
+
+    for k in range(4):
+        q = quarter_turn(k)
+        assert set(np.unique(q)) <= {-1.0, 0.0, 1.0} and np.linalg.det(q) == 1.0
+        np.testing.assert_allclose(q, yaw_rotation(k * np.pi / 2), atol=1e-12)
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(20):
+        a = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        a *= np.sign(np.linalg.det(a))
+        pts = _box_surface(rng, np.array([1.0, 0.6, 0.3])) @ a.T + rng.normal(size=3)
+        fit = fit_obb(pts)
+        for k in (1, 2, 3):
+            q = quarter_turn(k)
+            turned = fit_obb(pts @ q.T)
+            got = canonical_obb_axes(torch.from_numpy((fit.axes @ q.T)[None]))[0].numpy()
+            np.testing.assert_allclose(got, turned.axes, atol=1e-6)
+            checked += 1
+    assert checked == 60
+
+
+def test_turned_tensors_turn_labels_with_the_shape_and_four_turns_give_it_back():
+    t = graph_tensors(cabinet_graph(n_points=32))
+    one = t.turned(1)
+    q = torch.as_tensor(np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]]), dtype=torch.float32)
+    torch.testing.assert_close(one.points, t.points @ q.T)
+    torch.testing.assert_close(one.axis_direction, t.axis_direction @ q.T)
+    back = t.turned(1).turned(1).turned(1).turned(1)
+    for name in ("points", "obb_center", "obb_axes", "axis_direction", "axis_origin"):
+        torch.testing.assert_close(getattr(back, name), getattr(t, name))
+    # every row of the turned boxes keeps the sign rule: its largest component positive
+    for r in range(2):
+        row = one.obb_axes[:, r, :]
+        lead = row.gather(1, row.abs().argmax(dim=1, keepdim=True))
+        assert bool((lead > 0).all())

@@ -17,7 +17,7 @@ torch.set_num_threads(1)
 
 
 def tiny(**over):
-    over = {"flatten_prob": 0.0, "drop_names_prob": 0.0, **over}
+    over = {"flatten_prob": 0.0, "drop_names_prob": 0.0, "augment_turn": 0.0, **over}
     cfg = preset("quick", batch_size=3, n_points=32, threads=1, lr=5e-3, **over)
     small = cfg.model.model_copy(update=dict(point_widths=[16], geo_dim=16, node_dim=24, edge_dim=24,
                                              semantic_dim=4, gnn_layers=2))
@@ -124,3 +124,31 @@ def test_dropped_names_train_and_keep_the_vocabulary(tmp_path):
     assert len(run.vocab) > 1
     assert all(run.vocab.index(n) > 0 for n in graphs[0].node_names if n.lower() not in ("unknown",))
     assert run.vocab.index("part_3") == 0
+
+
+def test_quarter_turn_augmentation_turns_the_share_it_says_reproducibly(tmp_path, monkeypatch):
+    """Issue 36: ``augment_turn`` shows that share of the training shapes a quarter turn (1-3)
+    off PartNet's facing, drawn from the run's seed; 0 draws nothing."""
+    from kinmo.features import GraphTensors
+
+    seen: list[int] = []
+    real = GraphTensors.turned
+
+    def spy(self, k):
+        seen.append(int(k))
+        return real(self, k)
+
+    monkeypatch.setattr(GraphTensors, "turned", spy)
+    graphs = _graphs(4)
+    split = Split(train=[f"cab{s}" for s in range(4)], test=[])
+    train_gnn(graphs, tmp_path / "none", tiny(epochs=3, augment_turn=0.0), split=split, progress=False)
+    assert seen == []
+    a = train_gnn(graphs, tmp_path / "all", tiny(epochs=3, augment_turn=1.0), split=split, progress=False)
+    assert len(seen) == 12 and set(seen) <= {1, 2, 3} and len(set(seen)) > 1
+    first = list(seen)
+    b = train_gnn(graphs, tmp_path / "again", tiny(epochs=3, augment_turn=1.0), split=split, progress=False)
+    assert seen[12:] == first and [r["loss"] for r in a.history] == [r["loss"] for r in b.history]
+    seen.clear()
+    train_gnn(graphs, tmp_path / "some", tiny(epochs=10, augment_turn=0.25), split=split, progress=False)
+    assert 0 < len(seen) < 40
+    assert preset("quick").augment_turn == preset("paper").augment_turn > 0.0 == preset("tiny").augment_turn

@@ -57,10 +57,35 @@ def test_fold_gnns_train_like_the_motion_gnns_of_train_all():
         assert fine.epochs == coarse.epochs == preset(name).epochs
         assert (fine.flatten_prob, fine.drop_names_prob) == (preset(name).flatten_prob,
                                                              preset(name).drop_names_prob)
-        assert fine.flatten_prob > 0
-        assert (coarse.flatten_prob, coarse.drop_names_prob) == (0.0, 0.0)
+        assert fine.flatten_prob > 0 and fine.augment_turn == preset(name).augment_turn > 0
+        assert (coarse.flatten_prob, coarse.drop_names_prob, coarse.augment_turn) == (0.0, 0.0, 0.0)
         plain = ranker.fold_config(name, "fine", augment=False)
-        assert (plain.flatten_prob, plain.drop_names_prob) == (0.0, 0.0)
+        assert (plain.flatten_prob, plain.drop_names_prob, plain.augment_turn) == (0.0, 0.0, 0.0)
     assert ranker.fold_config("quick", "coarse", epochs=25).epochs == 25  # given: as given
     cfg = ranker.fold_config("quick", "coarse", seed=3)
     assert (cfg.model.types, cfg.seed, cfg.threads, cfg.device) == ("coarse", 3, 1, "auto")
+
+
+def test_a_preset_change_refits_the_ranker_of_train_all(tmp_path, monkeypatch):
+    """The ranker stage's key holds its fold GNNs' whole configuration: a resumed `train all`
+    whose preset gained an augmentation (issue 36's quarter turns) fits the ranker again on
+    fold GNNs trained like the new motion GNN, never keeping the stale one."""
+    import kinmo.train.config as train_config
+    from kinmo.pipeline import run as pipeline_run
+    from kinmo.pipeline.config import PipelineConfig
+
+    from types import SimpleNamespace
+
+    cfg = PipelineConfig(labeled=tmp_path / "data", out=tmp_path / "run")
+    before = pipeline_run._fold_stamp(cfg)
+    _, key = pipeline_run._Context._ranker_stage(SimpleNamespace(cfg=cfg), SimpleNamespace(reuse={}, out=tmp_path), {})
+    assert key["ranker"]["fold_gnns"] == before
+    assert before["fine"]["augment_turn"] == train_config.AUGMENT_TURN
+    monkeypatch.setattr(train_config, "AUGMENT_TURN", 0.0)
+    after = pipeline_run._fold_stamp(cfg)
+    assert after != before and after["coarse"] == before["coarse"]
+    pipeline_run._ranker_fold_stamp(cfg, tmp_path / "ranker")
+    (tmp_path / "ranker" / "folds" / "fine_0").mkdir(parents=True)
+    monkeypatch.setattr(train_config, "AUGMENT_TURN", 0.15)
+    pipeline_run._ranker_fold_stamp(cfg, tmp_path / "ranker")  # folds of another configuration go
+    assert not (tmp_path / "ranker" / "folds").exists()

@@ -27,6 +27,7 @@ def train_gnn_cmd(
     threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: default)."),  # noqa: UP007
     flatten_prob: Optional[float] = typer.Option(None, "--flatten-prob", min=0.0, max=1.0, help="Share of training shapes also trained flattened (one leaf per link or PartNet leaf) [preset's: quick/paper 1, tiny 0]."),  # noqa: UP007
     drop_names_prob: Optional[float] = typer.Option(None, "--drop-names-prob", min=0.0, max=1.0, help="Share of training graphs with node names dropped to 'unknown' [preset's]."),  # noqa: UP007
+    augment_turn: Optional[float] = typer.Option(None, "--augment-turn", min=0.0, max=1.0, help="Share of training shapes seen a random quarter turn off PartNet's facing each step [preset's: quick/paper 0.15, tiny 0]."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Train the motion GNN (Liu et al. 2023, Sec. 3.2) and write a run folder.
@@ -46,7 +47,8 @@ def train_gnn_cmd(
     with cli_errors(2, also=(ValueError,)):
         cfg = make_preset(preset, types=types, epochs=epochs, seed=seed, device=device,
                           batch_size=batch_size, lr=lr, threads=threads,
-                          flatten_prob=flatten_prob, drop_names_prob=drop_names_prob)
+                          flatten_prob=flatten_prob, drop_names_prob=drop_names_prob,
+                          augment_turn=augment_turn)
     with cli_errors(1):
         res = train_gnn(data, out, cfg, split=split, progress=not quiet)
     last = res.history[-1]

@@ -11,9 +11,12 @@ object's own frame (y-up, mesh units) with one node per input part and no hierar
 - ``partnet``: the object in PartNet format (its hierarchy and names), scored on the nodes of
   ``generic`` (a node per link).
 
-Each GLB goes through what ``kinmo predict FILE`` does (:func:`kinmo.user_input.stage_partnet`
+Each GLB goes through what ``kinmo predict FILE`` does (its frame read by
+:func:`kinmo.user_input.asset_frame`, no ``--up`` given; :func:`kinmo.user_input.stage_partnet`
 with category ``"unknown"``, then :func:`kinmo.predict.predict_dataset`), and the written
-``mobility_v2.json`` is scored.
+``mobility_v2.json`` is scored in the GLB's frame. ``--turn K`` and ``--write-up z`` give the
+GLBs turned about their up axis or written z-up (:func:`input_rotation`, issue 36: facing and
+up-axis invariance), their predictions turned back before scoring.
 
 **Metric** (issue 22, "Done when"): a joint *moves* a set of input nodes (its link and every
 link below it; a node counts when most of its PartNet leaves are in those links). A predicted
@@ -32,14 +35,16 @@ import dataclasses
 import math
 import re
 import shutil
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from kinmo.assets import read_parts
 from kinmo.data.augment import flat_groups
+from kinmo.data.frames import AssetFrame
 from kinmo.data.model import Joint, JointType, Link, PartHierarchy, Shape
 from kinmo.data.build import load_shape_meshes
 from kinmo.data.labels import link_subtree
@@ -49,9 +54,9 @@ from kinmo.metrics.motion_range import RangeScore, score_range, summarise_ranges
 from kinmo.inference.predictor import Predictor
 from kinmo.io import atomic_path, write_json, write_text
 from kinmo.predict import predict_dataset
-from kinmo.user_input import stage_partnet
+from kinmo.user_input import asset_frame, stage_partnet
 
-__all__ = ["VARIANTS", "TrueJoint", "PredJoint", "UserNodes", "user_nodes", "write_user_glb",
+__all__ = ["VARIANTS", "WRITE_UPS", "input_rotation", "TrueJoint", "PredJoint", "UserNodes", "user_nodes", "write_user_glb",
            "true_joints", "moved_nodes", "match_joints", "acute_angle", "score", "evaluate_user_format",
            "results_markdown"]
 
@@ -124,7 +129,8 @@ def user_nodes(shape: Shape, variant: str) -> UserNodes:
     return UserNodes(names, [list(g) for _, g in groups])
 
 
-def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
+def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path,
+                   transform: np.ndarray | None = None) -> Path:
     """Write the user GLB of ``shape``: one scene node per entry of ``nodes``, mesh frame.
 
     Parameters
@@ -134,6 +140,9 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
         From :func:`user_nodes`.
     path : str or Path
         The ``.glb`` file (written atomically).
+    transform : (3, 3) float64, optional
+        A proper rotation ``T`` applied about the shape's bounding-box centre ``c``
+        (``v -> T (v - c) + c``; :func:`input_rotation`); default: the mesh frame as is.
 
     Returns
     -------
@@ -148,6 +157,7 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
 
     h = shape.hierarchy
     scene = trimesh.Scene()
+    groups = []
     for name, leaves in zip(nodes.names, nodes.leaves):
         objs = list(dict.fromkeys(o for leaf in leaves for o in h.nodes[leaf].objs))
         meshes = load_shape_meshes([shape.mesh_path(o) for o in objs])
@@ -156,12 +166,51 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path) -> Path:
             vs.append(np.asarray(v, dtype=np.float64))
             fs.append(np.asarray(f, dtype=np.int64) + n)
             n += len(v)
-        mesh = trimesh.Trimesh(np.concatenate(vs), np.concatenate(fs), process=False)
+        groups.append((name, np.concatenate(vs), np.concatenate(fs)))
+    if transform is not None:
+        lo = np.min([v.min(0) for _, v, _ in groups], axis=0)
+        hi = np.max([v.max(0) for _, v, _ in groups], axis=0)
+        c = (lo + hi) / 2.0
+        t = np.asarray(transform, dtype=np.float64)
+        groups = [(name, (v - c) @ t.T + c, f) for name, v, f in groups]
+    for name, v, f in groups:
+        mesh = trimesh.Trimesh(v, f, process=False)
         scene.add_geometry(mesh, node_name=name, geom_name=name)
     path = Path(path)
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(scene.export(file_type="glb"))
     return path
+
+
+#: The frames :func:`input_rotation` writes a GLB in: its up axis.
+WRITE_UPS = ("y", "z")
+
+
+def input_rotation(turn: int = 0, up: str = "y") -> np.ndarray:
+    """The rotation ``T`` a test object is given with (``kinmo eval user-format --turn/--write-up``).
+
+    ``turn`` quarter turns about the object's up axis (PartNet's +y; counter-clockwise seen
+    from above), then, with ``up="z"``, the y-up object written z-up (``(x, y, z) -> (x, -z,
+    y)``, the object's +y becomes the file's +z). Predicted directions are brought back with
+    ``T^T`` before they are scored, so the scores compare with the untouched input's.
+
+    Returns
+    -------
+    (3, 3) float64
+        A proper rotation (exact: entries 0 and +-1).
+
+    Raises
+    ------
+    ValueError
+        ``up`` is not one of :data:`WRITE_UPS`.
+    """
+    if up not in WRITE_UPS:
+        raise ValueError(f"the written up axis must be one of {', '.join(WRITE_UPS)}, not {up!r}")
+    k = int(turn) % 4
+    c, s = [1, 0, -1, 0][k], [0, 1, 0, -1][k]
+    yaw = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]], dtype=np.float64)
+    write = np.eye(3) if up == "y" else np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+    return write @ yaw
 
 
 def _subtree_leaves(links: Sequence[Link], hierarchy: PartHierarchy, link: int) -> set[int]:
@@ -266,6 +315,12 @@ def score(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "within_5deg": float(np.mean(np.asarray(angles) <= 5.0)) if angles else float("nan"),
         "flips_over_45deg": int(np.sum(np.asarray(angles) > 45.0)) if angles else 0,
         "type_accuracy": float(np.mean(types)) if types else float("nan"),
+        # issue 36: found, right type and axis within 10 degrees, of all true joints; and
+        # predicted moving joints matched to no true one, per object
+        "fully_right": (sum(1 for r in rows for a, ok in zip(r["angles"], r["type_ok"]) if ok and a <= 10.0)
+                        / n_true if n_true else float("nan")),
+        "false_movers_per_object": ((sum(r["n_pred"] for r in rows) - len(angles)) / len(rows)
+                                    if rows else float("nan")),
         **summarise_ranges(RangeScore(**s) for r in rows for s in r.get("ranges", [])),
     }
 
@@ -295,6 +350,8 @@ def evaluate_user_format(
     refine_config: Any = None,
     device: str = "auto",
     progress: bool = True,
+    turn: int = 0,
+    write_up: str = "y",
 ) -> dict[str, dict[str, Any]]:
     """Score a motion GNN on the objects ``ids`` of ``data`` in the user formats (module docs).
 
@@ -316,6 +373,12 @@ def evaluate_user_format(
     axis_model, refine_config, device
         With a run folder: :meth:`~kinmo.inference.predictor.Predictor.from_parts`.
     progress : bool
+    turn, write_up
+        Give each GLB turned ``turn`` quarter turns about its up axis and written ``write_up``-up
+        (:func:`input_rotation`); every GLB is read as ``kinmo predict FILE`` reads it, without
+        ``--up`` (:func:`kinmo.user_input.asset_frame`), and the predictions are brought back
+        before they are scored. The ``partnet`` variant is PartNet's own frame: it is left out
+        when either is set.
 
     Returns
     -------
@@ -332,6 +395,10 @@ def evaluate_user_format(
     for v in variants:
         if v not in VARIANTS:
             raise ValueError(f"variant must be one of {', '.join(VARIANTS)}, got {v!r}")
+    rot = input_rotation(turn, write_up)
+    moved_input = not np.array_equal(rot, np.eye(3))
+    if moved_input:
+        variants = [v for v in variants if v != "partnet"]
     data, out = Path(data), Path(out)
     want = set(ids)
     objs: dict[str, _Obj] = {}
@@ -369,11 +436,15 @@ def evaluate_user_format(
                 shutil.rmtree(stage)
             stage.mkdir(parents=True)
             node_sets: dict[str, UserNodes] = {}
+            frames: dict[str, AssetFrame] = {}
             for sid, o in sorted(objs.items()):
                 nodes = user_nodes(o.shape, variant)
                 node_sets[sid] = nodes
-                glb = write_user_glb(o.shape, nodes, out / "glb" / variant / f"{sid}.glb")
-                stage_partnet(glb, stage / sid, category="unknown")
+                glb = write_user_glb(o.shape, nodes, out / "glb" / variant / f"{sid}.glb",
+                                     transform=rot if moved_input else None)
+                parts = read_parts(glb)
+                frames[sid] = asset_frame(glb, parts)
+                stage_partnet(glb, stage / sid, category="unknown", parts=parts, frame=frames[sid])
             predict_dataset(stage, r, pred_dir, **kw)
             for sid, o in sorted(objs.items()):
                 nodes = node_sets[sid]
@@ -386,17 +457,35 @@ def evaluate_user_format(
                     nd = sh.nodes[nid]
                     if nd.is_leaf and nd.name in index:
                         node_leaves[index[nd.name]].append(nid)
-                rows.append(_row(sid, true_joints(o.shape, nodes), pred_dir / sid, sh, node_leaves))
+                rows.append(_row(sid, true_joints(o.shape, nodes), pred_dir / sid, sh, node_leaves,
+                                 _back(frames[sid], rot)))
         results[variant] = score(rows)
         all_rows[variant] = rows
     write_json(out / "user_format.json", {"run": str(run), "axis_model": None if axis_model is None
-                                          else str(axis_model), "scores": results, "rows": all_rows})
+                                          else str(axis_model), "turn": int(turn) % 4, "write_up": write_up,
+                                          "scores": results, "rows": all_rows})
     write_text(out / "user_format.md", results_markdown(results))
     return results
 
 
+def _back(frame: AssetFrame, rot: np.ndarray) -> Callable[[list[Link]], list[Link]]:
+    """Predicted links (kinmo's frame of a staged GLB) -> the labelled object's frame: into the
+    GLB's frame and units (``frame``), then the input rotation undone (``rot``; directions
+    only: the scores compare directions, moved nodes and ranges)."""
+    def links_back(links: list[Link]) -> list[Link]:
+        out = []
+        for lk in frame.links_to_asset(links):
+            d = lk.joint.direction
+            if d is not None:
+                lk = dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, direction=np.asarray(d) @ rot))
+            out.append(lk)
+        return out
+    return links_back
+
+
 def _row(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHierarchy,
-         node_leaves: Sequence[Sequence[int]]) -> dict[str, Any]:
+         node_leaves: Sequence[Sequence[int]],
+         links_back: Callable[[list[Link]], list[Link]] | None = None) -> dict[str, Any]:
     f = pred_folder / "mobility_v2.json"
     try:
         links = read_links(f, hierarchy)
@@ -404,19 +493,24 @@ def _row(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHier
         row = _score_one(sid, true, [])
         row["error"] = " ".join(str(e).split())
         return row
+    if links_back is not None:
+        links = links_back(list(links))
     return _score_one(sid, true, _pred_joints(links, hierarchy, node_leaves))
 
 
 def results_markdown(results: dict[str, dict[str, Any]]) -> str:
     """A Markdown table of :func:`evaluate_user_format`'s scores."""
     lines = ["| input | objects | true joints | recall | mean angle (deg) | median | within 5 deg "
-             "| > 45 deg | type acc. | hinge range IoU | IoU >= 0.5 | slider range IoU | IoU >= 0.5 "
-             "| continuous acc. |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| > 45 deg | type acc. | fully right | false movers / object | hinge range IoU "
+             "| IoU >= 0.5 | slider range IoU | IoU >= 0.5 | continuous acc. |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for v, s in results.items():
         r = [s.get(k, float("nan")) for k in ("range_iou_hinge", "range_ok_hinge", "range_iou_slider",
                                               "range_ok_slider", "range_cont_acc")]
         lines.append(f"| {v} | {s['objects']} | {s['true_joints']} | {s['recall']:.2f} | "
                      f"{s['mean_angle']:.1f} | {s['median_angle']:.1f} | {s['within_5deg']:.2f} | "
                      f"{s['flips_over_45deg']} | {s['type_accuracy']:.2f} | "
+                     f"{s.get('fully_right', float('nan')):.2f} | "
+                     f"{s.get('false_movers_per_object', float('nan')):.2f} | "
                      + " | ".join(f"{x:.2f}" for x in r) + " |")
     return "\n".join(lines) + "\n"

@@ -77,10 +77,11 @@ class PipelineConfig(BaseModel):
         Table 1 then also gets the paper selector's rows (``eval/pre-segmented-paper/``).
         ``paper``: the paper's 0.5 feasibility + 0.3 direction + 0.2 position, no ranker.
     augment_gnn : bool
-        Train the fine motion GNN with the preset's hierarchy and name augmentations
-        (``flatten_prob``, ``drop_names_prob`` of :class:`kinmo.train.config.TrainConfig`;
-        :mod:`kinmo.data.augment`), so that a user's flat, unnamed asset is predicted (issue
-        22). ``False`` sets both to 0 (the demo and ``tiny``, to stay fast). The coarse GNN
+        Train the fine motion GNN with the preset's hierarchy, name and facing augmentations
+        (``flatten_prob``, ``drop_names_prob``, ``augment_turn`` of
+        :class:`kinmo.train.config.TrainConfig`; :mod:`kinmo.data.augment`), so that a user's
+        flat, unnamed asset is predicted (issue 22) whichever way it faces (issue 36).
+        ``False`` sets all three to 0 (the demo and ``tiny``, to stay fast). The coarse GNN
         never gets them (Table 1's coarse column stays the paper's).
     release : bool
         After the baseline, train the release bundle (``out/release/model/``): the fine GNN

@@ -330,9 +330,12 @@ class _Context:
         if not cfg.refine or cfg.selector != "learned" or "ranker" in v.reuse:
             return None
         epochs = fold_config(cfg.preset, "fine", epochs=cfg.gnn_epochs).epochs
+        # the fold GNNs' whole configuration: a preset change (e.g. its augmentations) refits
+        # the ranker on fold GNNs trained like the new motion GNN, never a stale one
         return v.out / "ranker", {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES),
                                                      "epochs": epochs, "augment": cfg.augment_gnn,
-                                                     "fit": "cv-l2-category"}}
+                                                     "fit": "cv-l2-category",
+                                                     "fold_gnns": _fold_stamp(cfg)}}
 
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
         """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
@@ -377,7 +380,7 @@ class _Context:
             run_dir = out / f"gnn_{types}"
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
                               **({} if cfg.augment_gnn and types == "fine"
-                                 else {"flatten_prob": 0.0, "drop_names_prob": 0.0}))
+                                 else {"flatten_prob": 0.0, "drop_names_prob": 0.0, "augment_turn": 0.0}))
             trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, split_file,
                                        {**base, "gnn": gcfg.model_dump()}, v.graphs))
             gnn_runs[types] = run_dir
@@ -564,7 +567,8 @@ class _Context:
         base = {"seed": cfg.seed, "preset": cfg.preset,
                 "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]}
         gcfg = gnn_preset(cfg.preset, types="fine", seed=cfg.seed, epochs=cfg.gnn_epochs,
-                          **({} if cfg.augment_gnn else {"flatten_prob": 0.0, "drop_names_prob": 0.0}))
+                          **({} if cfg.augment_gnn else {"flatten_prob": 0.0, "drop_names_prob": 0.0,
+                                                         "augment_turn": 0.0}))
         gnn_dir = vout / "gnn_fine"
         self.stage(gnn_dir, {**base, "gnn": gcfg.model_dump()}, lambda: train_gnn(
             graphs(), gnn_dir, gcfg, split=split_file, progress=progress), "release: train gnn (fine)")
@@ -737,14 +741,19 @@ def _chain_failed(chain: list[_Training | _AncshStage], exc: Exception) -> list[
     raise KinmoError(f"{chain[0].name} ({chain[0].folder}): {exc}") from exc
 
 
+def _fold_stamp(cfg: PipelineConfig) -> dict[str, Any]:
+    """The ranker's fold GNNs' configurations by type set, as JSON values."""
+    configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
+                              augment=cfg.augment_gnn) for t in RANKER_TYPES}
+    return json.loads(json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}))
+
+
 def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path) -> None:
     """Write ``folder/folds.json``, the fold GNNs' configuration, removing folds trained with
     another one (they are trained again)."""
     import shutil
 
-    configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
-                              augment=cfg.augment_gnn) for t in RANKER_TYPES}
-    stamp = json.loads(json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}))
+    stamp = _fold_stamp(cfg)
     if (folder / "folds.json").is_file() and json.loads((folder / "folds.json").read_text()) != stamp:
         shutil.rmtree(folder / "folds", ignore_errors=True)
     folder.mkdir(parents=True, exist_ok=True)

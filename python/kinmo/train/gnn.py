@@ -329,6 +329,10 @@ def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config:
                 if config.augment_yaw:
                     angles = torch.rand(len(members), generator=gen) * (2 * math.pi)
                     members = [m.rotated(yaw_rotation(float(a))) for m, a in zip(members, angles)]
+                if config.augment_turn > 0.0:
+                    turn = torch.rand(len(members), generator=gen) < config.augment_turn
+                    ks = torch.randint(1, 4, (len(members),), generator=gen)
+                    members = [m.turned(int(k)) if t else m for m, t, k in zip(members, turn.tolist(), ks.tolist())]
                 if dist_info.enabled:  # the global batch's point draws, then this rank's shard
                     members = _subsample(members, config.n_points, gen)
                 members, weight = distributed.shard(members)

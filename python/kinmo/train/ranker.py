@@ -85,7 +85,8 @@ def fold_config(preset: str, types: str, *, seed: int = 0, threads: int = 1,
         On device ``"auto"``: CUDA where there is one (the paper preset's fold GNNs take
         hours on a CPU), the CPU elsewhere, as every other GNN training of kinmo.
     """
-    plain = {} if augment and types == "fine" else {"flatten_prob": 0.0, "drop_names_prob": 0.0}
+    plain = ({} if augment and types == "fine"
+             else {"flatten_prob": 0.0, "drop_names_prob": 0.0, "augment_turn": 0.0})
     extra = {} if epochs is None else {"epochs": epochs}
     return make_preset(preset, types=types, seed=seed, threads=threads, device="auto", **extra,
                        **plain)
@@ -236,7 +237,6 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
     preds: dict[str, object] = {}
     for f in range(k):
         held = [i for i, ff in zip(ids, folds) if ff == f]
-        rest = [i for i, ff in zip(ids, folds) if ff != f]
         run_dir = out / "folds" / f"{types}_{f}"
         if not (run_dir / "model.pt").is_file():
             train_folds(graphs, train_ids, out, k=k, preset=preset, types=(types,), seed=seed,
