@@ -50,6 +50,7 @@ from kinmo.data.build import load_shape_meshes
 from kinmo.data.labels import link_subtree
 from kinmo.data.readers import find_shapes, read_links, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.features import quarter_turn
 from kinmo.metrics.motion_range import RangeScore, score_range, summarise_ranges
 from kinmo.inference.predictor import Predictor
 from kinmo.io import atomic_path, write_json, write_text
@@ -206,11 +207,8 @@ def input_rotation(turn: int = 0, up: str = "y") -> np.ndarray:
     """
     if up not in WRITE_UPS:
         raise ValueError(f"the written up axis must be one of {', '.join(WRITE_UPS)}, not {up!r}")
-    k = int(turn) % 4
-    c, s = [1, 0, -1, 0][k], [0, 1, 0, -1][k]
-    yaw = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]], dtype=np.float64)
     write = np.eye(3) if up == "y" else np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
-    return write @ yaw
+    return write @ quarter_turn(turn)
 
 
 def _subtree_leaves(links: Sequence[Link], hierarchy: PartHierarchy, link: int) -> set[int]:

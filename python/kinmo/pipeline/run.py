@@ -38,7 +38,7 @@ from kinmo.report import write_report
 from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
 from kinmo.stages import file_fingerprint
 from kinmo.synth import SYNTH_VERSION, generate_dataset
-from kinmo.train.config import preset as gnn_preset
+from kinmo.train.config import NO_AUGMENTATIONS, preset as gnn_preset
 from kinmo.train.gnn import train_gnn
 from kinmo.train.ranker import fold_config, fold_plan, ranker_graphs, train_ranker
 from kinmo.train.split import Split
@@ -379,8 +379,7 @@ class _Context:
                 continue
             run_dir = out / f"gnn_{types}"
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
-                              **({} if cfg.augment_gnn and types == "fine"
-                                 else {"flatten_prob": 0.0, "drop_names_prob": 0.0, "augment_turn": 0.0}))
+                              **({} if cfg.augment_gnn and types == "fine" else NO_AUGMENTATIONS))
             trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, split_file,
                                        {**base, "gnn": gcfg.model_dump()}, v.graphs))
             gnn_runs[types] = run_dir
@@ -567,8 +566,7 @@ class _Context:
         base = {"seed": cfg.seed, "preset": cfg.preset,
                 "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]}
         gcfg = gnn_preset(cfg.preset, types="fine", seed=cfg.seed, epochs=cfg.gnn_epochs,
-                          **({} if cfg.augment_gnn else {"flatten_prob": 0.0, "drop_names_prob": 0.0,
-                                                         "augment_turn": 0.0}))
+                          **({} if cfg.augment_gnn else NO_AUGMENTATIONS))
         gnn_dir = vout / "gnn_fine"
         self.stage(gnn_dir, {**base, "gnn": gcfg.model_dump()}, lambda: train_gnn(
             graphs(), gnn_dir, gcfg, split=split_file, progress=progress), "release: train gnn (fine)")

@@ -118,6 +118,10 @@ class TrainConfig(BaseModel):
 #: a quarter turn off PartNet's facing. Measured in docs/results/user_format.md ("Facing").
 AUGMENT_TURN = 0.15
 
+#: Overrides that switch every hierarchy, name and facing augmentation of a preset off (the
+#: coarse GNNs, ``kinmo train all`` without ``augment_gnn``, and ``tiny``).
+NO_AUGMENTATIONS: dict[str, float] = {"flatten_prob": 0.0, "drop_names_prob": 0.0, "augment_turn": 0.0}
+
 
 def _quick() -> TrainConfig:
     return TrainConfig(
@@ -176,8 +180,7 @@ def _paper() -> TrainConfig:
 
 
 def _tiny() -> TrainConfig:
-    return _quick().model_copy(update={"preset": "tiny", "epochs": 25, "flatten_prob": 0.0,
-                                          "drop_names_prob": 0.0, "augment_turn": 0.0})
+    return _quick().model_copy(update={"preset": "tiny", "epochs": 25, **NO_AUGMENTATIONS})
 
 
 #: Preset factories by name (``tiny``: ``quick`` for 25 epochs, a check that a run goes

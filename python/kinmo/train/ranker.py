@@ -33,7 +33,7 @@ from kinmo.refine.fit_selector import (
 )
 from kinmo.refine.ranker import Ranker
 from kinmo.refine.semantic_prior import SemanticPrior
-from kinmo.train.config import TrainConfig, preset as make_preset
+from kinmo.train.config import NO_AUGMENTATIONS, TrainConfig, preset as make_preset
 from kinmo.train.gnn import load_run, train_gnn
 from kinmo.train.split import Split
 
@@ -85,8 +85,7 @@ def fold_config(preset: str, types: str, *, seed: int = 0, threads: int = 1,
         On device ``"auto"``: CUDA where there is one (the paper preset's fold GNNs take
         hours on a CPU), the CPU elsewhere, as every other GNN training of kinmo.
     """
-    plain = ({} if augment and types == "fine"
-             else {"flatten_prob": 0.0, "drop_names_prob": 0.0, "augment_turn": 0.0})
+    plain = {} if augment and types == "fine" else NO_AUGMENTATIONS
     extra = {} if epochs is None else {"epochs": epochs}
     return make_preset(preset, types=types, seed=seed, threads=threads, device="auto", **extra,
                        **plain)
