@@ -114,6 +114,26 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
                              str(run / "cache/labeled"), "--out", str(tmp_path / "ev"), "--quiet"])
     assert ev.exit_code == 1 and "the model bundle was trained on" in ev.output, ev.output
 
+    # Table 2 over ANCSH seeds (issue 38): only the extra seed's trainings and evaluations run,
+    # into ancsh-seeds/seed-1/, scored on the seed's own models and the same test scans
+    res4 = run_pipeline(cfg.model_copy(update={"ancsh_seeds": 2}), progress=False)
+    ran = {k for k, t in res4.timings.items() if t.ran and not k.startswith("train ancsh:")}  # less the pool's line
+    assert ran == {"train ancsh Laptop (supervised, seed 1)", "train ancsh Laptop (semi, seed 1)",
+                   "train ancsh Laptop (semi-weakly, seed 1)", "eval Laptop (Table 2, seed 1)", "report"}
+    s1 = run / "ancsh-seeds" / "seed-1"
+    assert json.loads((s1 / "ancsh/Laptop/supervised/config.json").read_text())["seed"] == 1
+    assert res4.stages["table2 seed 0"] == [str(run / "eval/Laptop")]
+    assert res4.stages["table2 seed 1"] == [str(s1 / "eval/Laptop")]
+    assert res4.stages["table2"] == [str(run / "eval/Laptop")]
+    with open(s1 / "eval/Laptop/table2.csv") as f:
+        seed1 = {r["setting"]: r for r in csv.DictReader(f)}
+    with open(t2[0]) as f:
+        seed0 = {r["setting"]: r for r in csv.DictReader(f)}
+    assert seed1.keys() == seed0.keys() and seed1["supervised"]["frames"] == seed0["supervised"]["frames"]
+    assert seed1["supervised"]["rotation_deg_mean"] != seed0["supervised"]["rotation_deg_mean"]
+    md = (run / "report/report.md").read_text()
+    assert "Table 2 over 2 ANCSH seeds" in md and "Semi-weakly against supervised" in md
+
     # a second run resumes: every stage but the report is up to date
     res2 = runner.invoke(app, ["demo", "--out", str(out), "--n", "12", "--tiny"])
     assert res2.exit_code == 0, res2.output

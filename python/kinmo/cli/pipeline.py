@@ -21,6 +21,8 @@ def train_all(
     category: list[str] | None = typer.Option(None, "--category", help="ANCSH categories (repeatable)."),
     labeled_fraction: float = typer.Option(1.0, callback=_values.finite, help="Share of labelled training objects for ANCSH."),
     seed: int = typer.Option(0),
+    ancsh_seeds: int = typer.Option(1, "--ancsh-seeds", min=1, max=10,
+                                    help="Train ANCSH this many times (seeds seed, seed+1, ...): Table 2 gives mean and spread."),
     workers: int = typer.Option(0, "--workers", "-j", help="Processes for per-shape stages, and models trained at once (motion GNNs, axis network, the ranker's fold GNNs; 0: all cores)."),
     skip_ancsh: bool = typer.Option(False, "--skip-ancsh", help="Stop after the pseudo-labels (Table 1 only)."),
     render: bool = typer.Option(True, "--render/--no-render", help="Render Table 1 predictions for the gallery."),
@@ -69,7 +71,7 @@ def train_all(
         cfg = PipelineConfig(
             labeled=found.labeled, unlabeled=found.unlabeled if (refine or unlabeled is not None) else None, out=out,
             preset="quick" if preset == "tiny" else preset, categories=category or None,
-            labeled_fraction=labeled_fraction, seed=seed, workers=workers, skip_ancsh=skip_ancsh,
+            labeled_fraction=labeled_fraction, seed=seed, ancsh_seeds=ancsh_seeds, workers=workers, skip_ancsh=skip_ancsh,
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
             selector=selector, release=release,
             **(TINY if preset == "tiny" else {}),
@@ -85,6 +87,8 @@ def demo(
     unlabeled: Path | None = typer.Option(None, "--unlabeled", help="Real PartNet folders (with --data)."),
     n: int = typer.Option(24, "--n", help="Generated labelled objects."),
     seed: int = typer.Option(0),
+    ancsh_seeds: int = typer.Option(1, "--ancsh-seeds", min=1, max=10,
+                                    help="Train ANCSH this many times (seeds seed, seed+1, ...): Table 2 gives mean and spread."),
     tiny: bool = typer.Option(False, help="A minimal configuration (seconds per stage), for tests."),
     selector: str = typer.Option("learned", "--selector", help="learned (the default ranker) or paper (0.5/0.3/0.2 with the axis network): the axis selector of Table 1's OBB rows and the pseudo-labels."),
 ) -> None:

@@ -34,6 +34,11 @@ class PipelineConfig(BaseModel):
         Fraction of the labelled training objects ANCSH sees (paper ratio study: 0.3, 0.5,
         0.8, 1.0).
     seed : int
+    ancsh_seeds : int
+        Train ANCSH's settings this many times, with seeds ``seed``, ``seed + 1``, ... (own
+        training renders, the same split, pseudo-labels and test scans), the extra seeds into
+        ``out/ancsh-seeds/seed-<s>/``; the report's Table 2 then gives each setting's mean
+        and spread over the seeds (issue 38). The generated-shapes run trains one seed.
     workers : int
         Worker processes of the per-shape stages, and trainings run at once (the motion GNNs,
         the axis network and the ranker's fold GNNs; 0: one per core).
@@ -100,6 +105,7 @@ class PipelineConfig(BaseModel):
     settings: list[Literal["supervised", "semi", "semi-weakly"]] = Field(default_factory=lambda: list(SETTINGS))
     labeled_fraction: float = Field(1.0, gt=0, le=1)
     seed: int = 0
+    ancsh_seeds: int = Field(1, ge=1, le=10)
     workers: int = Field(0, ge=0)
     gnn_epochs: int | None = Field(None, ge=1)
     axis_epochs: int | None = Field(None, ge=1)

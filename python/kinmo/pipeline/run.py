@@ -35,7 +35,7 @@ from kinmo.ranges.prior import PRIOR_VERSION
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.train import preset_config as axis_preset, train_axis_model
 from kinmo.report import write_report
-from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
+from kinmo.runs import ANCSH_SEEDS_DIR, RESULT_FILE, SYNTH_EXTRA_FILE, TABLE2_SEED_STAGE
 from kinmo.stages import file_fingerprint
 from kinmo.synth import SYNTH_VERSION, generate_dataset
 from kinmo.train.config import NO_AUGMENTATIONS, preset as gnn_preset
@@ -458,7 +458,6 @@ class _Context:
                 "skipped": res.skipped_categories})
             self.plan = plan
         settings = [s for s in cfg.settings if s == "supervised" or v.unlabeled is not None]
-        scans = cfg.out / "scans"  # one render cache for every variant (scans/<Category>/): the same objects
         overrides = {
             "epochs": cfg.ancsh_epochs, "semi_epochs": cfg.semi_epochs,
             "steps_per_epoch": cfg.ancsh_steps_per_epoch, "frames_per_object": cfg.frames_per_object,
@@ -468,61 +467,76 @@ class _Context:
         }
         ac = ancsh_preset(cfg.preset, **{k: val for k, val in overrides.items() if val is not None})
 
-        # one chain of trainings per category: per structure supervised, then semi (from the
-        # supervised weights) and semi-weakly; categories share no object and render into
-        # scans/<Category>/, so with -j N they train N at a time (run_in_parallel)
-        shared = _AncshShared(ac, v.labeled, v.unlabeled, pseudo if v.unlabeled is not None else None,
-                              split_file, scans)
-        chains: dict[str, list[_AncshStage]] = {}
-        runs_of: dict[str, list[Path]] = {}
-        for cat in res.categories:
-            groups = self.plan[cat]
-            runs: list[Path] = []
-            for g in groups:
-                # one structure: ancsh/<Category>/<setting>; several: ancsh/<Category>/<structure>/<setting>
-                sub = structure_slug(g.structure) if len(groups) > 1 else ""
-                label = f"{cat} {g.structure.signature()}" if sub else cat
-                st = {"parents": list(g.structure.parents), "joint_types": list(g.structure.joint_types)}
-                group_runs: list[Path] = []
-                chain = chains.setdefault(cat, [])
-                for setting in settings:
-                    reused = v.reuse.get(f"ancsh/{cat}/{sub + '/' if sub else ''}{setting}")
-                    if reused is not None:
-                        group_runs.append(reused)
-                        continue
-                    run_dir = out / "ancsh" / cat / sub / setting
-                    # semi starts from the supervised run's weights: its supervised stage would
-                    # reproduce them
-                    init = (group_runs[0] if setting == "semi" and group_runs and settings[0] == "supervised"
-                            else None)
-                    chain.append(_AncshStage(
-                        f"{v.prefix}train ancsh {label} ({setting})", run_dir,
-                        {**base, "ancsh": ac.model_dump(), "cat": cat, "setting": setting,
-                         **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
-                        cat, setting, g.structure, init, shared))
-                    group_runs.append(run_dir)
-                runs += group_runs
-            runs_of[cat] = runs
-        pending = [[a for a in chains[c] if not stage_done(a.folder, a.key)] for c in res.categories if c in chains]
+        # one chain of trainings per category and seed: per structure supervised, then semi
+        # (from the supervised weights) and semi-weakly; categories share no object and render
+        # into scans/<Category>/ (one render cache for every variant: the same objects), so
+        # with -j N they train N at a time (run_in_parallel). With --ancsh-seeds K (main
+        # variant only), seeds seed+1 .. seed+K-1 train again into ancsh-seeds/seed-<s>/
+        # (their own training renders) and are evaluated on the same test scans
+        seeds = [cfg.seed + k for k in range(cfg.ancsh_seeds if not v.prefix else 1)]
+        chains: dict[tuple[int, str], list[_AncshStage]] = {}
+        runs_of: dict[tuple[int, str], list[Path]] = {}
+        for seed in seeds:
+            root = out if seed == cfg.seed else out / ANCSH_SEEDS_DIR / f"seed-{seed}"
+            acs = ac if seed == cfg.seed else ac.model_copy(update={"seed": seed})
+            shared = _AncshShared(acs, v.labeled, v.unlabeled, pseudo if v.unlabeled is not None else None,
+                                  split_file, cfg.out / "scans" if seed == cfg.seed else root / "scans")
+            tag = "" if seed == cfg.seed else f", seed {seed}"
+            for cat in res.categories:
+                groups = self.plan[cat]
+                runs: list[Path] = []
+                chain = chains.setdefault((seed, cat), [])
+                for g in groups:
+                    # one structure: ancsh/<Category>/<setting>; several: ancsh/<Category>/<structure>/<setting>
+                    sub = structure_slug(g.structure) if len(groups) > 1 else ""
+                    label = f"{cat} {g.structure.signature()}" if sub else cat
+                    st = {"parents": list(g.structure.parents), "joint_types": list(g.structure.joint_types)}
+                    group_runs: list[Path] = []
+                    for setting in settings:
+                        reused = v.reuse.get(f"ancsh/{cat}/{sub + '/' if sub else ''}{setting}")
+                        if reused is not None and seed == cfg.seed:
+                            group_runs.append(reused)
+                            continue
+                        run_dir = root / "ancsh" / cat / sub / setting
+                        # semi starts from the supervised run's weights: its supervised stage would
+                        # reproduce them
+                        init = (group_runs[0] if setting == "semi" and group_runs and settings[0] == "supervised"
+                                else None)
+                        chain.append(_AncshStage(
+                            f"{v.prefix}train ancsh {label} ({setting}{tag})", run_dir,
+                            {**base, "ancsh": acs.model_dump(), "cat": cat, "setting": setting,
+                             **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
+                            cat, setting, g.structure, init, shared))
+                        group_runs.append(run_dir)
+                    runs += group_runs
+                runs_of[(seed, cat)] = runs
+        pending = [[a for a in chain if not stage_done(a.folder, a.key)] for chain in chains.values()]
         pending = [c for c in pending if c]
         self.run_in_parallel(pending, lambda n, w: f"{v.prefix}train ancsh: {n} models in {len(pending)} chains, "
                                                    f"{w} at a time", f"{v.prefix}train ancsh", "chains")
-        for cat in res.categories:
-            for a in chains.get(cat, []):
+        for (seed, cat), runs in runs_of.items():
+            for a in chains.get((seed, cat), []):
                 self.stage(a.folder, a.key, lambda a=a: a.run(progress, console, False), a.name)
-            runs = runs_of[cat]
             groups = self.plan[cat]
-            res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
+            main = seed == cfg.seed
+            if main:
+                res.stages.setdefault(f"{v.prefix}ancsh", []).extend(str(r) for r in runs)
             if not any(g.test for g in groups):
-                log(f"[dim]ANCSH: {cat}: no test object of a trained structure, no Table 2 row[/]")
+                if main:
+                    log(f"[dim]ANCSH: {cat}: no test object of a trained structure, no Table 2 row[/]")
                 continue
-            ev = out / "eval" / cat
+            root = out if main else out / ANCSH_SEEDS_DIR / f"seed-{seed}"
+            ev = root / "eval" / cat
+            # the test scans and their seed are the main run's: every seed is scored on the same frames
             self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
                        lambda runs=runs, ev=ev, cat=cat: evaluate_category(
-                           cat, runs, data=cfg.labeled, out=ev, scans=scans / cat, frames=cfg.frames_per_object,
-                           seed=cfg.seed, progress=progress, console=console),
-                       f"{v.prefix}eval {cat} (Table 2)")
-            res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
+                           cat, runs, data=cfg.labeled, out=ev, scans=cfg.out / "scans" / cat,
+                           frames=cfg.frames_per_object, seed=cfg.seed, progress=progress, console=console),
+                       f"{v.prefix}eval {cat} (Table 2{'' if main else f', seed {seed}'})")
+            if main:
+                res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
+            if len(seeds) > 1:  # the report's Table 2 over seeds (kinmo.report.paper_tables)
+                res.stages.setdefault(f"{TABLE2_SEED_STAGE}{seed}", []).append(str(ev))
 
     def release(self, cache_l: Path, prep: Any) -> Path:
         """The release bundle (``kinmo train all --release``, issue 22) in ``out/release/model/``.

@@ -394,6 +394,9 @@ class RunArtefacts:
         ``(relative path, problem)`` of files that looked like artefacts but could not be used.
     synth_extra : list of SynthExtra
         Generated-shapes runs inside the run.
+    table2_seeds : dict of int to Table2
+        Table 2 of every ANCSH seed of ``kinmo train all --ancsh-seeds K`` (K >= 2), the run's
+        own seed included, by seed; empty for a run of one seed.
     timings : dict of str to dict
         Stage → ``wall_s``, ``cpu_s``, ``ran`` of the last ``kinmo train all`` call.
     from_result : bool
@@ -411,6 +414,7 @@ class RunArtefacts:
     n_images_found: int = 0
     problems: list[tuple[str, str]] = field(default_factory=list)
     synth_extra: list[SynthExtra] = field(default_factory=list)
+    table2_seeds: dict[int, Table2] = field(default_factory=dict)
     timings: dict[str, dict] = field(default_factory=dict)
     from_result: bool = False
 

@@ -48,7 +48,7 @@ from kinmo.report.document import (
     Table,
     Text,
 )
-from kinmo.report.paper_tables import t2_fmt, t2_label, table1_blocks, table2_blocks
+from kinmo.report.paper_tables import t2_fmt, t2_label, table1_blocks, table2_blocks, table2_seed_blocks
 
 __all__ = ["build_document", "fmt_value"]
 
@@ -362,6 +362,7 @@ def build_document(art: RunArtefacts, title: str | None = None) -> Document:
         t2.append(_missing("table2"))
     else:
         t2 += table2_blocks(art.table2)
+    t2 += table2_seed_blocks(art.table2_seeds)
     sections.append(Section("table2", "Table 2: partial scans", t2))
     gen: list[Block] = []
     for v in art.synth_extra:

@@ -33,9 +33,9 @@ from pathlib import Path
 from kinmo.errors import KinmoDataError
 import kinmo.report.artefacts as _artefacts
 from kinmo.report.artefacts import *  # noqa: F403 (the artefact types, re-exported)
-from kinmo.report.artefacts import CsvTable, RunArtefacts, SynthExtra, combine_table2, read_csv
+from kinmo.report.artefacts import CsvTable, RunArtefacts, SynthExtra, Table2, combine_table2, read_csv
 from kinmo.report.recognise import ARTEFACTS, CONVERTERS, SKIP_DIRS, SKIP_IMAGE_DIRS, _rel, gallery, png_size
-from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE
+from kinmo.runs import RESULT_FILE, SYNTH_EXTRA_FILE, TABLE2_SEED_STAGE
 
 __all__ = [*_artefacts.__all__, "ARTEFACTS", "RESULT_FILE", "STAGE_KINDS", "collect_run", "png_size"]
 
@@ -102,6 +102,41 @@ def _stage_folders(result: dict, run: Path, prefix: str = "") -> dict[str, list[
             if p.is_dir() and p not in found.setdefault(kind, []):
                 found[kind].append(p)
     return found if named else None
+
+
+def _seed_tables(out: RunArtefacts, result: dict, exclude: Sequence[Path]) -> dict[int, Table2]:
+    """Table 2 per ANCSH seed from the ``table2 seed <s>`` stages of a ``pipeline_result.json``
+    (``kinmo train all --ancsh-seeds K``), by seed; a folder outside the run is left out."""
+    as_table2 = dict(CONVERTERS)["table2_files"]
+    stages = result.get("stages")
+    found: dict[int, Table2] = {}
+    if not isinstance(stages, dict):
+        return found
+    for stage, paths in stages.items():
+        if not (isinstance(stage, str) and stage.startswith(TABLE2_SEED_STAGE) and isinstance(paths, list)):
+            continue
+        try:
+            seed = int(stage[len(TABLE2_SEED_STAGE):])
+        except ValueError:
+            continue
+        files = []
+        for s in paths:
+            d = _resolve(s, result, out.run)
+            if not d.is_dir() or (d != out.run and out.run not in d.parents):
+                continue
+            for p in _walk(d, exclude)[0]:
+                t = _read_table(p, out.run, out.problems)
+                try:
+                    f = as_table2(t) if t is not None else None
+                except KinmoDataError as e:
+                    out.problems.append((t.rel, e.problem))  # type: ignore[union-attr]
+                    continue
+                if f is not None:
+                    files.append(f)
+        t2 = combine_table2(files)
+        if t2 is not None:
+            found[seed] = t2
+    return dict(sorted(found.items()))
 
 
 def _resolve(path: object, result: dict, run: Path) -> Path:
@@ -232,6 +267,8 @@ def collect_run(run: str | Path, exclude: Sequence[str | Path] = (),
             if t is not None:
                 _add(out, t, CONVERTERS)
     out.table2 = combine_table2(out.table2_files)
+    if result and not _prefix:
+        out.table2_seeds = _seed_tables(out, result, excl)
     out.images, out.n_images_found = gallery(pngs, run, max_images, out.problems)
     out.timings = _timings(result) if not _prefix else {}
     for v in variants:
