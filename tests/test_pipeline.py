@@ -133,6 +133,8 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert seed1["supervised"]["rotation_deg_mean"] != seed0["supervised"]["rotation_deg_mean"]
     md = (run / "report/report.md").read_text()
     assert "Table 2 over 2 ANCSH seeds" in md and "Semi-weakly against supervised" in md
+    seeds_md = md.split("Table 2 over 2 ANCSH seeds")[1]
+    assert "| Laptop |" in seeds_md.split("Semi-weakly against supervised")[0]  # the per-category rows
 
     # a second run resumes: every stage but the report is up to date
     res2 = runner.invoke(app, ["demo", "--out", str(out), "--n", "12", "--tiny"])
