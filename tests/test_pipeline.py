@@ -136,6 +136,16 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     seeds_md = md.split("Table 2 over 2 ANCSH seeds")[1]
     assert "| Laptop |" in seeds_md.split("Semi-weakly against supervised")[0]  # the per-category rows
 
+    # a stage read by others trained again makes them stale, though their keys name it by
+    # path: seed 1's supervised ANCSH run (a new marker) -> its semi run and its evaluation
+    from kinmo.pipeline.stages import mark_done
+
+    sup = s1 / "ancsh/Laptop/supervised"
+    mark_done(sup, json.loads((sup / ".done").read_text()))
+    res5 = run_pipeline(cfg.model_copy(update={"ancsh_seeds": 2}), progress=False)
+    ran = {k for k, t in res5.timings.items() if t.ran and not k.startswith("train ancsh:")}
+    assert ran == {"train ancsh Laptop (semi, seed 1)", "eval Laptop (Table 2, seed 1)", "report"}
+
     # a second run resumes: every stage but the report is up to date
     res2 = runner.invoke(app, ["demo", "--out", str(out), "--n", "12", "--tiny"])
     assert res2.exit_code == 0, res2.output

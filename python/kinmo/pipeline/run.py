@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -182,10 +182,13 @@ class _Context:
     #: Stages trained in the pool of :meth:`train_in_parallel` (recorded there, skipped here).
     pooled: set[str] = dataclasses.field(default_factory=set)
 
-    def stage(self, folder: Path, key: dict[str, Any], run: Callable[[], Any], name: str) -> bool:
+    def stage(self, folder: Path, key: dict[str, Any], run: Callable[[], Any], name: str,
+              after: Sequence[Path] = ()) -> bool:
+        """Run a stage unless it is up to date (:func:`~kinmo.pipeline.stages.stage_done`:
+        same key, and newer than the stages in ``after`` whose outputs it reads)."""
         if name in self.pooled:
             return False
-        return _stage(folder, key, run, self.console.print, name, self.clock)
+        return _stage(folder, key, run, self.console.print, name, self.clock, after=after)
 
     def prepare(self, src: Path, cache: Path, prep: Any, name: str) -> None:
         self.stage(cache, {"src": str(src), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
@@ -415,6 +418,9 @@ class _Context:
         # selector, the paper selector's OBB rows too (eval/pre-segmented-paper)
 
         render = cfg.render and not v.prefix  # the gallery shows the main run
+        # the stages whose outputs Table 1 and the pseudo-labels read (trained again: stale)
+        upstream = [*gnn_runs.values(), *([axis_dir] if cfg.refine else []),
+                    *([ranker.parent] if ranker is not None else []), ranges.parent]
         if not ("gnn_fine" in v.reuse and "axis" in v.reuse):
             evals = [(out / "eval" / "pre-segmented", refine, render, "")]
             if ranker is not None:
@@ -428,7 +434,7 @@ class _Context:
                                [gnn_runs["fine"], gnn_runs["coarse"]], eval_cache, out=t1, split=split_file,
                                render=rend, progress=progress, axis_model=axis_dir if cfg.refine else None,
                                refine_config=rcfg),
-                           f"{v.prefix}eval pre-segmented{what} (Table 1)")
+                           f"{v.prefix}eval pre-segmented{what} (Table 1)", after=upstream)
                 res.stages.setdefault(f"{v.prefix}table1", []).append(str(t1))
 
         # 7. pseudo-labels on the unlabelled shapes (Sec. 3.3)
@@ -439,7 +445,8 @@ class _Context:
             self.stage(pseudo, {**base, "pseudo": pcfg.model_dump()},
                        lambda: pseudo_label_dataset(
                            v.unlabeled, gnn_runs["fine"], axis_dir, pseudo, pcfg, workers=cfg.workers,
-                           cache=v.unlabeled_cache, progress=progress), f"{v.prefix}pseudo-label")
+                           cache=v.unlabeled_cache, progress=progress), f"{v.prefix}pseudo-label",
+                       after=[gnn_runs["fine"], *upstream[2:]])
             res.stages[f"{v.prefix}pseudo"] = [str(pseudo)]
 
         # 8. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
@@ -506,17 +513,18 @@ class _Context:
                             f"{v.prefix}train ancsh {label} ({setting}{tag})", run_dir,
                             {**base, "ancsh": acs.model_dump(), "cat": cat, "setting": setting,
                              **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
-                            cat, setting, g.structure, init, shared))
+                            cat, setting, g.structure, init, shared,
+                            [init] if init is not None else [pseudo] if setting == "semi-weakly" else []))
                         group_runs.append(run_dir)
                     runs += group_runs
                 runs_of[(seed, cat)] = runs
-        pending = [[a for a in chain if not stage_done(a.folder, a.key)] for chain in chains.values()]
+        pending = [_pending(chain) for chain in chains.values()]
         pending = [c for c in pending if c]
         self.run_in_parallel(pending, lambda n, w: f"{v.prefix}train ancsh: {n} models in {len(pending)} chains, "
                                                    f"{w} at a time", f"{v.prefix}train ancsh", "chains")
         for (seed, cat), runs in runs_of.items():
             for a in chains.get((seed, cat), []):
-                self.stage(a.folder, a.key, lambda a=a: a.run(progress, console, False), a.name)
+                self.stage(a.folder, a.key, lambda a=a: a.run(progress, console, False), a.name, after=a.after)
             groups = self.plan[cat]
             main = seed == cfg.seed
             if main:
@@ -532,7 +540,7 @@ class _Context:
                        lambda runs=runs, ev=ev, cat=cat: evaluate_category(
                            cat, runs, data=cfg.labeled, out=ev, scans=cfg.out / "scans" / cat,
                            frames=cfg.frames_per_object, seed=cfg.seed, progress=progress, console=console),
-                       f"{v.prefix}eval {cat} (Table 2{'' if main else f', seed {seed}'})")
+                       f"{v.prefix}eval {cat} (Table 2{'' if main else f', seed {seed}'})", after=runs)
             if main:
                 res.stages.setdefault(f"{v.prefix}table2", []).append(str(ev))
             if len(seeds) > 1:  # the report's Table 2 over seeds (kinmo.report.paper_tables)
@@ -717,6 +725,7 @@ class _AncshStage:
     structure: Any
     init: Path | None
     shared: _AncshShared
+    after: list[Path] = dataclasses.field(default_factory=list)
 
     def run(self, progress: bool, console: Any, in_pool: bool) -> None:
         """:func:`~kinmo.ancsh.train.train_ancsh` of this stage; in a pool worker, rendering
@@ -726,6 +735,16 @@ class _AncshStage:
         train_ancsh(self.category, self.setting, self.folder, cfg, data=sh.data, partnet=sh.partnet,
                     pseudo=sh.pseudo, split=sh.split, scans=sh.scans / self.category, init=self.init,
                     progress=progress, console=console, structure=self.structure)
+
+
+def _pending(chain: list[_AncshStage]) -> list[_AncshStage]:
+    """The stages of a chain to run, in order: those not up to date (:func:`stage_done`, with
+    the stages they read from), and a semi stage whose supervised run is among them."""
+    out: list[_AncshStage] = []
+    for a in chain:
+        if not stage_done(a.folder, a.key, after=a.after) or any(b.folder == a.init for b in out):
+            out.append(a)
+    return out
 
 
 def _run_chain(chain: list[_Training | _AncshStage]) -> list[tuple[str, float, float]]:

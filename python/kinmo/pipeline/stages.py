@@ -4,7 +4,7 @@ stage's configuration), their timings, and the run's result (``pipeline_result.j
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -116,13 +116,14 @@ class _Clock:
 
 
 def _stage(folder: Path, key: dict[str, Any], run: Callable[[], Any], log: Callable[[str], None], name: str,
-           clock: _Clock | None = None, marker_name: str = ".done") -> bool:
-    """Run ``run`` unless ``folder/<marker_name>`` holds ``key``; returns True if it ran.
+           clock: _Clock | None = None, marker_name: str = ".done", after: Sequence[Path] = ()) -> bool:
+    """Run ``run`` unless ``folder/<marker_name>`` holds ``key`` and is newer than the markers
+    of the stages in ``after`` (:func:`stage_done`); returns True if it ran.
 
     With a ``clock``, the stage's time is recorded under ``name``. A stage writing one file
     into a folder shared with others (the split) gets its own ``marker_name``.
     """
-    if stage_done(folder, key, marker_name):
+    if stage_done(folder, key, marker_name, after):
         log(f"[dim]{name}: up to date ({literal(folder)})[/]")
         if clock is not None:
             clock.skipped(name)
@@ -142,10 +143,31 @@ def _key_text(key: dict[str, Any]) -> str:
     return json.dumps(key, sort_keys=True, default=str)
 
 
-def stage_done(folder: Path, key: dict[str, Any], marker_name: str = ".done") -> bool:
-    """True when the stage of ``folder`` ran with ``key`` (its marker holds it)."""
+def stage_done(folder: Path, key: dict[str, Any], marker_name: str = ".done",
+               after: Sequence[Path] = ()) -> bool:
+    """True when the stage of ``folder`` ran with ``key`` (its marker holds it) and after every
+    stage it reads from.
+
+    Parameters
+    ----------
+    folder : Path
+    key : dict
+    marker_name : str
+    after : sequence of Path
+        Folders of the stages whose outputs this one reads (models it evaluates, runs it
+        starts from). A key names them by path, so it cannot see them trained again; as
+        ``make`` does, the stage is stale when one of their ``.done`` markers is newer than
+        its own. A folder without a marker (a model given from outside a run) is not checked.
+    """
     marker = folder / marker_name
-    return marker.is_file() and marker.read_text() == _key_text(key)
+    if not (marker.is_file() and marker.read_text() == _key_text(key)):
+        return False
+    own = marker.stat().st_mtime_ns
+    for up in after:
+        m = Path(up) / ".done"
+        if m.is_file() and m.stat().st_mtime_ns > own:
+            return False
+    return True
 
 
 def mark_done(folder: Path, key: dict[str, Any], marker_name: str = ".done") -> None:
