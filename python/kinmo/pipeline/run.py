@@ -419,8 +419,9 @@ class _Context:
 
         render = cfg.render and not v.prefix  # the gallery shows the main run
         # the stages whose outputs Table 1 and the pseudo-labels read (trained again: stale)
-        upstream = [*gnn_runs.values(), *([axis_dir] if cfg.refine else []),
-                    *([ranker.parent] if ranker is not None else []), ranges.parent]
+        refiners = [*([axis_dir] if cfg.refine else []), *([ranker.parent] if ranker is not None else []),
+                    ranges.parent]
+        upstream = [*gnn_runs.values(), *refiners]
         if not ("gnn_fine" in v.reuse and "axis" in v.reuse):
             evals = [(out / "eval" / "pre-segmented", refine, render, "")]
             if ranker is not None:
@@ -446,7 +447,7 @@ class _Context:
                        lambda: pseudo_label_dataset(
                            v.unlabeled, gnn_runs["fine"], axis_dir, pseudo, pcfg, workers=cfg.workers,
                            cache=v.unlabeled_cache, progress=progress), f"{v.prefix}pseudo-label",
-                       after=[gnn_runs["fine"], *upstream[2:]])
+                       after=[gnn_runs["fine"], *refiners])
             res.stages[f"{v.prefix}pseudo"] = [str(pseudo)]
 
         # 8. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
