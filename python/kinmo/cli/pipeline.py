@@ -87,8 +87,6 @@ def demo(
     unlabeled: Path | None = typer.Option(None, "--unlabeled", help="Real PartNet folders (with --data)."),
     n: int = typer.Option(24, "--n", help="Generated labelled objects."),
     seed: int = typer.Option(0),
-    ancsh_seeds: int = typer.Option(1, "--ancsh-seeds", min=1, max=10,
-                                    help="Train ANCSH this many times (seeds seed, seed+1, ...): Table 2 gives mean and spread."),
     tiny: bool = typer.Option(False, help="A minimal configuration (seconds per stage), for tests."),
     selector: str = typer.Option("learned", "--selector", help="learned (the default ranker) or paper (0.5/0.3/0.2 with the axis network): the axis selector of Table 1's OBB rows and the pseudo-labels."),
 ) -> None:

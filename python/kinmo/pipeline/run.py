@@ -482,10 +482,10 @@ class _Context:
         # variant only), seeds seed+1 .. seed+K-1 train again into ancsh-seeds/seed-<s>/
         # (their own training renders) and are evaluated on the same test scans
         seeds = [cfg.seed + k for k in range(cfg.ancsh_seeds if not v.prefix else 1)]
+        roots = {s: out if s == cfg.seed else out / ANCSH_SEEDS_DIR / f"seed-{s}" for s in seeds}
         chains: dict[tuple[int, str], list[_AncshStage]] = {}
         runs_of: dict[tuple[int, str], list[Path]] = {}
-        for seed in seeds:
-            root = out if seed == cfg.seed else out / ANCSH_SEEDS_DIR / f"seed-{seed}"
+        for seed, root in roots.items():
             acs = ac if seed == cfg.seed else ac.model_copy(update={"seed": seed})
             shared = _AncshShared(acs, v.labeled, v.unlabeled, pseudo if v.unlabeled is not None else None,
                                   split_file, cfg.out / "scans" if seed == cfg.seed else root / "scans")
@@ -534,8 +534,7 @@ class _Context:
                 if main:
                     log(f"[dim]ANCSH: {cat}: no test object of a trained structure, no Table 2 row[/]")
                 continue
-            root = out if main else out / ANCSH_SEEDS_DIR / f"seed-{seed}"
-            ev = root / "eval" / cat
+            ev = roots[seed] / "eval" / cat
             # the test scans and their seed are the main run's: every seed is scored on the same frames
             self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
                        lambda runs=runs, ev=ev, cat=cat: evaluate_category(

@@ -104,10 +104,11 @@ def _stage_folders(result: dict, run: Path, prefix: str = "") -> dict[str, list[
     return found if named else None
 
 
-def _seed_tables(out: RunArtefacts, result: dict, exclude: Sequence[Path]) -> dict[int, Table2]:
+def _seed_tables(out: RunArtefacts, result: dict, exclude: Sequence[Path],
+                 main_dirs: Sequence[Path] = ()) -> dict[int, Table2]:
     """Table 2 per ANCSH seed from the ``table2 seed <s>`` stages of a ``pipeline_result.json``
-    (``kinmo train all --ancsh-seeds K``), by seed; a folder outside the run is left out."""
-    as_table2 = dict(CONVERTERS)["table2_files"]
+    (``kinmo train all --ancsh-seeds K``), by seed, read as :func:`_from_stages` reads the
+    ``table2`` stage; the seed whose folders are that stage's (``main_dirs``) is ``out.table2``."""
     stages = result.get("stages")
     found: dict[int, Table2] = {}
     if not isinstance(stages, dict):
@@ -119,21 +120,14 @@ def _seed_tables(out: RunArtefacts, result: dict, exclude: Sequence[Path]) -> di
             seed = int(stage[len(TABLE2_SEED_STAGE):])
         except ValueError:
             continue
-        files = []
-        for s in paths:
-            d = _resolve(s, result, out.run)
-            if not d.is_dir() or (d != out.run and out.run not in d.parents):
-                continue
-            for p in _walk(d, exclude)[0]:
-                t = _read_table(p, out.run, out.problems)
-                try:
-                    f = as_table2(t) if t is not None else None
-                except KinmoDataError as e:
-                    out.problems.append((t.rel, e.problem))  # type: ignore[union-attr]
-                    continue
-                if f is not None:
-                    files.append(f)
-        t2 = combine_table2(files)
+        dirs = [p for p in (_resolve(s, result, out.run) for s in paths) if p.is_dir()]
+        if dirs and dirs == list(main_dirs):
+            t2 = out.table2
+        else:
+            part = RunArtefacts(out.run)
+            _from_stages(part, {"table2_files": dirs}, exclude)
+            out.problems += part.problems
+            t2 = combine_table2(part.table2_files)
         if t2 is not None:
             found[seed] = t2
     return dict(sorted(found.items()))
@@ -268,7 +262,7 @@ def collect_run(run: str | Path, exclude: Sequence[str | Path] = (),
                 _add(out, t, CONVERTERS)
     out.table2 = combine_table2(out.table2_files)
     if result and not _prefix:
-        out.table2_seeds = _seed_tables(out, result, excl)
+        out.table2_seeds = _seed_tables(out, result, excl, (folders or {}).get("table2_files", []))
     out.images, out.n_images_found = gallery(pngs, run, max_images, out.problems)
     out.timings = _timings(result) if not _prefix else {}
     for v in variants:
