@@ -36,10 +36,16 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from kinmo.train.loop import override, preset_values
 
-__all__ = ["PRESETS", "SETTINGS", "ANCSHConfig", "preset"]
+__all__ = ["PRESETS", "SETTINGS", "SYNTH_FIELDS", "ANCSHConfig", "preset"]
 
 #: The training settings of Table 2, in the paper's row order.
 SETTINGS: tuple[str, ...] = ("supervised", "semi", "semi-weakly")
+
+
+#: The fields of generated training objects (issue 38): left out of a configuration's stage key
+#: while ``synth_objects`` is 0 (:meth:`ANCSHConfig.key`), so runs made before them stay up to
+#: date.
+SYNTH_FIELDS: frozenset[str] = frozenset({"synth_objects", "synth_as", "synth_share"})
 
 
 class ANCSHConfig(BaseModel):
@@ -115,6 +121,21 @@ class ANCSHConfig(BaseModel):
         CPU threads of torch (0: torch's default).
     render_workers : int
         Rendering processes (0: one per CPU, 1: in this process).
+    synth_objects : int
+        Generated objects (``kinmo synth --structure``) of the trained structure added to the
+        labelled training data, each rendered ``frames_per_object`` times
+        (:mod:`kinmo.ancsh.generated`); 0: none. Categories or structures that ``kinmo
+        synth`` does not make train without them (``data.json`` says why). Test objects are
+        always real.
+    synth_as : {"mix", "pretrain"}
+        How the generated scans are used: ``mix``: in the same batches as the real ones, a
+        ``synth_share`` of the draws on average; ``pretrain``: the first
+        ``round(synth_share * epochs)`` epochs on generated scans alone, then the remaining
+        epochs on the real ones (fine-tuning, its own cosine schedule). Either way the run
+        takes the same ``epochs x steps_per_epoch`` steps as without them.
+    synth_share : float
+        In (0, 1): the share of the draws (``mix``) or of the epochs (``pretrain``) given to
+        generated scans.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -152,6 +173,14 @@ class ANCSHConfig(BaseModel):
     device: str = "auto"
     threads: int = Field(1, ge=0)
     render_workers: int = Field(0, ge=0)
+    synth_objects: int = Field(0, ge=0, le=100000)
+    synth_as: Literal["mix", "pretrain"] = "mix"
+    synth_share: float = Field(0.5, gt=0, lt=1)
+
+    def key(self) -> dict[str, Any]:
+        """The configuration as a stage key of ``kinmo train all``: :meth:`model_dump`
+        without :data:`SYNTH_FIELDS` while ``synth_objects`` is 0."""
+        return self.model_dump(exclude=set(SYNTH_FIELDS) if self.synth_objects == 0 else None)
 
     @field_validator("n_centers")
     @classmethod

@@ -18,9 +18,12 @@ settings of :data:`kinmo.ancsh.config.SETTINGS` for a category:
    pseudo-label`` output, PartNet-Mobility format) that fit the structure are rendered at
    random articulations of their predicted joints into ``SCANS/pseudo-labeled`` and join the
    labelled scans;
-5. ANCSH (:class:`kinmo.ancsh.model.ANCSH`) is trained for ``epochs x steps_per_epoch``
+5. with ``synth_objects`` > 0, generated objects of the structure (``kinmo synth``) join the
+   labelled scans, mixed into the batches or pretrained on first (``synth_as``,
+   :mod:`kinmo.ancsh.generated`);
+6. ANCSH (:class:`kinmo.ancsh.model.ANCSH`) is trained for ``epochs x steps_per_epoch``
    batches;
-6. ``semi``: the PartNet shapes of the category are rendered at rest
+7. ``semi``: the PartNet shapes of the category are rendered at rest
    (:func:`kinmo.ancsh.semi.unlabeled_object`) into ``SCANS/unlabeled``, the model labels
    them, confident scans (segmentation confidence and RANSAC inlier ratio above the
    thresholds, then the ``pseudo_keep_fraction`` best by inlier ratio) become pseudo-targets
@@ -58,6 +61,7 @@ import torch
 from kinmo.ancsh.config import ANCSHConfig, SETTINGS, preset
 from kinmo.ancsh.dataset import ANCSHFrames, load_samples, object_parts_of, scan_category
 from kinmo.ancsh.fit import METRIC_COLUMNS, fit, metrics_csv
+from kinmo.ancsh.generated import GeneratedData, generated_samples, mix, pretrain_epochs
 from kinmo.ancsh.inference import (
     ANCSHRun,
     build_model,
@@ -319,6 +323,23 @@ def train_ancsh(
     if not samples:
         raise KinmoError(f"category {cat.category}: no usable training scan was rendered ({failed})")
 
+    # generated objects of the structure (cfg.synth_objects): mixed into the batches or
+    # pretrained on, at the same number of steps (kinmo.ancsh.generated)
+    generated = GeneratedData([], [], skipped="synth_objects is 0")
+    if cfg.synth_objects > 0:
+        with distributed.main_first():
+            generated = generated_samples(cat.category, structure, cfg, scans_dir, progress)
+        info["render_failed"].update(generated.failed)
+        info["skipped_scans"] += generated.skipped_scans
+        _say(console, f"{cat.category}: {len(generated.objects)} generated objects, {len(generated.samples)} "
+                      f"scans ({cfg.synth_as})" if generated.samples
+                      else f"{cat.category}: no generated objects: {generated.skipped}")
+    info.update(generated.info())
+    pre = pretrain_epochs(cfg) if generated.samples and cfg.synth_as == "pretrain" else 0
+    real = samples
+    if generated.samples and cfg.synth_as == "mix":
+        samples = mix(real, generated.samples, cfg.synth_share)
+
     # model and training
     with training_session(cfg.device, cfg.seed, cfg.threads) as (_, device):
         model = build_model(cfg, structure).to(device)
@@ -336,7 +357,10 @@ def train_ancsh(
             info["init"] = str(Path(init).resolve())
             _say(console, f"supervised stage: weights of {init}")
         else:
-            fit(model, ds, cfg, cfg.epochs, device, "train", 0, on_epoch, progress)
+            if pre:
+                fit(model, ANCSHFrames(generated.samples, cfg.n_points, cfg.seed, cfg.jitter), cfg, pre, device,
+                    "pretrain", 2, on_epoch, progress)
+            fit(model, ds, cfg, cfg.epochs - pre, device, "train", 0, on_epoch, progress)
 
         if setting == "semi":
             with distributed.main_first():
@@ -349,10 +373,12 @@ def train_ancsh(
             info["pseudo_target_scans"] = len(psamples)
             _say(console, f"semi: {len(psamples)} of {len(records)} scans of "
                           f"{len(info['unlabeled_objects'])} unlabelled {cat.category} shapes kept as pseudo-targets")
-            ds = ANCSHFrames(samples + psamples, cfg.n_points, cfg.seed, cfg.jitter)
+            both = real + psamples  # generated scans (mix) stay at their share of the draws
+            ds = ANCSHFrames(mix(both, generated.samples, cfg.synth_share) if generated.samples and
+                             cfg.synth_as == "mix" else both, cfg.n_points, cfg.seed, cfg.jitter)
             fit(model, ds, cfg, cfg.semi_epochs, device, "semi", 1, on_epoch, progress)
     info["seconds"] = round(time.perf_counter() - t_start, 2)
-    info["training_scans"] = len(samples) + info["pseudo_target_scans"]
+    info["training_scans"] = len(real) + len(generated.samples) + info["pseudo_target_scans"]
     if main:
         write_json(out / "data.json", info)
     return TrainResult(out, cfg, structure, history, info, info["seconds"])

@@ -56,6 +56,9 @@ def train_ancsh_cmd(
     device: Optional[str] = typer.Option(None, "--device", callback=_values.device, help="auto, cpu, cuda, cuda:1 ... (default: auto)."),  # noqa: UP007
     threads: Optional[int] = typer.Option(None, "--threads", min=0, help="CPU threads for torch (0: torch's default)."),  # noqa: UP007
     workers: Optional[int] = typer.Option(None, "--workers", "-j", min=0, help="Rendering processes (0: one per CPU, 1: none)."),  # noqa: UP007
+    synth: Optional[int] = typer.Option(None, "--synth", min=0, max=100000, help="Add N generated objects of the trained structure (kinmo synth) to the labelled scans."),  # noqa: UP007
+    synth_as: Optional[str] = typer.Option(None, "--synth-as", help="mix (same batches, --synth-share of the draws; default) or pretrain (the first --synth-share of the epochs, then real)."),  # noqa: UP007
+    synth_share: Optional[float] = typer.Option(None, "--synth-share", min=0.0, max=1.0, callback=_values.finite, help="Share of draws (mix) or epochs (pretrain) on generated scans (default: 0.5)."),  # noqa: UP007
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bars."),
 ) -> None:
     """Train ANCSH on rendered partial scans of one category (Liu et al. 2023, Table 2).
@@ -83,7 +86,8 @@ def train_ancsh_cmd(
         cfg = make_preset(preset, labeled_fraction=labeled_fraction, seed=seed, epochs=epochs,
                           steps_per_epoch=steps_per_epoch, semi_epochs=semi_epochs,
                           frames_per_object=frames_per_object,
-                          batch_size=batch_size, device=device, threads=threads, render_workers=workers)
+                          batch_size=batch_size, device=device, threads=threads, render_workers=workers,
+                          synth_objects=synth, synth_as=synth_as, synth_share=synth_share)
     out = out or Path("runs") / "ancsh" / _snake(category) / setting
     with cli_errors(1):
         res = train_ancsh(category, setting, out, cfg, data=data, partnet=partnet, pseudo=pseudo,
@@ -93,7 +97,8 @@ def train_ancsh_cmd(
     console.print(
         f"trained ANCSH ({res.config.preset}, {setting}) for {res.config.category} "
         f"{literal('[' + res.structure.signature() + ']')} in {res.seconds:.1f} s on {d['labeled_scans']} labelled, "
-        f"{d['pseudo_labeled_scans']} pseudo-labelled and {d['pseudo_target_scans']} pseudo-target scans: "
+        f"{d['pseudo_labeled_scans']} pseudo-labelled, {d['pseudo_target_scans']} pseudo-target and "
+        f"{d['generated_scans']} generated scans: "
         f"loss {last['loss']:.3f}, segmentation accuracy {last['seg_acc']:.3f}",
         highlight=False, soft_wrap=True,
     )

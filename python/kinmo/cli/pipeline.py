@@ -23,6 +23,11 @@ def train_all(
     seed: int = typer.Option(0),
     ancsh_seeds: int = typer.Option(1, "--ancsh-seeds", min=1, max=10,
                                     help="Train ANCSH this many times (seeds seed, seed+1, ...): Table 2 gives mean and spread."),
+    ancsh_synth: int = typer.Option(0, "--ancsh-synth", min=0, max=100000,
+                                    help="Add N generated objects of each trained structure kinmo synth makes to ANCSH's labelled data."),
+    ancsh_synth_as: str = typer.Option("mix", "--ancsh-synth-as",
+                                       help="mix (in the same batches, half the draws) or pretrain (the first half of "
+                                            "the epochs, then fine-tuning on real): how --ancsh-synth objects are used."),
     workers: int = typer.Option(0, "--workers", "-j", help="Processes for per-shape stages, and models trained at once (motion GNNs, axis network, the ranker's fold GNNs; 0: all cores)."),
     skip_ancsh: bool = typer.Option(False, "--skip-ancsh", help="Stop after the pseudo-labels (Table 1 only)."),
     render: bool = typer.Option(True, "--render/--no-render", help="Render Table 1 predictions for the gallery."),
@@ -71,7 +76,8 @@ def train_all(
         cfg = PipelineConfig(
             labeled=found.labeled, unlabeled=found.unlabeled if (refine or unlabeled is not None) else None, out=out,
             preset="quick" if preset == "tiny" else preset, categories=category or None,
-            labeled_fraction=labeled_fraction, seed=seed, ancsh_seeds=ancsh_seeds, workers=workers, skip_ancsh=skip_ancsh,
+            labeled_fraction=labeled_fraction, seed=seed, ancsh_seeds=ancsh_seeds,
+            ancsh_synth=ancsh_synth, ancsh_synth_as=ancsh_synth_as, workers=workers, skip_ancsh=skip_ancsh,
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
             selector=selector, release=release,
             **(TINY if preset == "tiny" else {}),

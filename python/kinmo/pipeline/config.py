@@ -39,6 +39,15 @@ class PipelineConfig(BaseModel):
         training renders, the same split, pseudo-labels and test scans), the extra seeds into
         ``out/ancsh-seeds/seed-<s>/``; the report's Table 2 then gives each setting's mean
         and spread over the seeds (issue 38). The generated-shapes run trains one seed.
+    ancsh_synth : int
+        Generated objects of each trained (category, structure) that ``kinmo synth`` makes,
+        added to ANCSH's labelled training scans in every setting (``ANCSHConfig.synth_objects``,
+        :mod:`kinmo.ancsh.generated`; issue 38). Other pairs train as without (same stage
+        keys). Test objects stay real. 0: none.
+    ancsh_synth_as : {"mix", "pretrain"}
+        ``ANCSHConfig.synth_as``: generated scans in the same batches as the real ones (half
+        of the draws), or the first half of the epochs on them alone, then fine-tuning on the
+        real ones; the same number of steps either way.
     workers : int
         Worker processes of the per-shape stages, and trainings run at once (the motion GNNs,
         the axis network and the ranker's fold GNNs; 0: one per core).
@@ -106,6 +115,8 @@ class PipelineConfig(BaseModel):
     labeled_fraction: float = Field(1.0, gt=0, le=1)
     seed: int = 0
     ancsh_seeds: int = Field(1, ge=1, le=10)
+    ancsh_synth: int = Field(0, ge=0, le=100000)
+    ancsh_synth_as: Literal["mix", "pretrain"] = "mix"
     workers: int = Field(0, ge=0)
     gnn_epochs: int | None = Field(None, ge=1)
     axis_epochs: int | None = Field(None, ge=1)

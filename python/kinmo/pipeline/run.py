@@ -13,6 +13,7 @@ from typing import Any
 
 from kinmo.ancsh.config import preset as ancsh_preset
 from kinmo.ancsh.evaluate import evaluate_category
+from kinmo.ancsh.generated import can_generate
 from kinmo.ancsh.structure import structure_slug
 from kinmo.ancsh.train import train_ancsh
 from kinmo.data.cache import load_cache
@@ -472,8 +473,19 @@ class _Context:
             "unlabeled_frames_per_object": cfg.frames_per_object,
             "test_frames_per_object": cfg.frames_per_object,
             "labeled_fraction": cfg.labeled_fraction, "seed": cfg.seed,
+            "synth_objects": cfg.ancsh_synth, "synth_as": cfg.ancsh_synth_as,
         }
         ac = ancsh_preset(cfg.preset, **{k: val for k, val in overrides.items() if val is not None})
+        # --ancsh-synth: only the (category, structure) pairs kinmo synth makes get generated
+        # objects; the others keep the configuration (and stage keys) of a run without
+        no_synth: dict[tuple[str, str], str] = {}
+        if ac.synth_objects:
+            for cat in res.categories:
+                for g in self.plan[cat]:
+                    why = can_generate(cat, g.structure)
+                    if why is not None:
+                        no_synth[(cat, g.structure.signature())] = why
+                        log(f"[dim]ANCSH: {cat} {g.structure.signature()}: no generated objects ({why})[/]")
 
         # one chain of trainings per category and seed: per structure supervised, then semi
         # (from the supervised weights) and semi-weakly; categories share no object and render
@@ -499,6 +511,9 @@ class _Context:
                     sub = structure_slug(g.structure) if len(groups) > 1 else ""
                     label = f"{cat} {g.structure.signature()}" if sub else cat
                     st = {"parents": list(g.structure.parents), "joint_types": list(g.structure.joint_types)}
+                    acg = (acs.model_copy(update={"synth_objects": 0})
+                           if (cat, g.structure.signature()) in no_synth else acs)
+                    shared_g = shared if acg is acs else dataclasses.replace(shared, config=acg)
                     group_runs: list[Path] = []
                     for setting in settings:
                         reused = v.reuse.get(f"ancsh/{cat}/{sub + '/' if sub else ''}{setting}")
@@ -512,9 +527,9 @@ class _Context:
                                 else None)
                         chain.append(_AncshStage(
                             f"{v.prefix}train ancsh {label} ({setting}{tag})", run_dir,
-                            {**base, "ancsh": acs.model_dump(), "cat": cat, "setting": setting,
+                            {**base, "ancsh": acg.key(), "cat": cat, "setting": setting,
                              **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
-                            cat, setting, g.structure, init, shared,
+                            cat, setting, g.structure, init, shared_g,
                             [init] if init is not None else [pseudo] if setting == "semi-weakly" else []))
                         group_runs.append(run_dir)
                     runs += group_runs
