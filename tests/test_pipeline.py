@@ -154,6 +154,20 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     timings2 = json.loads((run / "pipeline_result.json").read_text())["timings"]
     assert {k for k, t in timings2.items() if t["ran"]} == {"report"}
 
+    # generated objects as ANCSH data (--ancsh-synth, issue 38): Laptop is made by kinmo synth,
+    # so its three ANCSH settings train again with them, and Table 2 is scored again on the
+    # same real test objects
+    res6 = run_pipeline(cfg.model_copy(update={"ancsh_synth": 2, "ancsh_synth_as": "pretrain"}), progress=False)
+    ran = {k for k, t in res6.timings.items() if t.ran and not k.startswith("train ancsh:")}
+    assert ran == {"train ancsh Laptop (supervised)", "train ancsh Laptop (semi)",
+                   "train ancsh Laptop (semi-weakly)", "eval Laptop (Table 2)", "report"}
+    for setting in ("supervised", "semi-weakly"):
+        info = json.loads((run / "ancsh/Laptop" / setting / "data.json").read_text())
+        assert len(info["generated_objects"]) == 2 and not set(info["generated_objects"]) & set(split["test"])
+    assert json.loads((run / "ancsh/Laptop/supervised/.done").read_text())["ancsh"]["synth_as"] == "pretrain"
+    assert res6.ancsh_synth == {"objects": 2, "as": "pretrain", "without": {}}
+    assert "include 2 generated objects" in (run / "report/report.md").read_text()
+
 
 def test_demo_passes_the_selector_to_the_pipeline(tmp_path, monkeypatch):
     import kinmo.pipeline.demo as demo

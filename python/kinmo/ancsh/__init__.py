@@ -21,6 +21,8 @@ Modules:
   PartNet scans);
 - :mod:`kinmo.ancsh.scans`: rendering the partial scans of a set of objects, a category's
   shape folders;
+- :mod:`kinmo.ancsh.generated`: generated objects of a structure (``kinmo synth``) as extra
+  labelled scans, mixed into the batches or pretrained on;
 - :mod:`kinmo.ancsh.fit`: the training loop (epochs of seeded batches, ``metrics.csv`` rows);
 - :mod:`kinmo.ancsh.train`: a run of one setting (data, split, ``labeled_fraction`` for the
   ratio study, renders, stages, run folder);

@@ -485,7 +485,10 @@ class _Context:
                     why = can_generate(cat, g.structure)
                     if why is not None:
                         no_synth[(cat, g.structure.signature())] = why
-                        log(f"[dim]ANCSH: {cat} {g.structure.signature()}: no generated objects ({why})[/]")
+                        log(f"[dim]ANCSH: {literal(f'{cat} {g.structure.signature()}: no generated objects ({why})')}[/]")
+            if not v.prefix:
+                res.ancsh_synth = {"objects": ac.synth_objects, "as": ac.synth_as,
+                                   "without": {f"{c} {sig}": why for (c, sig), why in no_synth.items()}}
 
         # one chain of trainings per category and seed: per structure supervised, then semi
         # (from the supervised weights) and semi-weakly; categories share no object and render

@@ -58,6 +58,9 @@ class PipelineResult(BaseModel):
     selector : str or None
         The candidate selector of the ``OBB_*`` rows and the pseudo-labels (``learned`` or
         ``paper``; None without refinement).
+    ancsh_synth : dict or None
+        ``--ancsh-synth N``: ``{"objects": N, "as": "mix" | "pretrain", "without": {"<category>
+        <structure>": why}}``, the trained pairs that got no generated objects; None without.
     """
 
     out: Path
@@ -70,6 +73,7 @@ class PipelineResult(BaseModel):
     report: Path | None = None
     timings: dict[str, StageTiming] = Field(default_factory=dict)
     synth_extra: Path | None = None
+    ancsh_synth: dict[str, Any] | None = None
 
     def total(self) -> StageTiming:
         """The sum over the stages (rows of a pool, :attr:`StageTiming.parallel`, are counted

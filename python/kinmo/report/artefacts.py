@@ -397,6 +397,9 @@ class RunArtefacts:
     table2_seeds : dict of int to Table2
         Table 2 of every ANCSH seed of ``kinmo train all --ancsh-seeds K`` (K >= 2), the run's
         own seed included, by seed; empty for a run of one seed.
+    ancsh_synth : dict or None
+        ``pipeline_result.json``'s ``ancsh_synth`` (``kinmo train all --ancsh-synth N``): the
+        generated objects in ANCSH's training data.
     timings : dict of str to dict
         Stage → ``wall_s``, ``cpu_s``, ``ran`` of the last ``kinmo train all`` call.
     from_result : bool
@@ -415,6 +418,7 @@ class RunArtefacts:
     problems: list[tuple[str, str]] = field(default_factory=list)
     synth_extra: list[SynthExtra] = field(default_factory=list)
     table2_seeds: dict[int, Table2] = field(default_factory=dict)
+    ancsh_synth: dict | None = None
     timings: dict[str, dict] = field(default_factory=dict)
     from_result: bool = False
 

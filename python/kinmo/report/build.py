@@ -261,6 +261,18 @@ def _verdict(tally: list[int], what: str) -> str:
             f"{w} worse.")
 
 
+def _ancsh_synth_note(info: dict) -> Note:
+    """What ``kinmo train all --ancsh-synth N`` added to ANCSH's training data."""
+    without = info.get("without") or {}
+    how = ("mixed into the batches (half of the draws)" if info.get("as") == "mix" else
+           "pretrained on for the first half of the epochs, then fine-tuned on the real scans")
+    text = (f"ANCSH's labelled scans include {info.get('objects')} generated objects (`kinmo synth`) of "
+            f"each trained structure that `kinmo synth` makes, {how}; the test objects are real.")
+    if without:
+        text += " Trained without them: " + "; ".join(f"{k} ({why})" for k, why in sorted(without.items())) + "."
+    return Note(text, "info")
+
+
 def _synth_extra_blocks(art: RunArtefacts, v: SynthExtra) -> list[Block]:
     info = v.info
     n, how = info.get("n", "?"), info.get("as", "?")
@@ -363,6 +375,8 @@ def build_document(art: RunArtefacts, title: str | None = None) -> Document:
     else:
         t2 += table2_blocks(art.table2)
     t2 += table2_seed_blocks(art.table2_seeds)
+    if art.ancsh_synth and art.table2 is not None:
+        t2.append(_ancsh_synth_note(art.ancsh_synth))
     sections.append(Section("table2", "Table 2: partial scans", t2))
     gen: list[Block] = []
     for v in art.synth_extra:

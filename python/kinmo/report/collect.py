@@ -263,6 +263,8 @@ def collect_run(run: str | Path, exclude: Sequence[str | Path] = (),
     out.table2 = combine_table2(out.table2_files)
     if result and not _prefix:
         out.table2_seeds = _seed_tables(out, result, excl, (folders or {}).get("table2_files", []))
+        synth = result.get("ancsh_synth")
+        out.ancsh_synth = synth if isinstance(synth, dict) else None
     out.images, out.n_images_found = gallery(pngs, run, max_images, out.problems)
     out.timings = _timings(result) if not _prefix else {}
     for v in variants:
