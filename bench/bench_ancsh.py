@@ -25,7 +25,10 @@ computation before geometry plans, neighbourhoods by PyTorch inside the layers a
 channels-first 1x1 convolutions, :meth:`kinmo.ancsh.model.ANCSH.forward_reference`) and
 **after** (the batch's Rust geometry plan, then the channels-last network), interleaved in
 one process: medians, steps per second and the after/before speed-up, plus the planning
-alone (Rust and the PyTorch functions). It reads pre-rendered scans, no
+alone (Rust and the PyTorch functions), and **overlap**: "after" as :func:`kinmo.ancsh.fit.fit`
+runs it, the next batch sampled and planned in a background thread while the current one
+trains (:func:`kinmo.ancsh.fit.batch_stream`; the median over rounds of a round's mean step,
+since overlapped steps cannot be timed one by one). It reads pre-rendered scans, no
 PyBullet and no dataset needed: ``DIR`` holds ``labeled/<key>/<frame>.npz`` (the cache of
 the ANCSH stage, ``kinmo train ancsh --scans``) and ``ancsh_parts.json`` (the objects'
 ANCSH parts), written by ``--write-scans DIR`` (a few megabytes, to carry to a GPU machine).
@@ -127,7 +130,7 @@ def bench_steps(args: argparse.Namespace) -> None:
 
     from kinmo.ancsh.config import preset
     from kinmo.ancsh.dataset import ANCSHFrames, load_samples
-    from kinmo.ancsh.fit import train_step
+    from kinmo.ancsh.fit import batch_stream, prepare_batch, train_step
     from kinmo.ancsh.inference import build_model
     from kinmo.parallel import torch_threads
 
@@ -161,19 +164,38 @@ def bench_steps(args: argparse.Namespace) -> None:
             float(terms["total"].detach())  # as fit: the loss is read every step (synchronises)
             return time.perf_counter() - t0
 
-        times: dict[str, list[float]] = {"before": [], "after": []}
+        m_ov = copy.deepcopy(base).to(device).train()
+        o_ov = torch.optim.Adam(m_ov.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+
+        def draw():
+            idx = rng.integers(0, len(ds), cfg.batch_size)
+            items = [ds.sample(int(i), rng) for i in idx]
+            return items, prepare_batch(m_ov, items)
+
+        def overlapped(n: int) -> float:
+            # as fit: the next batch sampled and planned in a thread while this one trains
+            t0 = time.perf_counter()
+            for items, prepared in batch_stream(draw, n):
+                terms, _, _ = train_step(m_ov, o_ov, items, device, cfg.grad_clip, prepared=prepared)
+                float(terms["total"].detach())
+            return (time.perf_counter() - t0) / n
+
+        times: dict[str, list[float]] = {"before": [], "after": [], "overlap": []}
         with torch_threads(threads):
             for mode in ("before", "after"):  # warm-up
                 for _ in range(3):
                     step(mode)
+            overlapped(3)
             for r in range(args.rounds):  # interleaved, alternating which goes first
                 for mode in (("before", "after") if r % 2 == 0 else ("after", "before")):
                     times[mode] += [step(mode) for _ in range(args.steps)]
+                times["overlap"].append(overlapped(args.steps))  # a round's mean step
             xyz = torch.stack([ds.sample(i % len(ds), rng)["xyz"] for i in range(cfg.batch_size)]).to(device)
             bb = models["after"].backbone
             plan_s = {backend: _median_time(lambda: bb.plan(xyz, backend), 5 * args.rounds)
                       for backend in ("torch", "rust")}
         before, after = statistics.median(times["before"]), statistics.median(times["after"])
+        ov = statistics.median(times["overlap"])
         results["presets"][name] = {
             "n_points": cfg.n_points, "width": cfg.width, "n_centers": list(cfg.n_centers),
             "batch_size": cfg.batch_size, "torch_threads": threads,
@@ -182,11 +204,14 @@ def bench_steps(args: argparse.Namespace) -> None:
             "speedup": before / after,
             "before_step_s_all": times["before"], "after_step_s_all": times["after"],
             "plan_torch_s": plan_s["torch"], "plan_rust_s": plan_s["rust"],
+            "overlap_step_s": ov, "overlap_steps_per_s": 1 / ov, "overlap_speedup_vs_after": after / ov,
+            "overlap_step_s_rounds": times["overlap"],
         }
         print(f"{name}: before {before * 1000:.1f} ms/step ({1 / before:.2f} steps/s), after {after * 1000:.1f} "
               f"ms/step ({1 / after:.2f} steps/s): {before / after:.2f}x; planning alone: torch "
-              f"{plan_s['torch'] * 1000:.1f} ms, rust {plan_s['rust'] * 1000:.1f} ms ({threads} torch threads)",
-              flush=True)
+              f"{plan_s['torch'] * 1000:.1f} ms, rust {plan_s['rust'] * 1000:.1f} ms ({threads} torch threads); "
+              f"after with the next batch prepared in a thread (fit's default) {ov * 1000:.1f} ms/step: "
+              f"{after / ov:.2f}x after, {before / ov:.2f}x before", flush=True)
     out = args.out or REPO / "bench" / "results" / "bench_ancsh_step.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=2) + "\n")

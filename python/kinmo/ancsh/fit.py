@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
@@ -28,11 +29,14 @@ from torch.utils.data import default_collate
 from kinmo.ancsh.config import ANCSHConfig
 from kinmo.ancsh.dataset import ANCSHFrames
 from kinmo.ancsh.model import ANCSH, ancsh_loss
+from kinmo.ancsh.plan import GeometryPlan
 from kinmo.train import distributed
 from kinmo.parallel import torch_threads
 from kinmo.train.loop import optimizer_step, rows_csv, training_bar
 
-__all__ = ["METRIC_COLUMNS", "fit", "lr_at", "metrics_csv", "train_step"]
+__all__ = ["METRIC_COLUMNS", "batch_stream", "fit", "lr_at", "metrics_csv", "prepare_batch", "train_step"]
+
+T = TypeVar("T")
 
 #: Columns of ``metrics.csv``: one row per epoch of each stage.
 METRIC_COLUMNS: tuple[str, ...] = (
@@ -67,6 +71,7 @@ def train_step(
     weight: float = 1.0,
     module: torch.nn.Module | None = None,
     reference: bool = False,
+    prepared: tuple[dict[str, torch.Tensor], GeometryPlan | None] | None = None,
 ) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor], dict[str, torch.Tensor]]:
     """One optimisation step of ANCSH on a batch of :class:`~kinmo.ancsh.dataset.ANCSHFrames`
     items.
@@ -95,6 +100,9 @@ def train_step(
         Run the computation before geometry plans instead (:meth:`ANCSH.forward_reference
         <kinmo.ancsh.model.ANCSH.forward_reference>`, no plan; ``module`` is not used): the
         "before" of ``bench/bench_ancsh.py`` and the tests.
+    prepared : (dict, GeometryPlan or None), optional
+        :func:`prepare_batch` of ``items`` made beforehand (on the CPU, e.g. while the
+        previous step ran); default: made here.
 
     Returns
     -------
@@ -105,18 +113,55 @@ def train_step(
     batch : dict of tensors
         The collated batch on ``device``.
     """
-    batch = default_collate(items)
+    batch, plan = prepared if prepared is not None else prepare_batch(model, items, reference)
+    batch = {k: v.to(device) for k, v in batch.items()}
     if reference:
-        batch = {k: v.to(device) for k, v in batch.items()}
         pred = model.forward_reference(batch["xyz"])
     else:
-        with torch.no_grad():
-            plan = model.backbone.plan(batch["xyz"]).to(device)
-        batch = {k: v.to(device) for k, v in batch.items()}
-        pred = (module or model)(batch["xyz"], plan)
+        pred = (module or model)(batch["xyz"], plan.to(device))
     terms = ancsh_loss(pred, batch)
     optimizer_step(optimizer, terms["total"], model, weight, grad_clip)
     return terms, pred, batch
+
+
+def prepare_batch(model: ANCSH, items: list[dict[str, torch.Tensor]],
+                  reference: bool = False) -> tuple[dict[str, torch.Tensor], GeometryPlan | None]:
+    """The CPU side of a training step: ``items`` collated (leading B) and the batch's
+    PointNet++ neighbourhoods planned by the Rust core (``model.backbone.plan``; None with
+    ``reference``). It reads only the points and the backbone's fixed sizes, never the
+    weights, so it can run in another thread while the previous step trains."""
+    batch = default_collate(items)
+    if reference:
+        return batch, None
+    with torch.no_grad():
+        return batch, model.backbone.plan(batch["xyz"])
+
+
+def batch_stream(draw: Callable[[], T], total: int, overlap: bool = True) -> Iterator[T]:
+    """``total`` results of ``draw()``, in call order; with ``overlap`` the next one is made
+    in a background thread while the caller uses the current one.
+
+    ``draw`` runs sequentially either way (one thread, one call at a time, in the same
+    order), so a seeded ``draw`` yields the same sequence: overlapping changes timing, never
+    results. Made for :func:`fit`, whose ``draw`` samples a batch and plans it
+    (:func:`prepare_batch`): the Rust planning and the sampling then overlap the network's
+    step, on the CPU (the Rust core releases the GIL) as in front of a GPU.
+
+    Raises
+    ------
+    Exception
+        Whatever ``draw`` raised, when its result is reached.
+    """
+    if not overlap:
+        for _ in range(total):
+            yield draw()
+        return
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="kinmo-ancsh-batches") as pool:
+        nxt = pool.submit(draw) if total > 0 else None
+        for k in range(total):
+            cur = nxt.result()  # type: ignore[union-attr]
+            nxt = pool.submit(draw) if k + 1 < total else None
+            yield cur
 
 
 def fit(
@@ -129,8 +174,13 @@ def fit(
     stage_index: int = 0,
     on_epoch: Callable[[dict[str, Any]], None] | None = None,
     progress: bool = True,
+    overlap: bool = True,
 ) -> list[dict[str, Any]]:
     """Train ``model`` on ``dataset`` for ``epochs`` epochs (Adam, ``config`` schedule).
+
+    Each step's batch is sampled and planned (:func:`prepare_batch`) one step ahead in a
+    background thread (:func:`batch_stream`), in the same order from the same random stream
+    as without, so ``overlap`` changes the step time, not the result.
 
     Parameters
     ----------
@@ -149,6 +199,8 @@ def fit(
     on_epoch : callable, optional
         Called with each epoch's metrics row.
     progress : bool
+    overlap : bool
+        Prepare the next batch while the current one trains (default); False: in turn.
 
     Returns
     -------
@@ -156,12 +208,12 @@ def fit(
         One row per epoch (:data:`METRIC_COLUMNS`).
     """
     with torch_threads(config.threads):
-        return _fit(model, dataset, config, epochs, device, stage, stage_index, on_epoch, progress)
+        return _fit(model, dataset, config, epochs, device, stage, stage_index, on_epoch, progress, overlap)
 
 
 def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, device: torch.device,
          stage: str, stage_index: int, on_epoch: Callable[[dict[str, Any]], None] | None,
-         progress: bool) -> list[dict[str, Any]]:
+         progress: bool, overlap: bool) -> list[dict[str, Any]]:
     steps = config.steps_per_epoch or max(1, math.ceil(len(dataset) / config.batch_size))
     total = steps * epochs
     opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
@@ -172,6 +224,19 @@ def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, d
     model.to(device)
     ddp = distributed.wrap(model)  # torchrun: DistributedDataParallel (kinmo.train.distributed)
     dist_info = distributed.info()
+
+    def draw() -> tuple[list[dict[str, torch.Tensor]], float, Any]:
+        # the next batch: indices from the seeded order, its items, collated and planned
+        idx: list[int] = []
+        while len(idx) < config.batch_size:
+            if not order:
+                order.extend(int(i) for i in rng.permutation(len(dataset)))
+            idx.append(order.pop())
+        # every rank draws the whole global batch (same random stream), keeps its shard
+        items, weight = distributed.shard([dataset.sample(i, rng) for i in idx])
+        return items, weight, prepare_batch(model, items)
+
+    batches = batch_stream(draw, total, overlap)
     with training_bar(progress, "ancsh") as bar:
         task = bar.task(f"{config.category} {config.setting} [{stage}]", total)
         for epoch in range(epochs):
@@ -181,17 +246,12 @@ def _fit(model: ANCSH, dataset: ANCSHFrames, config: ANCSHConfig, epochs: int, d
             correct = seen = 0
             lr = config.lr
             for _ in range(steps):
-                idx = []
-                while len(idx) < config.batch_size:
-                    if not order:
-                        order = [int(i) for i in rng.permutation(len(dataset))]
-                    idx.append(order.pop())
                 lr = lr_at(config, step, total, epoch)
                 for g in opt.param_groups:
                     g["lr"] = lr
-                # every rank draws the whole global batch (same random stream), keeps its shard
-                items, weight = distributed.shard([dataset.sample(i, rng) for i in idx])
-                terms, pred, batch = train_step(model, opt, items, device, config.grad_clip, weight, ddp)
+                items, weight, prepared = next(batches)
+                terms, pred, batch = train_step(model, opt, items, device, config.grad_clip, weight, ddp,
+                                                prepared=prepared)
                 step += 1
                 share = weight / dist_info.world_size  # this rank's share of the global batch
                 for k in sums:
