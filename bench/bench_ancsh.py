@@ -26,7 +26,8 @@ channels-first 1x1 convolutions, :meth:`kinmo.ancsh.model.ANCSH.forward_referenc
 **after** (the batch's Rust geometry plan, then the channels-last network), interleaved in
 one process: medians, steps per second and the after/before speed-up, plus the planning
 alone (Rust and the PyTorch functions), and **overlap**: "after" as :func:`kinmo.ancsh.fit.fit`
-runs it, the next batch sampled and planned in a background thread while the current one
+runs it by default on a GPU or with fewer torch threads than cores
+(:func:`kinmo.ancsh.fit.overlap_helps`; timed here for every preset), the next batch sampled and planned in a background thread while the current one
 trains (:func:`kinmo.ancsh.fit.batch_stream`; the median over rounds of a round's mean step,
 since overlapped steps cannot be timed one by one). It reads pre-rendered scans, no
 PyBullet and no dataset needed: ``DIR`` holds ``labeled/<key>/<frame>.npz`` (the cache of
@@ -210,7 +211,7 @@ def bench_steps(args: argparse.Namespace) -> None:
         print(f"{name}: before {before * 1000:.1f} ms/step ({1 / before:.2f} steps/s), after {after * 1000:.1f} "
               f"ms/step ({1 / after:.2f} steps/s): {before / after:.2f}x; planning alone: torch "
               f"{plan_s['torch'] * 1000:.1f} ms, rust {plan_s['rust'] * 1000:.1f} ms ({threads} torch threads); "
-              f"after with the next batch prepared in a thread (fit's default) {ov * 1000:.1f} ms/step: "
+              f"after with the next batch prepared in a thread {ov * 1000:.1f} ms/step: "
               f"{after / ov:.2f}x after, {before / ov:.2f}x before", flush=True)
     out = args.out or REPO / "bench" / "results" / "bench_ancsh_step.json"
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,7 @@ import torch
 
 from kinmo.ancsh.config import preset
 from kinmo.ancsh.dataset import ANCSHFrames, load_samples, scan_category
-from kinmo.ancsh.fit import batch_stream, fit
+from kinmo.ancsh.fit import batch_stream, fit, overlap_helps
 from kinmo.ancsh.inference import build_model
 from kinmo.ancsh.scans import render_objects
 from kinmo.synth import generate_dataset
@@ -69,3 +69,11 @@ def test_batch_stream_draws_in_order_one_ahead_in_another_thread():
 
     with pytest.raises(RuntimeError, match="unreadable scan"):
         list(batch_stream(bad, 3))
+
+
+def test_overlap_by_default_unless_a_cpu_step_uses_every_core(monkeypatch):
+    monkeypatch.setattr("os.cpu_count", lambda: 4)
+    cpu, gpu = torch.device("cpu"), torch.device("cuda")
+    assert overlap_helps(cpu, 1) and overlap_helps(cpu, 3)  # train all: 1 torch thread per training
+    assert not overlap_helps(cpu, 0) and not overlap_helps(cpu, 4)  # torch on every core (paper preset)
+    assert overlap_helps(gpu, 0) and overlap_helps(gpu, 4)  # the CPU prepares while the GPU steps

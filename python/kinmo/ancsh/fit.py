@@ -17,6 +17,7 @@ of ``metrics.csv`` (:data:`METRIC_COLUMNS`, :func:`metrics_csv`). The run set-up
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -164,6 +165,20 @@ def batch_stream(draw: Callable[[], T], total: int, overlap: bool = True) -> Ite
             yield cur
 
 
+def overlap_helps(device: torch.device, threads: int) -> bool:
+    """Whether :func:`fit` should prepare batches in a background thread by default.
+
+    True on an accelerator (the CPU prepares while the GPU steps) and on the CPU when torch
+    runs on fewer threads than there are cores (``threads`` >= 1, the ``train all`` default
+    of 1); False when a CPU step already uses every core (``threads`` 0: torch's default,
+    or as many as the cores), where the preparing thread only competes with the step.
+    """
+    if device.type != "cpu":
+        return True
+    cores = os.cpu_count() or 1
+    return 0 < threads < cores
+
+
 def fit(
     model: ANCSH,
     dataset: ANCSHFrames,
@@ -174,13 +189,16 @@ def fit(
     stage_index: int = 0,
     on_epoch: Callable[[dict[str, Any]], None] | None = None,
     progress: bool = True,
-    overlap: bool = True,
+    overlap: bool | None = None,
 ) -> list[dict[str, Any]]:
     """Train ``model`` on ``dataset`` for ``epochs`` epochs (Adam, ``config`` schedule).
 
     Each step's batch is sampled and planned (:func:`prepare_batch`) one step ahead in a
     background thread (:func:`batch_stream`), in the same order from the same random stream
-    as without, so ``overlap`` changes the step time, not the result.
+    as without, so ``overlap`` changes the step time, not the result. By default
+    (:func:`overlap_helps`) it overlaps unless torch already uses every CPU core for a CPU
+    step, where the thread only competes with it (``bench/bench_ancsh.py --scans``, paper
+    preset on 2 cores: 0.95x).
 
     Parameters
     ----------
@@ -199,14 +217,17 @@ def fit(
     on_epoch : callable, optional
         Called with each epoch's metrics row.
     progress : bool
-    overlap : bool
-        Prepare the next batch while the current one trains (default); False: in turn.
+    overlap : bool, optional
+        Prepare the next batch while the current one trains; False: in turn; None (default):
+        :func:`overlap_helps`.
 
     Returns
     -------
     list of dict
         One row per epoch (:data:`METRIC_COLUMNS`).
     """
+    if overlap is None:
+        overlap = overlap_helps(device, config.threads)
     with torch_threads(config.threads):
         return _fit(model, dataset, config, epochs, device, stage, stage_index, on_epoch, progress, overlap)
 
