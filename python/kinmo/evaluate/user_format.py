@@ -58,7 +58,8 @@ from kinmo.predict import predict_dataset
 from kinmo.user_input import asset_frame, stage_partnet
 
 __all__ = ["VARIANTS", "WRITE_UPS", "input_rotation", "TrueJoint", "PredJoint", "UserNodes", "user_nodes", "write_user_glb",
-           "true_joints", "moved_nodes", "match_joints", "acute_angle", "score", "evaluate_user_format",
+           "true_joints", "moved_nodes", "match_joints", "acute_angle", "score", "score_prediction",
+           "write_parts_glb", "evaluate_user_format",
            "results_markdown"]
 
 #: The input variants (module docstring).
@@ -154,10 +155,7 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path,
     KinmoDataError
         A mesh cannot be loaded.
     """
-    import trimesh  # optional heavy dependency, as in kinmo.assets.mesh
-
     h = shape.hierarchy
-    scene = trimesh.Scene()
     groups = []
     for name, leaves in zip(nodes.names, nodes.leaves):
         objs = list(dict.fromkeys(o for leaf in leaves for o in h.nodes[leaf].objs))
@@ -174,7 +172,16 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path,
         c = (lo + hi) / 2.0
         t = np.asarray(transform, dtype=np.float64)
         groups = [(name, (v - c) @ t.T + c, f) for name, v, f in groups]
-    for name, v, f in groups:
+    return write_parts_glb(groups, path)
+
+
+def write_parts_glb(parts: Sequence[tuple[str, np.ndarray, np.ndarray]], path: str | Path) -> Path:
+    """Write ``parts`` (``(name, (V, 3) float64, (F, 3) int64)``, unique names) as a GLB scene
+    with one node per part, no hierarchy, coordinates as given (glTF: y-up); atomically."""
+    import trimesh  # optional heavy dependency, as in kinmo.assets.mesh
+
+    scene = trimesh.Scene()
+    for name, v, f in parts:
         mesh = trimesh.Trimesh(v, f, process=False)
         scene.add_geometry(mesh, node_name=name, geom_name=name)
     path = Path(path)
@@ -426,7 +433,7 @@ def evaluate_user_format(
             predict_dataset(stage, r, pred_dir, **kw)
             for sid, o in sorted(objs.items()):
                 nodes = user_nodes(o.shape, "generic")
-                rows.append(_row(sid, true_joints(o.shape, nodes), pred_dir / sid, o.shape.hierarchy,
+                rows.append(score_prediction(sid, true_joints(o.shape, nodes), pred_dir / sid, o.shape.hierarchy,
                                  nodes.leaves))
         else:
             stage = out / "stage" / variant
@@ -455,7 +462,7 @@ def evaluate_user_format(
                     nd = sh.nodes[nid]
                     if nd.is_leaf and nd.name in index:
                         node_leaves[index[nd.name]].append(nid)
-                rows.append(_row(sid, true_joints(o.shape, nodes), pred_dir / sid, sh, node_leaves,
+                rows.append(score_prediction(sid, true_joints(o.shape, nodes), pred_dir / sid, sh, node_leaves,
                                  _back(frames[sid], rot)))
         results[variant] = score(rows)
         all_rows[variant] = rows
@@ -481,9 +488,13 @@ def _back(frame: AssetFrame, rot: np.ndarray) -> Callable[[list[Link]], list[Lin
     return links_back
 
 
-def _row(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHierarchy,
+def score_prediction(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHierarchy,
          node_leaves: Sequence[Sequence[int]],
          links_back: Callable[[list[Link]], list[Link]] | None = None) -> dict[str, Any]:
+    """One object's row for :func:`score`: its prediction (``pred_folder/mobility_v2.json``,
+    read on ``hierarchy``, mapped by ``links_back``) against ``true``, the input node of each
+    staged leaf given by ``node_leaves``; an unreadable prediction scores as no prediction,
+    with its ``error``."""
     f = pred_folder / "mobility_v2.json"
     try:
         links = read_links(f, hierarchy)

@@ -1,0 +1,267 @@
+"""Evaluation on foreign assets: articulated MuJoCo models with true joints (issue 36).
+
+A foreign asset is an MJCF model (``model.xml``, root ``<mujoco>``) from outside
+PartNet-Mobility, its hinge and slide joints the truth (``bench/foreign_assets.py`` builds a
+set from public robot-learning repositories). Each is given to kinmo two ways, as a user
+would (issue 36, "Done when"):
+
+- ``mjcf``: the model itself, read by :mod:`kinmo.assets.mjcf` (a part per body with
+  geometry; the joints ignored), z-up as MuJoCo declares;
+- ``glb``: the same parts as a GLB scene (:func:`~kinmo.evaluate.user_format.write_parts_glb`),
+  one node per part named ``part_<k>``, turned y-up (glTF's convention).
+
+Both go through what ``kinmo predict FILE`` does (:func:`kinmo.user_input.asset_frame`
+without ``--up``, :func:`kinmo.user_input.stage_partnet`, then
+:func:`kinmo.predict.predict_dataset`), and the predictions are scored as
+:mod:`kinmo.evaluate.user_format` scores user GLBs: a joint **moves** the parts of its body
+and every body below it; a predicted moving link matches a true joint when their moved part
+sets have IoU ``>= 0.5`` (greedy, one to one); **fully right** = matched, right type and
+axis within 10 degrees, over all true joints; **false movers** = predicted moving links
+matched to no true joint, per object (:func:`~kinmo.evaluate.user_format.score`). Joint
+ranges are not scored here (the models' limits are control ranges, often not the physical
+travel). An object kinmo cannot read counts its joints as missed, with its error.
+
+Truth (:func:`mjcf_true_joints`): MuJoCo's world frame at ``qpos0`` (``mj_kinematics``:
+``xaxis`` of each hinge / slide joint), the frame the MJCF reader gives the parts in.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinmo.assets import Part, read_parts
+from kinmo.data.frames import AssetFrame
+from kinmo.data.model import JointType, Link
+from kinmo.data.readers import read_shape
+from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.evaluate.user_format import TrueJoint, score, score_prediction, write_parts_glb
+from kinmo.io import write_json, write_text
+from kinmo.predict import predict_dataset
+from kinmo.user_input import asset_frame, stage_partnet
+
+__all__ = ["FOREIGN_VARIANTS", "ForeignObject", "mjcf_true_joints", "find_foreign", "evaluate_foreign",
+           "foreign_markdown"]
+
+#: The ways each asset is given (module docs).
+FOREIGN_VARIANTS = ("mjcf", "glb")
+
+# z-up -> y-up, (x, y, z) -> (x, z, -y): the GLB variant's turn (kinmo.data.frames' rule)
+_Z_TO_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+@dataclass
+class ForeignObject:
+    """One foreign asset: its id (folder name) and model file."""
+
+    id: str
+    model: Path
+
+
+def find_foreign(folder: str | Path) -> list[ForeignObject]:
+    """The assets of a foreign-asset folder: every ``<id>/model.xml`` below it, sorted by id.
+
+    Raises
+    ------
+    KinmoDataError
+        None found.
+    """
+    folder = Path(folder)
+    found = sorted((p.parent.name, p) for p in folder.glob("*/model.xml") if p.is_file())
+    if not found:
+        raise KinmoDataError(folder, "no foreign assets here (expected <id>/model.xml, as "
+                             "bench/foreign_assets.py writes them)")
+    return [ForeignObject(i, p) for i, p in found]
+
+
+def mjcf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[TrueJoint]:
+    """The hinge and slide joints of an MJCF model, with the parts they move.
+
+    Parameters
+    ----------
+    model : str or Path
+        The MJCF file.
+    parts : sequence of Part, optional
+        Its parts as :func:`kinmo.assets.read_parts` read them (named after their bodies);
+        None when they could not be read: the joints then move no part (each counts as a
+        true joint, never matched).
+
+    Returns
+    -------
+    list of TrueJoint
+        In MuJoCo's joint order: ``link`` the joint id, ``type`` ``"hinge"`` / ``"slider"``,
+        ``direction`` the unit axis ``(3,) float64`` in the world frame at ``qpos0``,
+        ``moved`` the indices into ``parts`` of its body and every body below it. Joints
+        moving no part with geometry are left out when ``parts`` is given.
+
+    Raises
+    ------
+    KinmoDataError
+        MuJoCo cannot load the model.
+    """
+    import mujoco
+
+    try:
+        m = mujoco.MjModel.from_xml_path(str(model))
+    except Exception as e:  # mujoco raises ValueError with a multi-line message
+        raise KinmoDataError(model, f"MuJoCo cannot load the model: {' '.join(str(e).split())}") from None
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    index = {name: k for k, (name, _, _) in enumerate(parts or [])}
+    names = ["world" if b == 0 else (m.body(b).name or f"body_{b}") for b in range(m.nbody)]
+    parent = [int(p) for p in m.body_parentid]
+    types = {int(mujoco.mjtJoint.mjJNT_HINGE): JointType.HINGE.value,
+             int(mujoco.mjtJoint.mjJNT_SLIDE): JointType.SLIDER.value}
+    out = []
+    for j in range(m.njnt):
+        kind = types.get(int(m.jnt_type[j]))
+        if kind is None:
+            continue
+        body = int(m.jnt_bodyid[j])
+        below = [b for b in range(m.nbody) if _descends(b, body, parent)]
+        moved = frozenset(index[names[b]] for b in below if names[b] in index)
+        if parts is not None and not moved:
+            continue
+        axis = np.asarray(d.xaxis[j], dtype=np.float64)
+        out.append(TrueJoint(j, kind, axis / np.linalg.norm(axis), moved))
+    return out
+
+
+def _descends(b: int, ancestor: int, parent: Sequence[int]) -> bool:
+    while True:
+        if b == ancestor:
+            return True
+        if b == 0:
+            return False
+        b = parent[b]
+
+
+def _links_back(frame: AssetFrame, turn: np.ndarray | None) -> Callable[[list[Link]], list[Link]]:
+    """Predicted links (kinmo's frame) -> the model's world frame: through the staged file's
+    frame, then the GLB's turn undone (directions only: the scores compare directions)."""
+    import dataclasses
+
+    def back(links: list[Link]) -> list[Link]:
+        out = frame.links_to_asset(links)
+        if turn is None:
+            return out
+        return [dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, direction=np.asarray(lk.joint.direction) @ turn))
+                if lk.joint.direction is not None else lk for lk in out]
+    return back
+
+
+def evaluate_foreign(
+    folder: str | Path,
+    predictor: Any,
+    out: str | Path,
+    variants: Sequence[str] = FOREIGN_VARIANTS,
+    progress: bool = True,
+) -> dict[str, dict[str, Any]]:
+    """Score a predictor on the foreign assets of ``folder`` (module docs).
+
+    Parameters
+    ----------
+    folder : str or Path
+        A foreign-asset folder (:func:`find_foreign`).
+    predictor : Predictor
+        A loaded :class:`~kinmo.inference.predictor.Predictor` (the bundle, refined as it says).
+    out : str or Path
+        Work and result folder (must not be ``folder``): ``glb/<id>.glb``,
+        ``stage/<variant>/``, ``pred/<variant>/<id>/``, ``foreign.json`` (scores and
+        per-object rows), ``foreign.md``.
+    variants : sequence of str
+        Of :data:`FOREIGN_VARIANTS`.
+    progress : bool
+
+    Returns
+    -------
+    dict of str to dict
+        Per variant: :func:`~kinmo.evaluate.user_format.score`'s fields.
+
+    Raises
+    ------
+    ValueError
+        An unknown variant, or ``out`` is ``folder``.
+    KinmoDataError
+        No asset in ``folder``.
+    """
+    for v in variants:
+        if v not in FOREIGN_VARIANTS:
+            raise ValueError(f"variant must be one of {', '.join(FOREIGN_VARIANTS)}, got {v!r}")
+    folder, out = Path(folder), Path(out)
+    if out.resolve() == folder.resolve():
+        raise ValueError(f"the output folder {out} is the asset folder: give another one")
+    objects = find_foreign(folder)
+    parts: dict[str, list[Part] | None] = {}
+    errors: dict[str, str] = {}
+    truth: dict[str, list[TrueJoint]] = {}
+    for o in objects:
+        try:
+            parts[o.id] = read_parts(o.model)
+        except KinmoError as e:
+            parts[o.id], errors[o.id] = None, " ".join(str(e).split())
+        truth[o.id] = mjcf_true_joints(o.model, parts[o.id])
+    results: dict[str, dict[str, Any]] = {}
+    all_rows: dict[str, list[dict[str, Any]]] = {}
+    for variant in variants:
+        stage, pred = out / "stage" / variant, out / "pred" / variant
+        for d in (stage, pred):
+            if d.exists():
+                shutil.rmtree(d)
+        stage.mkdir(parents=True)
+        backs: dict[str, Callable[[list[Link]], list[Link]]] = {}
+        node_leaves: dict[str, list[list[int]]] = {}
+        for o in objects:
+            ps = parts[o.id]
+            if ps is None:
+                continue
+            if variant == "mjcf":
+                src, read, turn = o.model, ps, None
+            else:
+                src = write_parts_glb([(f"part_{k}", v @ _Z_TO_Y.T, f) for k, (_, v, f) in enumerate(ps)],
+                                      out / "glb" / f"{o.id}.glb")
+                read, turn = read_parts(src), _Z_TO_Y
+            frame = asset_frame(src, read)
+            stage_partnet(src, stage / o.id, category="unknown", parts=read, frame=frame)
+            backs[o.id] = _links_back(frame, turn)
+            # staged leaf k + 1 is the k-th part read; a GLB's parts are named part_<input index>
+            leaves: list[list[int]] = [[] for _ in ps]
+            for k, (name, _, _) in enumerate(read):
+                leaves[k if variant == "mjcf" else int(name.rsplit("_", 1)[1])].append(k + 1)
+            node_leaves[o.id] = leaves
+        if backs:
+            predict_dataset(stage, predictor, pred, progress=progress, formats=["mobility_v2"])
+        rows = []
+        for o in objects:
+            if o.id not in backs:
+                row = {"id": o.id, "n_true": len(truth[o.id]), "n_pred": 0, "angles": [], "type_ok": [],
+                       "ranges": [], "error": errors[o.id]}
+            else:
+                hierarchy = read_shape(stage / o.id).hierarchy
+                row = score_prediction(o.id, truth[o.id], pred / o.id, hierarchy, node_leaves[o.id],
+                                       backs[o.id])
+            row["true_types"] = [t.type for t in truth[o.id]]
+            rows.append(row)
+        results[variant] = score(rows)
+        all_rows[variant] = rows
+    write_json(out / "foreign.json", {"assets": str(folder), "scores": results, "rows": all_rows})
+    write_text(out / "foreign.md", foreign_markdown(results))
+    return results
+
+
+def foreign_markdown(results: dict[str, dict[str, Any]]) -> str:
+    """A Markdown table of :func:`evaluate_foreign`'s scores, one row per variant."""
+    head = ("| input | objects | true joints | found | right type (of found) | axis, mean | "
+            "fully right | false movers / object | unreadable |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n")
+    rows = []
+    for v, s in results.items():
+        rows.append(f"| {v} | {s['objects']} | {s['true_joints']} | {s['recall']:.2f} | {s['type_accuracy']:.2f} | "
+                    f"{s['mean_angle']:.1f}° | **{s['fully_right']:.2f}** | {s['false_movers_per_object']:.2f} | "
+                    f"{s['failed']} |")
+    return head + "\n".join(rows) + "\n"
+
