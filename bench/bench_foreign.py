@@ -5,7 +5,7 @@ robot-learning repositories, given as MJCF and as a GLB with generic names
 Build the assets first (``python bench/foreign_assets.py --out foreign/``; sources, commits
 and licences in ``bench/foreign/sources.json``), then::
 
-    python bench/bench_foreign.py --assets foreign/ [--model runs/all/model] [--out OUT]
+    python bench/bench_foreign.py --assets foreign/ --out OUT [--model runs/all/model]
 
 ``--model`` is a bundle folder (``kinmo train all`` writes ``OUT/model``)
 pretrained model's name; default: kinmo's default pretrained model. Writes
@@ -18,14 +18,12 @@ import argparse
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
-
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--assets", type=Path, required=True)
     ap.add_argument("--model", default=None)
-    ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "foreign")
+    ap.add_argument("--out", type=Path, required=True, help="Work folder (staged objects, predictions).")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--variants", default="mjcf,glb")
     args = ap.parse_args(argv)
