@@ -1,5 +1,5 @@
 """Foreign assets (issue 36): kinmo's bundle on articulated MuJoCo models from public
-robot-learning repositories, given as MJCF and as a GLB with generic names
+robot-learning repositories, given as the MJCF or URDF file and as a GLB with generic names
 (:mod:`kinmo.evaluate.foreign`).
 
 Build the assets first (``python bench/foreign_assets.py --out foreign/``; sources, commits
@@ -25,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--model", default=None)
     ap.add_argument("--out", type=Path, required=True, help="Work folder (staged objects, predictions).")
     ap.add_argument("--device", default="cpu")
-    ap.add_argument("--variants", default="mjcf,glb")
+    ap.add_argument("--variants", default="file,glb")
     args = ap.parse_args(argv)
 
     from kinmo.evaluate.foreign import evaluate_foreign, foreign_markdown

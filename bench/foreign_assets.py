@@ -127,6 +127,81 @@ def furniture_sim_objects(root: Path, exclude: set[str], together: set[str]) -> 
     return out
 
 
+def urdf_objects(repo_dir: Path, src: dict, out: Path) -> list[dict]:
+    """Objects cut from one URDF scene (``kind`` ``urdf_split``): every child link of a link
+    in ``split`` with a moving joint below it becomes ``OUT/<source>-<link>/model.urdf``: the
+    subtree with its joints (types kept: the truth), under a root ``base`` fixed at the
+    subtree's pose in the scene (so up stays up), the meshes it names copied beside it under
+    a ``package.xml`` of the same package name (``package://`` then resolves inside the
+    folder). Visual meshes kinmo cannot read without extra packages (``.dae``: pycollada)
+    are dropped where the link has a collision element (the same parts, simplified)."""
+    import xml.etree.ElementTree as ET
+
+    from scipy.spatial.transform import Rotation
+
+    from kinmo.assets.urdf import link_poses
+
+    urdf = repo_dir / src["urdf"]
+    package_dir = repo_dir / src["package_dir"]
+    robot = ET.parse(urdf).getroot()
+    links = {lk.get("name"): lk for lk in robot.findall("link")}
+    children: dict[str, list[ET.Element]] = {}
+    for j in robot.findall("joint"):
+        children.setdefault(j.find("parent").get("link"), []).append(j)
+    poses = link_poses(robot, urdf)
+    moving = {"revolute", "continuous", "prismatic"}
+
+    def below(link: str) -> list[ET.Element]:
+        return [j for j in children.get(link, []) for j in (j, *below(j.find("child").get("link")))]
+
+    rows = []
+    for top in src["split"]:
+        for j0 in children.get(top, []):
+            root = j0.find("child").get("link")
+            joints = below(root)
+            if not any(j.get("type") in moving for j in joints):
+                continue
+            oid = f"{src['name']}-{root}"
+            folder = out / oid
+            if folder.exists():
+                shutil.rmtree(folder)
+            folder.mkdir(parents=True)
+            shutil.copyfile(package_dir / "package.xml", folder / "package.xml")
+            T = poses[root]
+            xyz = " ".join(f"{x:.9g}" for x in T[:3, 3])
+            rpy = " ".join(f"{x:.9g}" for x in Rotation.from_matrix(T[:3, :3]).as_euler("xyz"))
+            new = ET.Element("robot", name=root)
+            ET.SubElement(new, "link", name="base")
+            fixed = ET.SubElement(new, "joint", name="base_fixed", type="fixed")
+            ET.SubElement(fixed, "parent", link="base")
+            ET.SubElement(fixed, "child", link=root)
+            ET.SubElement(fixed, "origin", xyz=xyz, rpy=rpy)
+            names = [root] + [j.find("child").get("link") for j in joints]
+            for name in names:
+                lk = ET.fromstring(ET.tostring(links[name]))
+                if lk.find("collision") is not None:
+                    for v in lk.findall("visual"):
+                        m = v.find("geometry/mesh")
+                        if m is not None and m.get("filename", "").lower().endswith(".dae"):
+                            lk.remove(v)
+                for m in lk.iter("mesh"):
+                    fn = m.get("filename", "")
+                    prefix = f"package://{src['package']}/"
+                    if not fn.startswith(prefix):
+                        raise SystemExit(f"{urdf}: link {name}: mesh {fn} is not in package {src['package']}")
+                    rel = fn[len(prefix):]
+                    (folder / rel).parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copyfile(package_dir / rel, folder / rel)
+                new.append(lk)
+            for j in joints:
+                new.append(ET.fromstring(ET.tostring(j)))
+            ET.indent(new)
+            (folder / "model.urdf").write_text(ET.tostring(new, encoding="unicode") + "\n")
+            found = [{"name": j.get("name"), "type": j.get("type")} for j in joints if j.get("type") in moving]
+            rows.append({"id": oid, "files": [src["urdf"]], "joints": found})
+    return rows
+
+
 def _grey_png(size: int = 8) -> bytes:
     """A ``size`` x ``size`` grey RGB PNG."""
     def chunk(kind: bytes, data: bytes) -> bytes:
@@ -195,6 +270,12 @@ def main(argv: list[str] | None = None) -> int:
         shutil.copyfile(lic / src["license_file"], args.out / "LICENSES" / src["name"])
         if missing:
             print(f"{src['repo']}: {len(missing)} files missing from the clone (textures are replaced by grey)")
+        if src["kind"] == "urdf_split":
+            for row in urdf_objects(repo_dir, src, args.out):
+                rows.append({"id": row["id"], "source": src["name"], "repo": src["repo"], "commit": src["commit"],
+                             "license": src["license"], "files": row["files"], "joints": row["joints"]})
+                print(f"{row['id']}: {len(row['joints'])} joints ({', '.join(j['type'] for j in row['joints'])})")
+            continue
         if src["kind"] == "metaworld":
             root = repo_dir / src["root"]
             objects = metaworld_objects(root, set(src["exclude"]))

@@ -71,3 +71,53 @@ def test_a_repository_at_its_commit_becomes_one_folder_per_jointed_object(tmp_pa
     parts = {n: v for n, v, _ in read_parts(folder / "model.xml")}
     assert set(parts) == {"carcass", "door"}
     assert np.ptp(parts["door"], axis=0)[0] < 0.05  # the door mesh turned as the model says (radians, as furniture_sim compiles)
+
+
+def test_a_urdf_scene_is_cut_into_one_package_per_jointed_subtree(tmp_path, monkeypatch):
+    import trimesh
+
+    mod = _script()
+    root = tmp_path / "src" / "maps"
+    pkg = root / "apt"
+    (pkg / "meshes").mkdir(parents=True)
+    (pkg / "urdf").mkdir()
+    (pkg / "package.xml").write_text("<package><name>apt</name><license>MIT</license></package>")
+    trimesh.creation.box((0.4, 0.4, 0.02)).export(pkg / "meshes" / "door.obj")
+    (pkg / "urdf" / "scene.urdf").write_text("""<robot name="scene">
+  <link name="root"/><link name="side"/>
+  <link name="cab"><visual><geometry><box size="0.4 0.4 0.4"/></geometry></visual></link>
+  <link name="door"><visual><geometry><mesh filename="package://apt/meshes/door.dae"/></geometry></visual>
+    <collision><geometry><mesh filename="package://apt/meshes/door.obj"/></geometry></collision></link>
+  <link name="shelf"><visual><geometry><box size="0.4 0.4 0.02"/></geometry></visual></link>
+  <joint name="j_side" type="fixed"><parent link="root"/><child link="side"/><origin xyz="5 0 0" rpy="0 0 1.5707963267948966"/></joint>
+  <joint name="j_cab" type="fixed"><parent link="side"/><child link="cab"/><origin xyz="1 0 0"/></joint>
+  <joint name="hinge" type="revolute"><parent link="cab"/><child link="door"/><origin xyz="0.2 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="0" upper="1.5" effort="1" velocity="1"/></joint>
+  <joint name="j_shelf" type="fixed"><parent link="side"/><child link="shelf"/></joint>
+</robot>
+""")
+    (root / "LICENSE").write_text("MIT\n")
+    git = ["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run(["git", "init", "-q", str(root)], check=True)
+    subprocess.run([*git, "add", "-A"], check=True)
+    subprocess.run([*git, "commit", "-qm", "fake"], check=True)
+    commit = subprocess.run([*git, "rev-parse", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
+    manifest = tmp_path / "sources.json"
+    manifest.write_text(json.dumps({"sources": [{
+        "name": "apt", "repo": "owner/maps", "commit": commit, "license": "MIT", "license_file": "LICENSE",
+        "kind": "urdf_split", "root": "apt", "urdf": "apt/urdf/scene.urdf", "package": "apt",
+        "package_dir": "apt", "split": ["side"]}]}))
+    monkeypatch.setattr(mod, "SOURCES", manifest)
+    out = tmp_path / "out"
+    assert mod.main(["--out", str(out), "--cache", str(tmp_path / "cache"),
+                     "--git-base", str(tmp_path / "src" / "{name}")]) == 0
+    rows = json.loads((out / "sources.json").read_text())["objects"]
+    assert [r["id"] for r in rows] == ["apt-cab"]  # the shelf has no joint below it
+    assert rows[0]["joints"] == [{"name": "hinge", "type": "revolute"}]
+    folder = out / "apt-cab"
+    assert (folder / "package.xml").is_file() and (folder / "meshes" / "door.obj").is_file()
+    # the .dae visual is dropped for the collision mesh; package:// resolves inside the folder
+    assert ".dae" not in (folder / "model.urdf").read_text()
+    parts = {n: v for n, v, _ in read_parts(folder / "model.urdf")}
+    assert set(parts) == {"cab", "door"}
+    assert np.allclose(parts["cab"].mean(0)[:2], [5, 1], atol=1e-6)  # the scene pose kept (up stays up)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kinmo.assets import read_parts
-from kinmo.evaluate.foreign import FOREIGN_VARIANTS, evaluate_foreign, find_foreign, mjcf_true_joints
+from kinmo.evaluate.foreign import FOREIGN_VARIANTS, evaluate_foreign, find_foreign, mjcf_true_joints, urdf_true_joints
 
 # A cabinet (z-up): a door on a vertical hinge with a knob turning about the door's normal,
 # a drawer in a body turned 90 degrees about z (its local x slide is world y), and a jointed
@@ -34,6 +34,26 @@ CABINET = """<mujoco model="cabinet">
     </body>
   </worldbody>
 </mujoco>
+"""
+
+# A cabinet URDF (z-up) turned a quarter turn about z in its base joint: a door on a
+# revolute joint (axis z) carrying a fixed handle, and a drawer on a prismatic joint along
+# its local x, which the quarter turn makes world y.
+CABINET_URDF = """<robot name="cabinet">
+  <link name="base"/>
+  <link name="carcass"><visual><geometry><box size="0.6 0.4 1.0"/></geometry></visual></link>
+  <link name="door"><visual><origin xyz="0 0.2 0"/><geometry><box size="0.02 0.4 0.6"/></geometry></visual></link>
+  <link name="handle"><visual><geometry><cylinder radius="0.01" length="0.1"/></geometry></visual></link>
+  <link name="drawer"><visual><geometry><box size="0.3 0.36 0.2"/></geometry></visual></link>
+  <joint name="turn" type="fixed"><parent link="base"/><child link="carcass"/>
+    <origin xyz="0 0 0.5" rpy="0 0 1.5707963267948966"/></joint>
+  <joint name="door_hinge" type="revolute"><parent link="carcass"/><child link="door"/>
+    <origin xyz="0.31 -0.2 0.15"/><axis xyz="0 0 1"/><limit lower="0" upper="1.57" effort="1" velocity="1"/></joint>
+  <joint name="handle_fixed" type="fixed"><parent link="door"/><child link="handle"/>
+    <origin xyz="0.03 0.35 0"/></joint>
+  <joint name="drawer_slide" type="prismatic"><parent link="carcass"/><child link="drawer"/>
+    <origin xyz="0.1 0 -0.35"/><axis xyz="1 0 0"/><limit lower="0" upper="0.3" effort="1" velocity="1"/></joint>
+</robot>
 """
 
 LUMP = """<mujoco model="lump"><worldbody><body name="lump">
@@ -66,6 +86,19 @@ def test_true_joints_move_their_body_and_the_bodies_below_in_the_world_frame(ass
     assert [j.moved for j in mjcf_true_joints(model, None)] == [frozenset()] * 4
 
 
+def test_urdf_true_joints_turn_their_axes_by_the_child_pose_and_move_fixed_children(tmp_path):
+    (tmp_path / "cab").mkdir()
+    model = tmp_path / "cab" / "model.urdf"
+    model.write_text(CABINET_URDF)
+    assert [o.model for o in find_foreign(tmp_path)] == [model]
+    parts = read_parts(model)
+    index = {n: k for k, (n, _, _) in enumerate(parts)}
+    door, drawer = urdf_true_joints(model, parts)
+    assert (door.type, drawer.type) == ("hinge", "slider")
+    assert door.moved == {index["door"], index["handle"]} and drawer.moved == {index["drawer"]}
+    assert np.allclose(door.direction, [0, 0, 1]) and np.allclose(drawer.direction, [0, 1, 0])
+
+
 def test_both_variants_are_scored_and_an_unreadable_asset_counts_as_missed(assets, tmp_path):
     from conftest import write_untrained_models
 
@@ -83,7 +116,7 @@ def test_both_variants_are_scored_and_an_unreadable_asset_counts_as_missed(asset
         assert 0.0 <= s["fully_right"] <= s["recall"] <= 0.75
     rows = json.loads((out / "foreign.json").read_text())["rows"]
     assert "unsegmented" in rows["glb"][1]["error"] and rows["glb"][0]["error"] == ""
-    assert "| mjcf | 2 | 4 |" in (out / "foreign.md").read_text()
+    assert "| file | 2 | 4 |" in (out / "foreign.md").read_text()
     # the GLB holds the model's parts turned y-up, one generic node each
     glb = {n: v for n, v, _ in read_parts(out / "glb" / "cabinet.glb")}
     mj = read_parts(assets / "cabinet" / "model.xml")

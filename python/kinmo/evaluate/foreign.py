@@ -1,12 +1,14 @@
 """Evaluation on foreign assets: articulated MuJoCo models with true joints (issue 36).
 
-A foreign asset is an MJCF model (``model.xml``, root ``<mujoco>``) from outside
-PartNet-Mobility, its hinge and slide joints the truth (``bench/foreign_assets.py`` builds a
-set from public robot-learning repositories). Each is given to kinmo two ways, as a user
-would (issue 36, "Done when"):
+A foreign asset is an MJCF model (``model.xml``, root ``<mujoco>``) or a URDF
+(``model.urdf``) from outside PartNet-Mobility, its hinge and slide joints (URDF: revolute,
+continuous, prismatic) the truth (``bench/foreign_assets.py`` builds a set from public
+robot-learning repositories). Each is given to kinmo two ways, as a user would (issue 36,
+"Done when"):
 
-- ``mjcf``: the model itself, read by :mod:`kinmo.assets.mjcf` (a part per body with
-  geometry; the joints ignored), z-up as MuJoCo declares;
+- ``file``: the file itself, read by :mod:`kinmo.assets.mjcf` (a part per body with
+  geometry) or :mod:`kinmo.assets.urdf` (a part per link with geometry), the joints ignored
+  (so a URDF counts as one with every joint made fixed), z-up as both formats declare;
 - ``glb``: the same parts as a GLB scene (:func:`~kinmo.evaluate.user_format.write_parts_glb`),
   one node per part named ``part_<k>``, turned y-up (glTF's convention).
 
@@ -21,8 +23,10 @@ matched to no true joint, per object (:func:`~kinmo.evaluate.user_format.score`)
 ranges are not scored here (the models' limits are control ranges, often not the physical
 travel). An object kinmo cannot read counts its joints as missed, with its error.
 
-Truth (:func:`mjcf_true_joints`): MuJoCo's world frame at ``qpos0`` (``mj_kinematics``:
-``xaxis`` of each hinge / slide joint), the frame the MJCF reader gives the parts in.
+Truth: MJCF (:func:`mjcf_true_joints`) in MuJoCo's world frame at ``qpos0``
+(``mj_kinematics``: ``xaxis`` of each hinge / slide joint); URDF (:func:`urdf_true_joints`)
+at the rest pose (:func:`kinmo.assets.urdf.link_poses`), each axis turned by its child
+link's pose. Both are the frames the readers give the parts in.
 """
 
 from __future__ import annotations
@@ -45,13 +49,14 @@ from kinmo.io import write_json, write_text
 from kinmo.predict import predict_dataset
 from kinmo.user_input import asset_frame, stage_partnet
 
-__all__ = ["FOREIGN_VARIANTS", "ForeignObject", "mjcf_true_joints", "find_foreign", "evaluate_foreign",
-           "foreign_markdown"]
+__all__ = ["FOREIGN_VARIANTS", "ForeignObject", "mjcf_true_joints", "urdf_true_joints", "true_joints_of",
+           "find_foreign", "evaluate_foreign", "foreign_markdown"]
 
 #: The ways each asset is given (module docs).
-FOREIGN_VARIANTS = ("mjcf", "glb")
+FOREIGN_VARIANTS = ("file", "glb")
 
-# z-up -> y-up, (x, y, z) -> (x, z, -y): the GLB variant's turn (kinmo.data.frames' rule)
+# z-up -> y-up, (x, y, z) -> (x, z, -y): the GLB variant's turn (kinmo.data.frames' rule;
+# both MJCF and URDF are z-up)
 _Z_TO_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
@@ -64,7 +69,8 @@ class ForeignObject:
 
 
 def find_foreign(folder: str | Path) -> list[ForeignObject]:
-    """The assets of a foreign-asset folder: every ``<id>/model.xml`` below it, sorted by id.
+    """The assets of a foreign-asset folder: every ``<id>/model.xml`` or ``<id>/model.urdf``
+    below it, sorted by id.
 
     Raises
     ------
@@ -72,9 +78,10 @@ def find_foreign(folder: str | Path) -> list[ForeignObject]:
         None found.
     """
     folder = Path(folder)
-    found = sorted((p.parent.name, p) for p in folder.glob("*/model.xml") if p.is_file())
+    found = sorted((p.parent.name, p) for pattern in ("*/model.xml", "*/model.urdf")
+                   for p in folder.glob(pattern) if p.is_file())
     if not found:
-        raise KinmoDataError(folder, "no foreign assets here (expected <id>/model.xml, as "
+        raise KinmoDataError(folder, "no foreign assets here (expected <id>/model.xml or model.urdf, as "
                              "bench/foreign_assets.py writes them)")
     return [ForeignObject(i, p) for i, p in found]
 
@@ -130,6 +137,64 @@ def mjcf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[Tr
         axis = np.asarray(d.xaxis[j], dtype=np.float64)
         out.append(TrueJoint(j, kind, axis / np.linalg.norm(axis), moved))
     return out
+
+
+def urdf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[TrueJoint]:
+    """The revolute, continuous and prismatic joints of a URDF, with the parts they move.
+
+    As :func:`mjcf_true_joints`: ``link`` the joint's index in the file, ``type`` ``"hinge"``
+    (revolute, continuous) / ``"slider"``, ``direction`` the unit ``<axis>`` (default
+    ``1 0 0``, in the joint frame, which is the child link's) turned into the URDF's world frame
+    at the rest pose, ``moved`` the indices into ``parts`` (named after their links) of the
+    child link and every link below it.
+
+    Raises
+    ------
+    KinmoDataError
+        The file is not a readable URDF (:func:`kinmo.assets.read_xml`), or a bad ``<origin>``
+        / ``<axis>``.
+    """
+    from kinmo.assets import read_xml
+    from kinmo.assets.urdf import link_poses, numbers
+
+    model = Path(model)
+    robot = read_xml(model, "robot", "URDF")
+    poses = link_poses(robot, model)
+    index = {name: k for k, (name, _, _) in enumerate(parts or [])}
+    children: dict[str, list[str]] = {}
+    joints = robot.findall("joint")
+    for j in joints:
+        p, c = j.find("parent"), j.find("child")
+        if p is not None and c is not None:
+            children.setdefault(p.get("link", ""), []).append(c.get("link", ""))
+    kinds = {"revolute": JointType.HINGE.value, "continuous": JointType.HINGE.value,
+             "prismatic": JointType.SLIDER.value}
+    out = []
+    for k, j in enumerate(joints):
+        kind, c = kinds.get(j.get("type", "")), j.find("child")
+        if kind is None or c is None:
+            continue
+        child = c.get("link", "")
+        below, todo = [], [child]
+        while todo:
+            below.append(todo.pop())
+            todo.extend(children.get(below[-1], []))
+        moved = frozenset(index[n] for n in below if n in index)
+        if parts is not None and not moved:
+            continue
+        ax = j.find("axis")
+        axis = np.array([1.0, 0.0, 0.0]) if ax is None else numbers(ax, "xyz", 3, "1 0 0", model,
+                                                                     f"joint {j.get('name', '')!r}")
+        world = poses.get(child, np.eye(4))[:3, :3] @ axis
+        out.append(TrueJoint(k, kind, world / np.linalg.norm(world), moved))
+    return out
+
+
+def true_joints_of(model: str | Path, parts: Sequence[Part] | None) -> list[TrueJoint]:
+    """:func:`urdf_true_joints` for a ``.urdf`` file, else :func:`mjcf_true_joints`."""
+    if Path(model).suffix.lower() == ".urdf":
+        return urdf_true_joints(model, parts)
+    return mjcf_true_joints(model, parts)
 
 
 def _descends(b: int, ancestor: int, parent: Sequence[int]) -> bool:
@@ -205,7 +270,7 @@ def evaluate_foreign(
             parts[o.id] = read_parts(o.model)
         except KinmoError as e:
             parts[o.id], errors[o.id] = None, " ".join(str(e).split())
-        truth[o.id] = mjcf_true_joints(o.model, parts[o.id])
+        truth[o.id] = true_joints_of(o.model, parts[o.id])
     results: dict[str, dict[str, Any]] = {}
     all_rows: dict[str, list[dict[str, Any]]] = {}
     for variant in variants:
@@ -220,7 +285,7 @@ def evaluate_foreign(
             ps = parts[o.id]
             if ps is None:
                 continue
-            if variant == "mjcf":
+            if variant == "file":
                 src, read, turn = o.model, ps, None
             else:
                 src = write_parts_glb([(f"part_{k}", v @ _Z_TO_Y.T, f) for k, (_, v, f) in enumerate(ps)],
@@ -232,7 +297,7 @@ def evaluate_foreign(
             # staged leaf k + 1 is the k-th part read; a GLB's parts are named part_<input index>
             leaves: list[list[int]] = [[] for _ in ps]
             for k, (name, _, _) in enumerate(read):
-                leaves[k if variant == "mjcf" else int(name.rsplit("_", 1)[1])].append(k + 1)
+                leaves[k if variant == "file" else int(name.rsplit("_", 1)[1])].append(k + 1)
             node_leaves[o.id] = leaves
         if backs:
             predict_dataset(stage, predictor, pred, progress=progress, formats=["mobility_v2"])
@@ -255,7 +320,8 @@ def evaluate_foreign(
 
 
 def foreign_markdown(results: dict[str, dict[str, Any]]) -> str:
-    """A Markdown table of :func:`evaluate_foreign`'s scores, one row per variant."""
+    """A Markdown table of :func:`evaluate_foreign`'s scores, one row per variant (``file``:
+    the MJCF or URDF as given)."""
     head = ("| input | objects | true joints | found | right type (of found) | axis, mean | "
             "fully right | false movers / object | unreadable |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n")
     rows = []
