@@ -1,4 +1,4 @@
-"""Mobility tree from per-edge predictions: pruning, Fixed merge, conflicts, cycles, joints."""
+"""Mobility tree from per-edge predictions: pruning, Fixed merge, small parts in contact, conflicts, cycles, joints."""
 
 from __future__ import annotations
 
@@ -219,3 +219,35 @@ def test_consistent_fine_types_follow_the_predicted_axes():
     # coarse predictions pass through
     cp = EdgePrediction(coarse_probs(probs), d, o)
     assert consistent_fine(g, cp) is cp
+
+
+def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
+    """Rule 3, small parts in contact (issue 36): a handle predicted to slide beside its drawer,
+    on the drawer's axis, is one rigid part with it; parts of similar size, on other axes or
+    not touching stay apart."""
+    import dataclasses
+
+    g = cabinet_graph()
+    spec = {(2, 1): ("P", 0.9, [0, 0, -1]), (3, 1): ("P", 0.95, [0, 0, 1])}  # door 2 touches drawer 3
+    small = dataclasses.replace(g, obb_half_extents=np.where(np.arange(len(g.parent))[:, None] == 2,
+                                                             g.obb_half_extents * 0.2, g.obb_half_extents))
+    tree = build_mobility_tree(small, _pred(small, spec))
+    assert [sorted(lk.parts) for lk in tree.moving_links] == [[2, 3]]
+    assert tree.moving_links[0].joint.type is JointType.SLIDER
+    # similar sizes (two drawers side by side): two links
+    assert len(build_mobility_tree(g, _pred(g, spec)).moving_links) == 2
+    # other axes, or no contact: two links
+    bent = {(2, 1): ("P", 0.9, [1, 0, 0]), (3, 1): ("P", 0.95, [0, 0, 1])}
+    assert len(build_mobility_tree(small, _pred(small, bent)).moving_links) == 2
+    apart = dataclasses.replace(small, sibling_contact=np.zeros_like(small.sibling_contact))
+    assert len(build_mobility_tree(apart, _pred(apart, spec)).moving_links) == 2
+    # another type (a button pressed in beside a door): two links
+    other = {(2, 1): ("R", 0.9, [0, 0, 1]), (3, 1): ("P", 0.95, [0, 0, 1])}
+    assert len(build_mobility_tree(small, _pred(small, other)).moving_links) == 2
+    # turning: on the same line (a handle about its door's hinge) one link; a knob on its own
+    # parallel axis (each axis through its part's centre) stays apart
+    line = [0.0, 0.5, 0.3]
+    hinge = {(2, 1): ("R", 0.9, [0, 1, 0], line), (3, 1): ("R", 0.95, [0, 1, 0], line)}
+    assert [sorted(lk.parts) for lk in build_mobility_tree(small, _pred(small, hinge)).moving_links] == [[2, 3]]
+    own = {(2, 1): ("R", 0.9, [0, 1, 0]), (3, 1): ("R", 0.95, [0, 1, 0])}
+    assert len(build_mobility_tree(small, _pred(small, own)).moving_links) == 2

@@ -17,6 +17,12 @@ by the following deterministic rules.
    ``Fixed`` (either direction) are one rigid part (a door and its handle, both moving
    relative to the cabinet): they form one *motion group* whose joint is that of its largest
    member (OBB volume, then number of leaves, then pre-order index).
+   **Small parts in contact** are merged the same way: two moving nodes with the same
+   reference that touch (``sibling_contact``), have the same predicted type and parallel
+   axes (within :data:`MERGE_AXIS_DEG`; hinges: the same line, within
+   :data:`MERGE_LINE_FRACTION`), one at most :data:`MERGE_VOLUME_RATIO` of the other's OBB
+   volume, are one rigid part (a handle predicted to slide beside its drawer, on
+   the drawer's axis; issue 36). Two drawers or doors of similar size never merge.
 4. **Attachment.** A non-moving sibling of a moving node joins that node's group when its
    most probable ``Fixed`` edge (among the edges predicted ``Fixed``) goes to a member of the
    group: it is fixed to a moving part, so it moves with it.
@@ -80,6 +86,15 @@ __all__ = [
 ]
 
 _P, _R, _PR, _FIXED, _NONE = (COARSE_INDEX[n] for n in ("P", "R", "PR", "Fixed", "None"))
+
+#: Rule 3, small parts in contact: the largest angle between the two axes (degrees) ...
+MERGE_AXIS_DEG = 10.0
+#: ... the largest OBB volume of the smaller part relative to the larger one ...
+MERGE_VOLUME_RATIO = 0.05
+#: ... and, for turning types, the largest distance between the two axis lines, relative to
+#: the larger part's OBB diagonal.
+MERGE_LINE_FRACTION = 0.1
+
 _MOVING = (_P, _R, _PR)
 
 
@@ -258,6 +273,32 @@ def _compact_parts(graph: PartGraph, leaf_owner: dict[int, int], link: int) -> t
     return tuple(out)
 
 
+def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.ndarray,
+                      direction: np.ndarray, origin: np.ndarray, volume: np.ndarray, half: np.ndarray,
+                      contact: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
+    """Rule 3's second case for moving nodes ``a``, ``b`` of the same reference: in contact,
+    same type, parallel axes (for a turning type, the same line), one small beside the other."""
+    if not any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((a, b), (b, a))):
+        return False
+    ea, eb = ref[a][1], ref[b][1]
+    if lab[ea] != lab[eb]:
+        return False
+    da, db = np.asarray(direction[ea], dtype=np.float64), np.asarray(direction[eb], dtype=np.float64)
+    na, nb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
+    if na == 0.0 or nb == 0.0 or abs(float(da @ db)) / (na * nb) < np.cos(np.radians(MERGE_AXIS_DEG)):
+        return False
+    lo, hi = sorted((float(volume[a]), float(volume[b])))
+    if not (hi > 0.0 and lo <= MERGE_VOLUME_RATIO * hi):
+        return False
+    if lab[ea] == _P:
+        return True
+    # turning: the same line (a handle turning about its door's hinge), not a knob on its own
+    # parallel axis; within MERGE_LINE_FRACTION of the larger part's OBB diagonal
+    gap = np.cross(np.asarray(origin[eb], dtype=np.float64) - np.asarray(origin[ea], dtype=np.float64), da / na)
+    big = a if volume[a] >= volume[b] else b
+    return float(np.linalg.norm(gap)) <= MERGE_LINE_FRACTION * 2.0 * float(np.linalg.norm(half[big]))
+
+
 def build_mobility_tree(
     graph: PartGraph, pred: EdgePrediction, options: TreeOptions = TreeOptions()
 ) -> MobilityTree:
@@ -297,6 +338,7 @@ def build_mobility_tree(
     volume = np.prod(2.0 * half, axis=1)
     n_leaves = np.array([len(graph.leaves_of(n)) for n in range(v)])
     edge_index = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
+    contact = np.asarray(graph.sibling_contact, dtype=bool).reshape(-1)
 
     # 1. one reference per moving node
     dropped: list[int] = []
@@ -323,7 +365,8 @@ def build_mobility_tree(
                     (e := edge_index.get(pair)) is not None and lab[e] == _FIXED
                     for pair in ((a, b), (b, a))
                 )
-                if fixed:
+                if fixed or _small_in_contact(a, b, ref, lab, pred.direction, pred.origin, volume, half,
+                                             contact, edge_index):
                     dsu.union(a, b)
     members: dict[int, list[int]] = {}
     for a in moving:
