@@ -26,6 +26,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="Work folder (staged objects, predictions).")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--variants", default="file,glb")
+    ap.add_argument("--turn", type=int, default=0, choices=range(4),
+                    help="GLBs turned this many quarter turns about their up axis (file variant left out).")
+    ap.add_argument("--write-up", default="y", choices=("y", "z"),
+                    help="GLBs written y-up or z-up, read without --up (file variant left out).")
     args = ap.parse_args(argv)
 
     from kinmo.evaluate.foreign import evaluate_foreign, foreign_markdown
@@ -34,7 +38,8 @@ def main(argv: list[str] | None = None) -> int:
 
     bundle = Path(args.model) if args.model else default_model()
     predictor = Predictor.from_bundle(bundle, device=args.device)
-    res = evaluate_foreign(args.assets, predictor, args.out, args.variants.split(","))
+    res = evaluate_foreign(args.assets, predictor, args.out, args.variants.split(","),
+                           turn=args.turn, write_up=args.write_up)
     print(f"model: {bundle}")
     print(foreign_markdown(res))
     print(f"wrote {args.out / 'foreign.json'} and {args.out / 'foreign.md'}")

@@ -125,3 +125,35 @@ def test_both_variants_are_scored_and_an_unreadable_asset_counts_as_missed(asset
         assert np.allclose(glb[f"part_{k}"], v[:, [0, 2, 1]] * [1, 1, -1], atol=1e-5)
     with pytest.raises(ValueError, match="asset folder"):
         evaluate_foreign(assets, predictor, assets, progress=False)
+
+
+def test_turned_and_z_up_glbs_are_scored_turned_back(assets, tmp_path):
+    """Issue 36's rotation and up-axis checks on foreign assets: the GLB holds the y-up parts
+    turned about their box centre (and written z-up), and predicted directions come back."""
+    from conftest import write_untrained_models
+
+    from kinmo.data.frames import AssetFrame
+    from kinmo.data.model import Joint, JointType, Link
+    from kinmo.evaluate.foreign import _Z_TO_Y, _links_back
+    from kinmo.evaluate.user_format import input_rotation
+    from kinmo.inference.predictor import Predictor
+
+    gnn, _ = write_untrained_models(tmp_path / "models")
+    predictor = Predictor.from_parts(gnn, device="cpu")
+    out = tmp_path / "eval"
+    res = evaluate_foreign(assets, predictor, out, progress=False, turn=1, write_up="z")
+    assert set(res) == {"glb"} and res["glb"]["true_joints"] == 4  # the file itself is not turned
+    assert json.loads((out / "foreign.json").read_text())["turn"] == 1
+    rot = input_rotation(1, "z")
+    y_up = [v @ _Z_TO_Y.T for _, v, _ in read_parts(assets / "cabinet" / "model.xml")]
+    c = (np.min([v.min(0) for v in y_up], axis=0) + np.max([v.max(0) for v in y_up], axis=0)) / 2
+    glb = {n: v for n, v, _ in read_parts(out / "glb" / "cabinet.glb")}
+    for k, v in enumerate(y_up):
+        assert np.allclose(glb[f"part_{k}"], (v - c) @ rot.T + c, atol=1e-5)
+    # a direction predicted in the GLB's frame comes back in the model's
+    d_model = np.array([0.0, 1.0, 0.0])
+    d_glb = (rot @ _Z_TO_Y) @ d_model
+    link = Link(1, 0, "door", (1,), Joint(JointType.HINGE, origin=np.zeros(3), direction=d_glb, limit=(0.0, 90.0)))
+    ident = AssetFrame(up="y", rotation=np.eye(3), center=np.zeros(3), scale=1.0)
+    (back,) = _links_back(ident, rot @ _Z_TO_Y)([link])
+    assert np.allclose(back.joint.direction, d_model) and back.name == "door"

@@ -10,7 +10,10 @@ robot-learning repositories). Each is given to kinmo two ways, as a user would (
   geometry) or :mod:`kinmo.assets.urdf` (a part per link with geometry), the joints ignored
   (so a URDF counts as one with every joint made fixed), z-up as both formats declare;
 - ``glb``: the same parts as a GLB scene (:func:`~kinmo.evaluate.user_format.write_parts_glb`),
-  one node per part named ``part_<k>``, turned y-up (glTF's convention).
+  one node per part named ``part_<k>``, turned y-up (glTF's convention); with ``turn`` /
+  ``write_up``, also turned quarter turns about its up axis through its box centre and / or
+  written z-up (:func:`~kinmo.evaluate.user_format.input_rotation`: issue 36's rotation and
+  up-axis checks), read without ``--up`` and turned back before scoring.
 
 Both go through what ``kinmo predict FILE`` does (:func:`kinmo.user_input.asset_frame`
 without ``--up``, :func:`kinmo.user_input.stage_partnet`, then
@@ -44,7 +47,7 @@ from kinmo.data.frames import AssetFrame
 from kinmo.data.model import JointType, Link
 from kinmo.data.readers import read_shape
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.evaluate.user_format import TrueJoint, score, score_prediction, write_parts_glb
+from kinmo.evaluate.user_format import TrueJoint, input_rotation, score, score_prediction, write_parts_glb
 from kinmo.io import write_json, write_text
 from kinmo.predict import predict_dataset
 from kinmo.user_input import asset_frame, stage_partnet
@@ -208,7 +211,8 @@ def _descends(b: int, ancestor: int, parent: Sequence[int]) -> bool:
 
 def _links_back(frame: AssetFrame, turn: np.ndarray | None) -> Callable[[list[Link]], list[Link]]:
     """Predicted links (kinmo's frame) -> the model's world frame: through the staged file's
-    frame, then the GLB's turn undone (directions only: the scores compare directions)."""
+    frame, then the GLB's rotation ``turn`` (model frame -> GLB frame) undone (directions
+    only: the scores compare directions)."""
     import dataclasses
 
     def back(links: list[Link]) -> list[Link]:
@@ -226,6 +230,8 @@ def evaluate_foreign(
     out: str | Path,
     variants: Sequence[str] = FOREIGN_VARIANTS,
     progress: bool = True,
+    turn: int = 0,
+    write_up: str = "y",
 ) -> dict[str, dict[str, Any]]:
     """Score a predictor on the foreign assets of ``folder`` (module docs).
 
@@ -242,6 +248,9 @@ def evaluate_foreign(
     variants : sequence of str
         Of :data:`FOREIGN_VARIANTS`.
     progress : bool
+    turn, write_up
+        The GLBs turned ``turn`` quarter turns about their up axis and written ``write_up``-up
+        (module docs); the ``file`` variant is left out when either is set.
 
     Returns
     -------
@@ -258,6 +267,9 @@ def evaluate_foreign(
     for v in variants:
         if v not in FOREIGN_VARIANTS:
             raise ValueError(f"variant must be one of {', '.join(FOREIGN_VARIANTS)}, got {v!r}")
+    rot = input_rotation(turn, write_up)
+    if not np.array_equal(rot, np.eye(3)):
+        variants = [v for v in variants if v != "file"]
     folder, out = Path(folder), Path(out)
     if out.resolve() == folder.resolve():
         raise ValueError(f"the output folder {out} is the asset folder: give another one")
@@ -286,14 +298,18 @@ def evaluate_foreign(
             if ps is None:
                 continue
             if variant == "file":
-                src, read, turn = o.model, ps, None
+                src, read, back = o.model, ps, None
             else:
-                src = write_parts_glb([(f"part_{k}", v @ _Z_TO_Y.T, f) for k, (_, v, f) in enumerate(ps)],
-                                      out / "glb" / f"{o.id}.glb")
-                read, turn = read_parts(src), _Z_TO_Y
+                y_up = [v @ _Z_TO_Y.T for _, v, _ in ps]
+                lo = np.min([v.min(0) for v in y_up], axis=0)
+                hi = np.max([v.max(0) for v in y_up], axis=0)
+                c = (lo + hi) / 2.0  # turned about the box centre
+                src = write_parts_glb([(f"part_{k}", (v - c) @ rot.T + c, f) for k, (v, (_, _, f))
+                                       in enumerate(zip(y_up, ps))], out / "glb" / f"{o.id}.glb")
+                read, back = read_parts(src), rot @ _Z_TO_Y
             frame = asset_frame(src, read)
             stage_partnet(src, stage / o.id, category="unknown", parts=read, frame=frame)
-            backs[o.id] = _links_back(frame, turn)
+            backs[o.id] = _links_back(frame, back)
             # staged leaf k + 1 is the k-th part read; a GLB's parts are named part_<input index>
             leaves: list[list[int]] = [[] for _ in ps]
             for k, (name, _, _) in enumerate(read):
@@ -314,7 +330,8 @@ def evaluate_foreign(
             rows.append(row)
         results[variant] = score(rows)
         all_rows[variant] = rows
-    write_json(out / "foreign.json", {"assets": str(folder), "scores": results, "rows": all_rows})
+    write_json(out / "foreign.json", {"assets": str(folder), "turn": int(turn) % 4, "write_up": write_up,
+                                      "scores": results, "rows": all_rows})
     write_text(out / "foreign.md", foreign_markdown(results))
     return results
 
