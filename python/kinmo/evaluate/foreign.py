@@ -34,11 +34,12 @@ link's pose. Both are the frames the readers give the parts in.
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -51,6 +52,9 @@ from kinmo.evaluate.user_format import TrueJoint, input_rotation, score, score_p
 from kinmo.io import write_json, write_text
 from kinmo.predict import predict_dataset
 from kinmo.user_input import asset_frame, stage_partnet
+
+if TYPE_CHECKING:
+    from kinmo.inference.predictor import Predictor
 
 __all__ = ["FOREIGN_VARIANTS", "ForeignObject", "mjcf_true_joints", "urdf_true_joints", "true_joints_of",
            "find_foreign", "evaluate_foreign", "foreign_markdown"]
@@ -213,20 +217,19 @@ def _links_back(frame: AssetFrame, turn: np.ndarray | None) -> Callable[[list[Li
     """Predicted links (kinmo's frame) -> the model's world frame: through the staged file's
     frame, then the GLB's rotation ``turn`` (model frame -> GLB frame) undone (directions
     only: the scores compare directions)."""
-    import dataclasses
-
     def back(links: list[Link]) -> list[Link]:
         out = frame.links_to_asset(links)
         if turn is None:
             return out
-        return [dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, direction=np.asarray(lk.joint.direction) @ turn))
-                if lk.joint.direction is not None else lk for lk in out]
+        return [lk if lk.joint.direction is None else
+                dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, direction=np.asarray(lk.joint.direction) @ turn))
+                for lk in out]
     return back
 
 
 def evaluate_foreign(
     folder: str | Path,
-    predictor: Any,
+    predictor: Predictor,
     out: str | Path,
     variants: Sequence[str] = FOREIGN_VARIANTS,
     progress: bool = True,
