@@ -127,14 +127,15 @@ def furniture_sim_objects(root: Path, exclude: set[str], together: set[str]) -> 
     return out
 
 
-def urdf_objects(repo_dir: Path, src: dict, out: Path) -> list[dict]:
+def urdf_objects(repo_dir: Path, src: dict, out: Path, keep_dae: bool = False) -> list[dict]:
     """Objects cut from one URDF scene (``kind`` ``urdf_split``): every child link of a link
     in ``split`` with a moving joint below it becomes ``OUT/<source>-<link>/model.urdf``: the
     subtree with its joints (types kept: the truth), under a root ``base`` fixed at the
     subtree's pose in the scene (so up stays up), the meshes it names copied beside it under
     a ``package.xml`` of the same package name (``package://`` then resolves inside the
     folder). Visual meshes kinmo cannot read without extra packages (``.dae``: pycollada)
-    are dropped where the link has a collision element (the same parts, simplified)."""
+    are dropped where the link has a collision element (the same parts, simplified), unless
+    ``keep_dae``."""
     import xml.etree.ElementTree as ET
 
     from scipy.spatial.transform import Rotation
@@ -177,9 +178,10 @@ def urdf_objects(repo_dir: Path, src: dict, out: Path) -> list[dict]:
             ET.SubElement(fixed, "child", link=root)
             ET.SubElement(fixed, "origin", xyz=xyz, rpy=rpy)
             names = [root] + [j.find("child").get("link") for j in joints]
+            missing: list[str] = []
             for name in names:
                 lk = ET.fromstring(ET.tostring(links[name]))
-                if lk.find("collision") is not None:
+                if lk.find("collision") is not None and not keep_dae:
                     for v in lk.findall("visual"):
                         m = v.find("geometry/mesh")
                         if m is not None and m.get("filename", "").lower().endswith(".dae"):
@@ -190,9 +192,16 @@ def urdf_objects(repo_dir: Path, src: dict, out: Path) -> list[dict]:
                     if not fn.startswith(prefix):
                         raise SystemExit(f"{urdf}: link {name}: mesh {fn} is not in package {src['package']}")
                     rel = fn[len(prefix):]
+                    if not (package_dir / rel).is_file():  # a partial clone lacks it
+                        missing.append(rel)
+                        continue
                     (folder / rel).parent.mkdir(parents=True, exist_ok=True)
                     shutil.copyfile(package_dir / rel, folder / rel)
                 new.append(lk)
+            if missing:
+                print(f"{oid}: skipped, {len(missing)} mesh files missing from the clone ({missing[0]})")
+                shutil.rmtree(folder)
+                continue
             for j in joints:
                 new.append(ET.fromstring(ET.tostring(j)))
             ET.indent(new)
@@ -259,6 +268,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "kinmo" / "foreign")
     ap.add_argument("--git-base", default="https://github.com/{repo}.git",
                     help="Clone URL or path template ({repo}, {owner}, {name}).")
+    ap.add_argument("--keep-dae", action="store_true",
+                    help="Keep URDF visual meshes in COLLADA (.dae; reading them needs pycollada) "
+                         "instead of the links' collision meshes.")
     args = ap.parse_args(argv)
     manifest = json.loads(SOURCES.read_text())
     args.out.mkdir(parents=True, exist_ok=True)
@@ -271,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         if missing:
             print(f"{src['repo']}: {len(missing)} files missing from the clone (textures are replaced by grey)")
         if src["kind"] == "urdf_split":
-            for row in urdf_objects(repo_dir, src, args.out):
+            for row in urdf_objects(repo_dir, src, args.out, args.keep_dae):
                 rows.append({"id": row["id"], "source": src["name"], "repo": src["repo"], "commit": src["commit"],
                              "license": src["license"], "files": row["files"], "joints": row["joints"]})
                 print(f"{row['id']}: {len(row['joints'])} joints ({', '.join(j['type'] for j in row['joints'])})")
