@@ -30,13 +30,12 @@ import argparse
 import json
 import re
 import shutil
-import struct
 import subprocess
 import sys
-import zlib
 from pathlib import Path
 
 import mujoco
+from PIL import Image  # Pillow, installed with matplotlib
 
 REPO = Path(__file__).resolve().parent.parent
 SOURCES = REPO / "bench" / "foreign" / "sources.json"
@@ -211,15 +210,6 @@ def urdf_objects(repo_dir: Path, src: dict, out: Path, keep_dae: bool = False) -
     return rows
 
 
-def _grey_png(size: int = 8) -> bytes:
-    """A ``size`` x ``size`` grey RGB PNG."""
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-    raw = b"".join(b"\0" + b"\x80" * (3 * size) for _ in range(size))
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", size, size, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
-
-
 def write_object(wrapper: Path, xml: str, out: Path) -> list[dict[str, str]]:
     """Compile ``xml`` (written at ``wrapper``), copy its files into ``out/assets`` and write
     ``out/model.xml``; return its hinge / slide joints (empty: nothing written)."""
@@ -230,7 +220,7 @@ def write_object(wrapper: Path, xml: str, out: Path) -> list[dict[str, str]]:
             f = wrapper.parent / spec.texturedir / t.file
             if t.file and not f.is_file():
                 f.parent.mkdir(parents=True, exist_ok=True)
-                f.write_bytes(_grey_png())
+                Image.new("RGB", (8, 8), (128, 128, 128)).save(f, format="PNG")
         model = spec.compile()
     except ValueError as e:  # not a model on its own (a fragment of a scene)
         print(f"{out.name}: skipped, {' '.join(str(e).split())[:120]}")

@@ -134,8 +134,8 @@ def test_turned_and_z_up_glbs_are_scored_turned_back(assets, tmp_path):
 
     from kinmo.data.frames import AssetFrame
     from kinmo.data.model import Joint, JointType, Link
-    from kinmo.evaluate.foreign import _Z_TO_Y, _links_back
-    from kinmo.evaluate.user_format import input_rotation
+    from kinmo.evaluate.foreign import _Z_TO_Y
+    from kinmo.evaluate.user_format import input_rotation, links_back
     from kinmo.inference.predictor import Predictor
 
     gnn, _ = write_untrained_models(tmp_path / "models")
@@ -155,5 +155,5 @@ def test_turned_and_z_up_glbs_are_scored_turned_back(assets, tmp_path):
     d_glb = (rot @ _Z_TO_Y) @ d_model
     link = Link(1, 0, "door", (1,), Joint(JointType.HINGE, origin=np.zeros(3), direction=d_glb, limit=(0.0, 90.0)))
     ident = AssetFrame(up="y", rotation=np.eye(3), center=np.zeros(3), scale=1.0)
-    (back,) = _links_back(ident, rot @ _Z_TO_Y)([link])
+    (back,) = links_back(ident, rot @ _Z_TO_Y)([link])
     assert np.allclose(back.joint.direction, d_model) and back.name == "door"

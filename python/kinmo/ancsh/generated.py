@@ -24,6 +24,7 @@ trains on its own generated objects.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import shutil
@@ -68,14 +69,21 @@ def synth_structures(category: str, draws: int = PROBE_DRAWS, seed: int = 0) -> 
         Structure signature -> objects of it among the draws (objects ANCSH cannot express
         are not counted); empty when ``kinmo synth`` does not make the category.
     """
+    return dict(_probe(category, draws, seed))
+
+
+@functools.lru_cache(maxsize=64)
+def _probe(category: str, draws: int, seed: int) -> tuple[tuple[str, int], ...]:
+    """:func:`synth_structures`, computed once per process (about a second a category: the
+    pipeline asks for each (category, structure) pair, then each training again)."""
     if category not in CATEGORIES:
-        return {}
+        return ()
     out: dict[str, int] = {}
     for k in range(draws):
         s = synth_structure(generate_object(category, seed, k))
         if s is not None:
             out[s.signature()] = out.get(s.signature(), 0) + 1
-    return out
+    return tuple(out.items())
 
 
 def can_generate(category: str, structure: KinematicStructure, draws: int = PROBE_DRAWS) -> str | None:

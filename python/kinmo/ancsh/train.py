@@ -336,8 +336,9 @@ def train_ancsh(
                       else f"{cat.category}: no generated objects: {generated.skipped}")
     info.update(generated.info())
     pre = pretrain_epochs(cfg) if generated.samples and cfg.synth_as == "pretrain" else 0
+    mixing = bool(generated.samples) and cfg.synth_as == "mix"
     real = samples
-    if generated.samples and cfg.synth_as == "mix":
+    if mixing:
         samples = mix(real, generated.samples, cfg.synth_share)
 
     # model and training
@@ -374,8 +375,8 @@ def train_ancsh(
             _say(console, f"semi: {len(psamples)} of {len(records)} scans of "
                           f"{len(info['unlabeled_objects'])} unlabelled {cat.category} shapes kept as pseudo-targets")
             both = real + psamples  # generated scans (mix) stay at their share of the draws
-            ds = ANCSHFrames(mix(both, generated.samples, cfg.synth_share) if generated.samples and
-                             cfg.synth_as == "mix" else both, cfg.n_points, cfg.seed, cfg.jitter)
+            ds = ANCSHFrames(mix(both, generated.samples, cfg.synth_share) if mixing else both,
+                             cfg.n_points, cfg.seed, cfg.jitter)
             fit(model, ds, cfg, cfg.semi_epochs, device, "semi", 1, on_epoch, progress)
     info["seconds"] = round(time.perf_counter() - t_start, 2)
     info["training_scans"] = len(real) + len(generated.samples) + info["pseudo_target_scans"]

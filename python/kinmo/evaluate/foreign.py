@@ -34,7 +34,6 @@ link's pose. Both are the frames the readers give the parts in.
 
 from __future__ import annotations
 
-import dataclasses
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -44,11 +43,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from kinmo.assets import Part, read_parts
-from kinmo.data.frames import AssetFrame
 from kinmo.data.model import JointType, Link
 from kinmo.data.readers import read_shape
 from kinmo.errors import KinmoDataError, KinmoError
-from kinmo.evaluate.user_format import TrueJoint, input_rotation, score, score_prediction, write_parts_glb
+from kinmo.evaluate.user_format import (TrueJoint, input_rotation, links_back, score, score_prediction,
+                                        write_parts_glb)
 from kinmo.io import write_json, write_text
 from kinmo.predict import predict_dataset
 from kinmo.user_input import asset_frame, stage_partnet
@@ -213,20 +212,6 @@ def _descends(b: int, ancestor: int, parent: Sequence[int]) -> bool:
         b = parent[b]
 
 
-def _links_back(frame: AssetFrame, turn: np.ndarray | None) -> Callable[[list[Link]], list[Link]]:
-    """Predicted links (kinmo's frame) -> the model's world frame: through the staged file's
-    frame, then the GLB's rotation ``turn`` (model frame -> GLB frame) undone (directions
-    only: the scores compare directions)."""
-    def back(links: list[Link]) -> list[Link]:
-        out = frame.links_to_asset(links)
-        if turn is None:
-            return out
-        return [lk if lk.joint.direction is None else
-                dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, direction=np.asarray(lk.joint.direction) @ turn))
-                for lk in out]
-    return back
-
-
 def evaluate_foreign(
     folder: str | Path,
     predictor: Predictor,
@@ -301,18 +286,14 @@ def evaluate_foreign(
             if ps is None:
                 continue
             if variant == "file":
-                src, read, back = o.model, ps, None
-            else:
-                y_up = [v @ _Z_TO_Y.T for _, v, _ in ps]
-                lo = np.min([v.min(0) for v in y_up], axis=0)
-                hi = np.max([v.max(0) for v in y_up], axis=0)
-                c = (lo + hi) / 2.0  # turned about the box centre
-                src = write_parts_glb([(f"part_{k}", (v - c) @ rot.T + c, f) for k, (v, (_, _, f))
-                                       in enumerate(zip(y_up, ps))], out / "glb" / f"{o.id}.glb")
+                src, read, back = o.model, ps, np.eye(3)
+            else:  # y-up, then turned about the box centre
+                src = write_parts_glb([(f"part_{k}", v @ _Z_TO_Y.T, f) for k, (_, v, f) in enumerate(ps)],
+                                      out / "glb" / f"{o.id}.glb", rot)
                 read, back = read_parts(src), rot @ _Z_TO_Y
             frame = asset_frame(src, read)
             stage_partnet(src, stage / o.id, category="unknown", parts=read, frame=frame)
-            backs[o.id] = _links_back(frame, back)
+            backs[o.id] = links_back(frame, back)
             # staged leaf k + 1 is the k-th part read; a GLB's parts are named part_<input index>
             leaves: list[list[int]] = [[] for _ in ps]
             for k, (name, _, _) in enumerate(read):

@@ -59,7 +59,7 @@ from kinmo.user_input import asset_frame, stage_partnet
 
 __all__ = ["VARIANTS", "WRITE_UPS", "input_rotation", "TrueJoint", "PredJoint", "UserNodes", "user_nodes", "write_user_glb",
            "true_joints", "moved_nodes", "match_joints", "acute_angle", "score", "score_prediction",
-           "write_parts_glb", "evaluate_user_format",
+           "write_parts_glb", "links_back", "evaluate_user_format",
            "results_markdown"]
 
 #: The input variants (module docstring).
@@ -166,20 +166,26 @@ def write_user_glb(shape: Shape, nodes: UserNodes, path: str | Path,
             fs.append(np.asarray(f, dtype=np.int64) + n)
             n += len(v)
         groups.append((name, np.concatenate(vs), np.concatenate(fs)))
-    if transform is not None:
-        lo = np.min([v.min(0) for _, v, _ in groups], axis=0)
-        hi = np.max([v.max(0) for _, v, _ in groups], axis=0)
-        c = (lo + hi) / 2.0
-        t = np.asarray(transform, dtype=np.float64)
-        groups = [(name, (v - c) @ t.T + c, f) for name, v, f in groups]
-    return write_parts_glb(groups, path)
+    return write_parts_glb(groups, path, transform)
 
 
-def write_parts_glb(parts: Sequence[tuple[str, np.ndarray, np.ndarray]], path: str | Path) -> Path:
+def write_parts_glb(parts: Sequence[tuple[str, np.ndarray, np.ndarray]], path: str | Path,
+                    transform: np.ndarray | None = None) -> Path:
     """Write ``parts`` (``(name, (V, 3) float64, (F, 3) int64)``, unique names) as a GLB scene
-    with one node per part, no hierarchy, coordinates as given (glTF: y-up); atomically."""
+    with one node per part, no hierarchy (glTF: y-up); atomically.
+
+    ``transform`` ``(3, 3) float64``, a proper rotation ``T``, is applied about the parts'
+    bounding-box centre ``c`` (``v -> T (v - c) + c``; :func:`input_rotation`); default: the
+    coordinates as given.
+    """
     import trimesh  # optional heavy dependency, as in kinmo.assets.mesh
 
+    if transform is not None:
+        lo = np.min([v.min(0) for _, v, _ in parts], axis=0)
+        hi = np.max([v.max(0) for _, v, _ in parts], axis=0)
+        c = (lo + hi) / 2.0
+        t = np.asarray(transform, dtype=np.float64)
+        parts = [(name, (v - c) @ t.T + c, f) for name, v, f in parts]
     scene = trimesh.Scene()
     for name, v, f in parts:
         mesh = trimesh.Trimesh(v, f, process=False)
@@ -463,7 +469,7 @@ def evaluate_user_format(
                     if nd.is_leaf and nd.name in index:
                         node_leaves[index[nd.name]].append(nid)
                 rows.append(score_prediction(sid, true_joints(o.shape, nodes), pred_dir / sid, sh, node_leaves,
-                                 _back(frames[sid], rot)))
+                                 links_back(frames[sid], rot)))
         results[variant] = score(rows)
         all_rows[variant] = rows
     write_json(out / "user_format.json", {"run": str(run), "axis_model": None if axis_model is None
@@ -473,11 +479,12 @@ def evaluate_user_format(
     return results
 
 
-def _back(frame: AssetFrame, rot: np.ndarray) -> Callable[[list[Link]], list[Link]]:
-    """Predicted links (kinmo's frame of a staged GLB) -> the labelled object's frame: into the
-    GLB's frame and units (``frame``), then the input rotation undone (``rot``; directions
-    only: the scores compare directions, moved nodes and ranges)."""
-    def links_back(links: list[Link]) -> list[Link]:
+def links_back(frame: AssetFrame, rot: np.ndarray) -> Callable[[list[Link]], list[Link]]:
+    """Predicted links (kinmo's frame of a staged file) -> the source object's frame: into the
+    file's frame and units (``frame``), then the rotation ``rot`` the object was written with
+    (source frame -> file frame) undone (directions only: the scores compare directions,
+    moved nodes and ranges)."""
+    def back(links: list[Link]) -> list[Link]:
         out = []
         for lk in frame.links_to_asset(links):
             d = lk.joint.direction
@@ -485,7 +492,7 @@ def _back(frame: AssetFrame, rot: np.ndarray) -> Callable[[list[Link]], list[Lin
                 lk = dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, direction=np.asarray(d) @ rot))
             out.append(lk)
         return out
-    return links_back
+    return back
 
 
 def score_prediction(sid: str, true: list[TrueJoint], pred_folder: Path, hierarchy: PartHierarchy,
