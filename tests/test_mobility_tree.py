@@ -222,9 +222,9 @@ def test_consistent_fine_types_follow_the_predicted_axes():
 
 
 def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
-    """Rule 3, small parts in contact (issue 36): a handle predicted to slide beside its drawer,
-    on the drawer's axis, is one rigid part with it; parts of similar size, on other axes or
-    not touching stay apart."""
+    """Rule 3, small parts in contact (issue 36): a handle predicted to slide beside its drawer
+    is one rigid part with it, on whatever axis; parts of similar size, not touching, or
+    turning on other lines stay apart."""
     import dataclasses
 
     g = cabinet_graph()
@@ -236,9 +236,13 @@ def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
     assert tree.moving_links[0].joint.type is JointType.SLIDER
     # similar sizes (two drawers side by side): two links
     assert len(build_mobility_tree(g, _pred(g, spec)).moving_links) == 2
-    # other axes, or no contact: two links
+    # a slider on another axis (the drawer's axis corrected by the sweep, the handle's not):
+    # one link, with the larger part's axis
     bent = {(2, 1): ("P", 0.9, [1, 0, 0]), (3, 1): ("P", 0.95, [0, 0, 1])}
-    assert len(build_mobility_tree(small, _pred(small, bent)).moving_links) == 2
+    merged = build_mobility_tree(small, _pred(small, bent)).moving_links
+    assert [sorted(lk.parts) for lk in merged] == [[2, 3]]
+    assert abs(merged[0].joint.direction[2]) == pytest.approx(1.0)
+    # no contact: two links
     apart = dataclasses.replace(small, sibling_contact=np.zeros_like(small.sibling_contact))
     assert len(build_mobility_tree(apart, _pred(apart, spec)).moving_links) == 2
     # another type (a button pressed in beside a door): two links
@@ -251,3 +255,6 @@ def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
     assert [sorted(lk.parts) for lk in build_mobility_tree(small, _pred(small, hinge)).moving_links] == [[2, 3]]
     own = {(2, 1): ("R", 0.9, [0, 1, 0]), (3, 1): ("R", 0.95, [0, 1, 0])}
     assert len(build_mobility_tree(small, _pred(small, own)).moving_links) == 2
+    # turning about crossing axes through one point: two links
+    crossed = {(2, 1): ("R", 0.9, [1, 0, 0], line), (3, 1): ("R", 0.95, [0, 1, 0], line)}
+    assert len(build_mobility_tree(small, _pred(small, crossed)).moving_links) == 2

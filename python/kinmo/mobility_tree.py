@@ -18,11 +18,14 @@ by the following deterministic rules.
    relative to the cabinet): they form one *motion group* whose joint is that of its largest
    member (OBB volume, then number of leaves, then pre-order index).
    **Small parts in contact** are merged the same way: two moving nodes with the same
-   reference that touch (``sibling_contact``), have the same predicted type and parallel
-   axes (within :data:`MERGE_AXIS_DEG`; hinges: the same line, within
-   :data:`MERGE_LINE_FRACTION`), one at most :data:`MERGE_VOLUME_RATIO` of the other's OBB
-   volume, are one rigid part (a handle predicted to slide beside its drawer, on
-   the drawer's axis; issue 36). Two drawers or doors of similar size never merge.
+   reference that touch (``sibling_contact``), have the same predicted type, one at most
+   :data:`MERGE_VOLUME_RATIO` of the other's OBB volume, are one rigid part (a handle
+   predicted to slide beside its drawer; issue 36). Turning types must also have parallel
+   axes (within :data:`MERGE_AXIS_DEG`) on the same line (within
+   :data:`MERGE_LINE_FRACTION`), so a knob turning on its own axis beside its door stays
+   apart; sliders need not, since the small part's axis is the less reliable one (the
+   drawer's may have been corrected by geometry, :mod:`kinmo.refine.edge`, its handle's
+   not). Two drawers or doors of similar size never merge.
 4. **Attachment.** A non-moving sibling of a moving node joins that node's group when its
    most probable ``Fixed`` edge (among the edges predicted ``Fixed``) goes to a member of the
    group: it is fixed to a moving part, so it moves with it.
@@ -277,21 +280,21 @@ def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.n
                       direction: np.ndarray, origin: np.ndarray, volume: np.ndarray, half: np.ndarray,
                       contact: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
     """Rule 3's second case for moving nodes ``a``, ``b`` of the same reference: in contact,
-    same type, parallel axes (for a turning type, the same line), one small beside the other."""
+    same type, one small beside the other; a turning type also on the same line."""
     if not any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((a, b), (b, a))):
         return False
     ea, eb = ref[a][1], ref[b][1]
     if lab[ea] != lab[eb]:
-        return False
-    da, db = np.asarray(direction[ea], dtype=np.float64), np.asarray(direction[eb], dtype=np.float64)
-    na, nb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
-    if na == 0.0 or nb == 0.0 or abs(float(da @ db)) / (na * nb) < np.cos(np.radians(MERGE_AXIS_DEG)):
         return False
     lo, hi = sorted((float(volume[a]), float(volume[b])))
     if not (hi > 0.0 and lo <= MERGE_VOLUME_RATIO * hi):
         return False
     if lab[ea] == _P:
         return True
+    da, db = np.asarray(direction[ea], dtype=np.float64), np.asarray(direction[eb], dtype=np.float64)
+    na, nb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
+    if na == 0.0 or nb == 0.0 or abs(float(da @ db)) / (na * nb) < np.cos(np.radians(MERGE_AXIS_DEG)):
+        return False
     # turning: the same line (a handle turning about its door's hinge), not a knob on its own
     # parallel axis; within MERGE_LINE_FRACTION of the larger part's OBB diagonal
     gap = np.cross(np.asarray(origin[eb], dtype=np.float64) - np.asarray(origin[ea], dtype=np.float64), da / na)

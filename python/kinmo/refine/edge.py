@@ -13,6 +13,15 @@ moving:
   orientation ranked by the learned selector (:mod:`kinmo.refine.selector`,
   :mod:`kinmo.refine.ranker`).
 
+With meshes, the learned selector does not keep a **blocked slide**
+(:func:`blocked_slide_veto`, kinmo extension, issue 36): a horizontal slider line along
+which the part cannot move either way (the swept test frees less than
+:data:`BLOCKED_FREE` of the sweep, against the rest of the object) gives way to the
+likeliest horizontal line that is free one way (at least :data:`OPEN_FREE`). The ranker's
+direction priors (the GNN's, the semantic prior's) hold in PartNet's frame, front +z; a
+drawer of a cabinet that faces +x (the ROS convention) is pulled to z, where it meets the
+carcass's side walls.
+
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
 feasible direction, and its confidence.
@@ -49,7 +58,16 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates
 
-__all__ = ["EdgeRefinement", "chosen_line", "refine_edge", "select_edge"]
+__all__ = ["BLOCKED_FREE", "OPEN_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line",
+           "refine_edge", "select_edge"]
+
+#: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
+#: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
+BLOCKED_FREE = 0.1
+#: ... and a line replacing it must be free for at least this fraction one way.
+OPEN_FREE = 0.9
+#: Largest ``|y|`` of a unit direction counted as horizontal (y-up; 60° from vertical).
+_HORIZONTAL_Y = 0.5
 
 
 @dataclass(frozen=True)
@@ -214,6 +232,39 @@ def _network_feasibility(graph: PartGraph, moving: int, reference: int, cands: C
     return line_feasibility(s, mot.line, mot.sign, len(cands))
 
 
+def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray, best: int) -> int:
+    """The learned selector's choice for a slider, with a blocked slide replaced (module docs).
+
+    Parameters
+    ----------
+    cands : Candidates
+        The edge's candidates (mesh frame, y-up).
+    features : (C, len(FEATURES)) float64
+        Their features (:func:`kinmo.refine.selector.candidate_features`); without meshes
+        ``sweep_free_max`` is 1 for every line and nothing changes.
+    prob : (C,) float64
+        The ranker's probabilities.
+    best : int
+        The ranker's choice.
+
+    Returns
+    -------
+    int
+        ``best``, unless the edge is prismatic (``"P"``; cylindrical and revolute edges are
+        left alone), ``best`` is horizontal and blocked (``sweep_free_max <``
+        :data:`BLOCKED_FREE`) and some horizontal line is free one way (``>=``
+        :data:`OPEN_FREE`): then the most probable of those.
+    """
+    if cands.motion != "P" or best < 0:
+        return best
+    free = np.asarray(features[:, FEATURES.index("sweep_free_max")], dtype=np.float64)
+    horizontal = np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y
+    if free[best] >= BLOCKED_FREE or not horizontal[best]:
+        return best
+    ok = np.flatnonzero(horizontal & (free >= OPEN_FREE))
+    return best if ok.size == 0 else int(ok[np.argmax(np.asarray(prob)[ok])])
+
+
 def select_edge(
     graph: PartGraph,
     edge: int,
@@ -273,6 +324,8 @@ def select_edge(
                                  proxy=proxy)
     p = ranker.probabilities(x)
     b = int(np.argmax(p))
+    if cfg.veto_blocked_slides:
+        b = blocked_slide_veto(cands, x, p, b)
     sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
                                                 sign, net_sign)
     scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
