@@ -1,13 +1,19 @@
-"""The blocked-slide veto of the learned selector (kinmo.refine.edge.blocked_slide_veto, issue 36)."""
+"""The learned selector's sweep vetoes: blocked slides and blocked hinges (kinmo.refine.edge, issue 36)."""
 
 from __future__ import annotations
 
-import numpy as np
+import dataclasses
 
+import numpy as np
+import pytest
+
+from kinmo.data.model import COARSE_TYPES, FINE_TYPES
 from kinmo.refine.candidates import Candidates
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.edge import BLOCKED_FREE, OPEN_FREE, blocked_slide_veto
+from kinmo.refine.edge import BLOCKED_FREE, OPEN_FREE, EdgeRefinement, blocked_slide_veto, hinge_blocked
 from kinmo.refine.features import FEATURES
+from kinmo.refine.refine import as_slider
+from kinmo.refine.scoring import CandidateScores
 
 _FREE = FEATURES.index("sweep_free_max")
 # y-up: +z (PartNet's front), +x (a cabinet facing +x), +y (vertical)
@@ -54,6 +60,30 @@ def test_of_the_free_horizontal_lines_the_likeliest_wins():
     assert blocked_slide_veto(cands, x, np.array([0.5, 0.3, 0.1, 0.1]), 0) == 1
 
 
-def test_the_veto_is_on_by_default_and_can_be_turned_off():
-    assert RefineConfig().veto_blocked_slides is True
-    assert RefineConfig(veto_blocked_slides=False).veto_blocked_slides is False
+def test_a_hinge_none_of_whose_lines_turns_is_blocked():
+    cands, x, p = _case([0.04, 0.09, 0.02], "R_H_S")
+    scores = CandidateScores(np.full(3, 0.5), np.zeros(3), np.zeros(3), p, np.ones(3, np.int64), 0)
+    r = EdgeRefinement(cands, scores, np.zeros(3), _DIRS[0], free=x[:, _FREE].copy())
+    assert hinge_blocked(r)
+    assert not hinge_blocked(dataclasses.replace(r, free=np.array([0.04, BLOCKED_FREE, 0.02])))
+    assert not hinge_blocked(dataclasses.replace(r, free=None))  # no meshes: no veto
+
+
+def test_a_switched_edge_moves_its_revolute_mass_to_the_slider_type():
+    fine = np.array([[0.05, 0.05, 0.3, 0.4, 0.05, 0.05, 0.02, 0.02, 0.03, 0.03],
+                     [0.1] * 10])
+    out = as_slider(fine, FINE_TYPES, [0])
+    names = list(FINE_TYPES)
+    assert out[0, names.index("P_H")] == pytest.approx(0.05 + 0.3 + 0.4 + 0.05 + 0.05)
+    assert all(out[0, c] == 0.0 for c, n in enumerate(names) if n.startswith("R_"))
+    np.testing.assert_allclose(out.sum(axis=1), fine.sum(axis=1))
+    np.testing.assert_array_equal(out[1], fine[1])  # other rows untouched
+    np.testing.assert_array_equal(as_slider(fine, FINE_TYPES, []), fine)
+    coarse = np.array([[0.1, 0.6, 0.1, 0.1, 0.1]])  # P, R, PR, Fixed, None
+    c = as_slider(coarse, COARSE_TYPES, [0])
+    np.testing.assert_allclose(c, [[0.7, 0.0, 0.1, 0.1, 0.1]])
+
+
+def test_the_vetoes_are_on_by_default_and_can_be_turned_off():
+    assert RefineConfig().sweep_vetoes is True
+    assert RefineConfig(sweep_vetoes=False).sweep_vetoes is False

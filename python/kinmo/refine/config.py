@@ -80,10 +80,12 @@ class RefineConfig(BaseModel):
         the same reference part with the same predicted type (three or more: keys, buttons,
         a column of drawers) take the direction most of them chose
         (:mod:`kinmo.refine.repeated`).
-    veto_blocked_slides : bool
+    sweep_vetoes : bool
         kinmo extension (issue 36): with the learned selector and meshes, a horizontal slider
         line blocked both ways by the swept test gives way to a horizontal line free one way
-        (:func:`kinmo.refine.edge.blocked_slide_veto`).
+        (:func:`kinmo.refine.edge.blocked_slide_veto`), and a revolute edge none of whose
+        lines can turn becomes a slider when one of its slider lines is free
+        (:func:`kinmo.refine.edge.hinge_blocked`, :func:`kinmo.refine.refine.as_slider`).
     ranges : str or None
         kinmo extension (issue 35): path of the range-of-motion prior (``ranges.json``,
         :class:`kinmo.ranges.RangePrior`); after the selector, every moving joint gets its
@@ -109,7 +111,7 @@ class RefineConfig(BaseModel):
     selector: Literal["paper", "ranker"] = "paper"
     ranker: str | None = None
     vote_repeated: bool = True
-    veto_blocked_slides: bool = True
+    sweep_vetoes: bool = True
     ranges: str | None = None
 
     @model_validator(mode="after")

@@ -13,14 +13,20 @@ moving:
   orientation ranked by the learned selector (:mod:`kinmo.refine.selector`,
   :mod:`kinmo.refine.ranker`).
 
-With meshes, the learned selector does not keep a **blocked slide**
-(:func:`blocked_slide_veto`, kinmo extension, issue 36): a horizontal slider line along
-which the part cannot move either way (the swept test frees less than
-:data:`BLOCKED_FREE` of the sweep, against the rest of the object) gives way to the
-likeliest horizontal line that is free one way (at least :data:`OPEN_FREE`). The ranker's
-direction priors (the GNN's, the semantic prior's) hold in PartNet's frame, front +z; a
-drawer of a cabinet that faces +x (the ROS convention) is pulled to z, where it meets the
-carcass's side walls.
+With meshes, the learned selector vetoes motions the object's own geometry rules out
+(:attr:`RefineConfig.sweep_vetoes`, kinmo extension, issue 36), by the swept test of its
+features (the part against the rest of the object, contact at rest not counted):
+
+- a **blocked slide** (:func:`blocked_slide_veto`): a horizontal slider line along which the
+  part cannot move either way (the sweep frees less than :data:`BLOCKED_FREE`) gives way to
+  the likeliest horizontal line free one way (at least :data:`OPEN_FREE`). The ranker's
+  direction priors (the GNN's, the semantic prior's) hold in PartNet's frame, front +z; a
+  drawer of a cabinet that faces +x (the ROS convention) is pulled to z, into the carcass's
+  side walls;
+- a **blocked hinge** (:func:`hinge_blocked`): when no candidate line of a revolute edge
+  lets the part turn either way, :func:`kinmo.refine.refine.refine_predictions` tries the
+  edge as a slider and keeps it when the chosen line is free one way (a drawer named
+  or shaped like a flap).
 
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
@@ -59,7 +65,7 @@ from kinmo.refine.scoring import (
 from kinmo.refine.selector import candidate_features, edge_candidates
 
 __all__ = ["BLOCKED_FREE", "OPEN_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line",
-           "refine_edge", "select_edge"]
+           "hinge_blocked", "refine_edge", "select_edge"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -92,6 +98,9 @@ class EdgeRefinement:
         direction), an input of the calibrated confidence.
     voted : bool
         The choice was changed by the repeated-parts vote (:mod:`kinmo.refine.repeated`).
+    free : (C,) float64 or None
+        The learned selector's swept test of every candidate (``sweep_free_max``: the larger
+        free fraction of the two directions); None without meshes.
     """
 
     candidates: Candidates
@@ -102,6 +111,7 @@ class EdgeRefinement:
     calibrated: float | None = None
     dir_prior: np.ndarray | None = None
     voted: bool = False
+    free: np.ndarray | None = None
 
     @property
     def confidence(self) -> float:
@@ -232,6 +242,13 @@ def _network_feasibility(graph: PartGraph, moving: int, reference: int, cands: C
     return line_feasibility(s, mot.line, mot.sign, len(cands))
 
 
+def hinge_blocked(refinement: EdgeRefinement) -> bool:
+    """True when no candidate line of a revolute edge lets the part turn: every line's swept
+    test frees less than :data:`BLOCKED_FREE` either way (False without the sweep)."""
+    f = refinement.free
+    return f is not None and f.size > 0 and float(np.max(f)) < BLOCKED_FREE
+
+
 def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray, best: int) -> int:
     """The learned selector's choice for a slider, with a blocked slide replaced (module docs).
 
@@ -324,7 +341,7 @@ def select_edge(
                                  proxy=proxy)
     p = ranker.probabilities(x)
     b = int(np.argmax(p))
-    if cfg.veto_blocked_slides:
+    if cfg.sweep_vetoes:
         b = blocked_slide_veto(cands, x, p, b)
     sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
                                                 sign, net_sign)
@@ -333,4 +350,5 @@ def select_edge(
     o, d = chosen_line(graph, i, cands, b, int(sg[b]))
     conf = ranker.confidence(float(p[b]), float(x[b, FEATURES.index("dir_prior")]))
     return EdgeRefinement(cands, scores, o, d, calibrated=conf,
-                          dir_prior=x[:, FEATURES.index("dir_prior")].copy())
+                          dir_prior=x[:, FEATURES.index("dir_prior")].copy(),
+                          free=x[:, FEATURES.index("sweep_free_max")].copy() if meshes is not None else None)

@@ -55,7 +55,7 @@ from kinmo.mobility_tree import (
     consistent_fine,
 )
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.edge import EdgeRefinement, refine_edge, select_edge
+from kinmo.refine.edge import OPEN_FREE, EdgeRefinement, hinge_blocked, refine_edge, select_edge
 from kinmo.refine.repeated import vote_repeated
 
 logger = logging.getLogger(__name__)
@@ -253,6 +253,35 @@ def ranker_needs_meshes(ranker) -> bool:
     return any(f.startswith("sweep") or f == "attach_mesh" for f in ranker.features)
 
 
+def as_slider(type_prob: np.ndarray, type_names: Sequence[str], rows: Sequence[int]) -> np.ndarray:
+    """Type probabilities with the revolute mass of ``rows`` moved to the prismatic type.
+
+    Parameters
+    ----------
+    type_prob : (E, T) float
+        Over ``type_names`` (fine: the ``R_*`` columns go to ``P_H``, which
+        :func:`kinmo.mobility_tree.consistent_fine` then splits by the chosen axis; coarse:
+        ``R`` goes to ``P``).
+    type_names : sequence of str
+    rows : sequence of int
+        Edges switched from hinge to slider (:func:`refine_predictions`).
+
+    Returns
+    -------
+    (E, T) float64
+        A copy; the rows' sums are kept.
+    """
+    out = np.array(type_prob, dtype=np.float64, copy=True)
+    if len(rows):
+        names = list(type_names)
+        to = names.index("P_H") if "P_H" in names else names.index("P")
+        rcols = [c for c, n in enumerate(names) if n.split("_")[0] == "R"]
+        idx = np.asarray(list(rows), dtype=np.int64)
+        out[idx, to] += out[np.ix_(idx, rcols)].sum(axis=1)
+        out[np.ix_(idx, rcols)] = 0.0
+    return out
+
+
 def refine_predictions(
     graph: PartGraph,
     edge_predictions: Any,
@@ -300,7 +329,7 @@ def refine_predictions(
     e = pred.edges.shape[0]
     if e and (pred.edges.min() < 0 or pred.edges.max() >= graph.n_nodes):
         raise ValueError(f"edge_predictions.edges: node index out of range 0..{graph.n_nodes - 1}")
-    types = pred.types
+    types = list(pred.types)
     moving = np.array([t not in ("Fixed", "None") for t in types], dtype=bool)
     if only is not None:
         sel = np.zeros(e, dtype=bool)
@@ -313,6 +342,7 @@ def refine_predictions(
     kind = [""] * e
     n_c = np.zeros(e, dtype=np.int64)
     details: dict[int, EdgeRefinement] = {}
+    switched: dict[int, bool] = {}
     ranker = None
     if cfg.selector == "ranker":
         from kinmo.refine.ranker import load_ranker
@@ -338,6 +368,15 @@ def refine_predictions(
         else:
             r = refine_edge(graph, i, j, types[k], pred.axis_direction[k], pred.axis_origin[k],
                             axis_model, cfg, rng=np.random.default_rng([cfg.seed, int(k)]))
+        if ranker is not None and cfg.sweep_vetoes and types[k].split("_")[0] == "R" and hinge_blocked(r):
+            # no hinge line turns the part: does it slide out? (issue 36, module docs)
+            rp = select_edge(graph, int(k), "P_H", pred.axis_direction[k], pred.axis_origin[k],
+                             priors, ranker, axis_model, cfg,
+                             rng=np.random.default_rng([cfg.seed, int(k)]), meshes=meshes)
+            if rp.free is not None and rp.scores.best >= 0 and float(rp.free[rp.scores.best]) >= OPEN_FREE:
+                r = rp
+                switched[int(k)] = True
+                types[k] = "P_H"
         details[int(k)] = r
     if ranker is not None and cfg.vote_repeated and details:
         details.update(vote_repeated(graph, pred.edges, types, details, ranker.confidence))
@@ -347,7 +386,9 @@ def refine_predictions(
         feas[k] = r.scores.feasibility[r.scores.best] if r.scores.best >= 0 else np.nan
         kind[k] = r.kind
         n_c[k] = len(r.candidates)
-    return RefinedPredictions(pred.edges, pred.type_names, pred.type_prob, pred.type_index,
+    type_prob = as_slider(pred.type_prob, pred.type_names, sorted(switched))
+    return RefinedPredictions(pred.edges, pred.type_names, type_prob,
+                              np.argmax(type_prob, axis=1).astype(np.int64),
                               origin, direction, moving, conf, feas, kind, n_c, details)
 
 
@@ -383,7 +424,10 @@ def refine_shape_prediction(
 
     refined = refine_predictions(prediction.graph, prediction.edges, axis_model, config,
                                  priors=getattr(prediction, "priors", None), meshes=meshes)
-    edges = EdgePrediction(np.asarray(prediction.edges.probs), refined.axis_direction.copy(),
+    probs = np.asarray(prediction.edges.probs)
+    if refined.type_prob.shape == probs.shape:
+        probs = refined.type_prob
+    edges = EdgePrediction(probs, refined.axis_direction.copy(),
                            refined.axis_origin.copy())
     if (config or RefineConfig()).selector == "ranker":
         # the fine type follows the selected axis: H/V from its direction, C/S from its pivot
