@@ -224,7 +224,7 @@ def test_consistent_fine_types_follow_the_predicted_axes():
 def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
     """Rule 3, small parts in contact (issue 36): a handle predicted to slide beside its drawer
     is one rigid part with it, on whatever axis; parts of similar size, not touching, or
-    turning on other lines stay apart."""
+    turning on other lines stay apart, unless the small part does not touch the reference."""
     import dataclasses
 
     g = cabinet_graph()
@@ -258,3 +258,15 @@ def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
     # turning about crossing axes through one point: two links
     crossed = {(2, 1): ("R", 0.9, [1, 0, 0], line), (3, 1): ("R", 0.95, [0, 1, 0], line)}
     assert len(build_mobility_tree(small, _pred(small, crossed)).moving_links) == 2
+    # ... unless the small part does not touch the reference it is said to move against: it is
+    # mounted on the drawer (a handle predicted to turn like a knob), whatever the types
+    e = [tuple(map(int, p)) for p in small.sibling_edges]
+    off = dataclasses.replace(small, sibling_contact=np.array([p not in ((1, 2), (2, 1)) for p in e]))
+    for spec_ in (other, crossed, own):
+        links = build_mobility_tree(off, _pred(off, spec_)).moving_links
+        assert [sorted(lk.parts) for lk in links] == [[2, 3]]
+    # the larger part's joint: the drawer's slider
+    assert build_mobility_tree(off, _pred(off, other)).moving_links[0].joint.type is JointType.SLIDER
+    # parts of similar size never merge this way
+    off_big = dataclasses.replace(g, sibling_contact=off.sibling_contact)
+    assert len(build_mobility_tree(off_big, _pred(off_big, other)).moving_links) == 2

@@ -25,7 +25,10 @@ by the following deterministic rules.
    :data:`MERGE_LINE_FRACTION`), so a knob turning on its own axis beside its door stays
    apart; sliders need not, since the small part's axis is the less reliable one (the
    drawer's may have been corrected by geometry, :mod:`kinmo.refine.edge`, its handle's
-   not). Two drawers or doors of similar size never merge.
+   not). A small part that touches the larger one but **not the reference** merges whatever
+   the two types: it is mounted on the larger part, and a joint joins parts that touch (a
+   drawer handle predicted to turn like a knob, relative to a carcass it does not touch).
+   Two drawers or doors of similar size never merge.
 4. **Attachment.** A non-moving sibling of a moving node joins that node's group when its
    most probable ``Fixed`` edge (among the edges predicted ``Fixed``) goes to a member of the
    group: it is fixed to a moving part, so it moves with it.
@@ -280,14 +283,19 @@ def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.n
                       direction: np.ndarray, origin: np.ndarray, volume: np.ndarray, half: np.ndarray,
                       contact: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
     """Rule 3's second case for moving nodes ``a``, ``b`` of the same reference: in contact,
-    same type, one small beside the other; a turning type also on the same line."""
+    one small beside the other, and either the small one does not touch the reference or both
+    have the same type (a turning type also on the same line)."""
     if not any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((a, b), (b, a))):
         return False
     ea, eb = ref[a][1], ref[b][1]
-    if lab[ea] != lab[eb]:
-        return False
     lo, hi = sorted((float(volume[a]), float(volume[b])))
     if not (hi > 0.0 and lo <= MERGE_VOLUME_RATIO * hi):
+        return False
+    small = a if volume[a] <= volume[b] else b
+    r = ref[small][0]
+    if not any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((small, r), (r, small))):
+        return True  # mounted on the larger part, not on the reference: it moves with the part
+    if lab[ea] != lab[eb]:
         return False
     if lab[ea] == _P:
         return True
