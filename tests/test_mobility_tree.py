@@ -124,6 +124,12 @@ def test_static_siblings_fixed_to_a_moving_part_move_with_it_and_nesting():
     spec = {(2, 1): ("R", 0.9), (3, 2): ("Fixed", 0.6), (3, 1): ("Fixed", 0.8)}
     tree = build_mobility_tree(g, _pred(g, spec))
     assert _by_name(tree)["base"].parts == (1, 3)
+    # the door's own reference (the body) "fixed" to the door never joins it: the door moves
+    # relative to the body (issue 36)
+    spec = {(2, 1): ("R", 0.9), (1, 2): ("Fixed", 0.9)}
+    tree = build_mobility_tree(g, _pred(g, spec))
+    assert len(tree.moving_links) == 1 and tree.moving_links[0].parts == (2,)
+    assert 1 in _by_name(tree)["base"].parts
     # a knob (the handle) turning on the drawer front, inside the moving drawer: nested link
     spec = {(3, 1): ("P", 0.9, [0, 0, 1]), (5, 4): ("R", 0.9, [0, 0, 1])}
     tree = build_mobility_tree(g, _pred(g, spec))

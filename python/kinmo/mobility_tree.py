@@ -31,7 +31,9 @@ by the following deterministic rules.
    Two drawers or doors of similar size never merge.
 4. **Attachment.** A non-moving sibling of a moving node joins that node's group when its
    most probable ``Fixed`` edge (among the edges predicted ``Fixed``) goes to a member of the
-   group: it is fixed to a moving part, so it moves with it.
+   group: it is fixed to a moving part, so it moves with it. The group's own reference never
+   joins it (the group moves relative to it; issue 36: a carcass "fixed" to a drawer took
+   the whole body into the drawer's link).
 5. **Pruning.** Nodes taking no part in motion are dropped: every leaf belongs to the group of
    its nearest ancestor-or-self that is a member of a group, or to the **root link** (joint
    ``free``) when there is none. A group's **parent link** is the link of its reference
@@ -402,7 +404,7 @@ def build_mobility_tree(
         if i in node_group:
             continue
         j = int(edges[k, 1])
-        if j in node_group:
+        if j in node_group and groups[node_group[j]]["ref"] != i:  # never the group's own reference
             groups[node_group[j]]["attached"].append(i)
     for rep, g in groups.items():
         for n in g["attached"]:
