@@ -187,7 +187,8 @@ class RefinedPredictions:
     edges : (E, 2) int64
     type_names : tuple of str
     type_prob : (E, T) float64
-        As predicted (refinement keeps the types).
+        As predicted (refinement keeps the types), except edges the blocked-hinge veto
+        made sliders (:attr:`RefineConfig.sweep_vetoes`, :func:`as_slider`).
     type_index : (E,) int64
         Most probable type.
     axis_origin, axis_direction : (E, 3) float64
@@ -402,7 +403,8 @@ def refine_shape_prediction(
     """Refine a :class:`kinmo.predict.ShapePrediction` and rebuild its mobility tree.
 
     The integration point of ``kinmo predict --refine``: the edges' axes are refined
-    (:func:`refine_predictions`), the types and probabilities kept, and the mobility tree is
+    (:func:`refine_predictions`), the types and probabilities kept (but for edges the
+    blocked-hinge veto made sliders), and the mobility tree is
     rebuilt from the refined axes (:func:`kinmo.mobility_tree.build_mobility_tree`).
 
     Parameters
