@@ -281,21 +281,25 @@ def _compact_parts(graph: PartGraph, leaf_owner: dict[int, int], link: int) -> t
     return tuple(out)
 
 
+def _touch(a: int, b: int, contact: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
+    """Nodes ``a`` and ``b`` touch (``sibling_contact`` of their edge, either direction)."""
+    return any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((a, b), (b, a)))
+
+
 def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.ndarray,
                       direction: np.ndarray, origin: np.ndarray, volume: np.ndarray, half: np.ndarray,
                       contact: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
     """Rule 3's second case for moving nodes ``a``, ``b`` of the same reference: in contact,
     one small beside the other, and either the small one does not touch the reference or both
     have the same type (a turning type also on the same line)."""
-    if not any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((a, b), (b, a))):
+    if not _touch(a, b, contact, edge_index):
         return False
     ea, eb = ref[a][1], ref[b][1]
     lo, hi = sorted((float(volume[a]), float(volume[b])))
     if not (hi > 0.0 and lo <= MERGE_VOLUME_RATIO * hi):
         return False
     small = a if volume[a] <= volume[b] else b
-    r = ref[small][0]
-    if not any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((small, r), (r, small))):
+    if not _touch(small, ref[small][0], contact, edge_index):
         return True  # mounted on the larger part, not on the reference: it moves with the part
     if lab[ea] != lab[eb]:
         return False

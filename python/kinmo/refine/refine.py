@@ -343,7 +343,7 @@ def refine_predictions(
     kind = [""] * e
     n_c = np.zeros(e, dtype=np.int64)
     details: dict[int, EdgeRefinement] = {}
-    switched: dict[int, bool] = {}
+    switched: set[int] = set()
     ranker = None
     if cfg.selector == "ranker":
         from kinmo.refine.ranker import load_ranker
@@ -376,7 +376,7 @@ def refine_predictions(
                              rng=np.random.default_rng([cfg.seed, int(k)]), meshes=meshes)
             if rp.free is not None and rp.scores.best >= 0 and float(rp.free[rp.scores.best]) >= OPEN_FREE:
                 r = rp
-                switched[int(k)] = True
+                switched.add(int(k))
                 types[k] = "P_H"
         details[int(k)] = r
     if ranker is not None and cfg.vote_repeated and details:
@@ -426,10 +426,7 @@ def refine_shape_prediction(
 
     refined = refine_predictions(prediction.graph, prediction.edges, axis_model, config,
                                  priors=getattr(prediction, "priors", None), meshes=meshes)
-    probs = np.asarray(prediction.edges.probs)
-    if refined.type_prob.shape == probs.shape:
-        probs = refined.type_prob
-    edges = EdgePrediction(probs, refined.axis_direction.copy(),
+    edges = EdgePrediction(refined.type_prob, refined.axis_direction.copy(),
                            refined.axis_origin.copy())
     if (config or RefineConfig()).selector == "ranker":
         # the fine type follows the selected axis: H/V from its direction, C/S from its pivot
