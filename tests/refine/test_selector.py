@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from kinmo.data.model import FINE_INDEX, FINE_TYPES
+from kinmo.errors import KinmoDataError
 from kinmo.refine.refine import RefineConfig, refine_predictions
 from kinmo.refine.selector import (
     FEATURES,
@@ -454,3 +455,47 @@ def test_fit_selector_chooses_its_regularisation_by_cross_validation():
     ranker, _ = fit_selector(groups, features=(FEATURES[0],), k=3, l2=0.5, category_power=1.0)
     assert (ranker.meta["l2"], ranker.meta["category_power"]) == (0.5, 1.0)
     assert len(ranker.meta["selection"]) == 1
+
+
+def test_a_ranker_per_type_set_in_one_file(tmp_path):
+    """Issue 34: fine and coarse GNNs get their own rankers (fit_type_rankers), kept in one
+    file; Ranker.for_types picks the coarse one for coarse predictions, refine uses it."""
+    import json
+
+    from kinmo.data.model import COARSE_TYPES
+    from kinmo.refine.fit_selector import fit_type_rankers
+
+    rng = np.random.default_rng(0)
+
+    def marked(sign: float, type_set: str):
+        g = _groups_of(["a", "b", "c"] * 8, [0.0] * 24, [90.0] * 24,
+                       joints=[f"s{k}/1/{type_set}" for k in range(24)])
+        # feature 0 marks the right candidate in the fine groups, the wrong one in the coarse
+        g.x = [np.column_stack([sign * np.array([1.0, 0.0]) + 0.1 * rng.normal(size=2),
+                                np.zeros((2, len(FEATURES) - 1))]) for _ in range(24)]
+        return g
+
+    ranker, stats = fit_type_rankers({"fine": marked(1.0, "fine"), "coarse": marked(-1.0, "coarse")},
+                                     features=(FEATURES[0],), k=3, l2=0.01, category_power=0.0)
+    assert set(stats) == {"fine", "coarse"} and ranker.coarse is not None
+    x = np.zeros((2, len(FEATURES)))
+    x[:, 0] = [1.0, 0.0]
+    assert np.argmax(ranker.for_types(FINE_TYPES).probabilities(x)) == 0
+    assert np.argmax(ranker.for_types(COARSE_TYPES).probabilities(x)) == 1
+    back = load_ranker(ranker.save(tmp_path / "ranker.json"))
+    assert back.coarse is not None and back.for_types(COARSE_TYPES) is back.coarse
+    np.testing.assert_allclose(back.coarse.weights, ranker.coarse.weights)
+    assert np.argmax(back.for_types(COARSE_TYPES).probabilities(x)) == 1
+    # a file without a coarse ranker serves both type sets (files of before issue 34)
+    d = json.loads((tmp_path / "ranker.json").read_text())
+    del d["coarse"]
+    (tmp_path / "one.json").write_text(json.dumps(d))
+    one = load_ranker(tmp_path / "one.json")
+    assert one.coarse is None and one.for_types(COARSE_TYPES) is one
+    # a nested or malformed coarse entry is one clear error
+    d["coarse"] = {"coarse": {}}
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    with pytest.raises(KinmoDataError, match="coarse"):
+        load_ranker(tmp_path / "bad.json")
+    with pytest.raises(ValueError, match="type sets"):
+        fit_type_rankers({"medium": marked(1.0, "fine")})

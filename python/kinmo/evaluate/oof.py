@@ -11,8 +11,8 @@ did not train on it:
    configuration of ``kinmo train all``'s own motion GNNs (:func:`kinmo.train.ranker.fold_config`),
    and predicts the held-out fold: the ``GNN_fine`` / ``GNN_coarse`` rows.
 3. Per fold, the learned selector (:mod:`kinmo.refine.ranker`) is fit on the candidate groups
-   of the *other* folds' out-of-fold predictions (fine and coarse pooled, as
-   :func:`kinmo.train.ranker.train_ranker` pools them; the semantic prior from the other
+   of the *other* folds' out-of-fold predictions (a ranker per type set, as
+   :func:`kinmo.train.ranker.train_ranker` fits them; the semantic prior from the other
    folds' objects) and refines the held-out fold's predictions: the ``OBB_fine`` /
    ``OBB_coarse`` rows, through :class:`kinmo.inference.predictor.Predictor` as every command.
 
@@ -40,7 +40,7 @@ from kinmo.evaluate.tables import write_report
 from kinmo.inference.predictor import Predictor
 from kinmo.io import write_json
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.fit_selector import DEFAULT_FEATURES, EdgeGroups, collect_groups, fit_selector, fold_ids
+from kinmo.refine.fit_selector import DEFAULT_FEATURES, collect_groups, fit_type_rankers, fold_ids
 from kinmo.refine.semantic_prior import SemanticPrior
 from kinmo.train.gnn import load_run
 from kinmo.train.ranker import train_folds
@@ -139,13 +139,14 @@ def oof_table1(
             for p in Predictor(runs[(t, f)]).gnn_predictions(held):
                 gnn[t][p.shape_id] = p
     semantic_all = SemanticPrior.from_graphs(graphs)
-    groups = EdgeGroups.concat([collect_groups([gnn[t][i] for i in ids], seed=seed, semantic=semantic_all)
-                    for t in ("fine", "coarse")])
+    groups = {t: collect_groups([gnn[t][i] for i in ids], seed=seed, semantic=semantic_all)
+              for t in ("fine", "coarse")}
     refined: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
     (out / "rankers").mkdir(parents=True, exist_ok=True)
     for f in range(folds):
         rest = {i for i in ids if fold_of[i] != f}
-        ranker, _ = fit_selector(groups.of_shapes(rest), features=DEFAULT_FEATURES, k=3, seed=seed)
+        ranker, _ = fit_type_rankers({t: g.of_shapes(rest) for t, g in groups.items()},
+                                     features=DEFAULT_FEATURES, k=3, seed=seed)
         ranker.semantic = SemanticPrior.from_graphs([g for g in graphs if g.shape_id in rest])
         path = ranker.save(out / "rankers" / f"ranker_{f}.json")
         cfg = RefineConfig(selector="ranker", ranker=str(path))

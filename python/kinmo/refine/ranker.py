@@ -9,18 +9,26 @@ one edge (listwise), fit on out-of-fold GNN predictions of training objects
 shape's diagonal of the truth)``, the meaning of the pseudo-label threshold, from the winner's
 probability and the GNN's axis-candidate mass on the winner's direction (``dir_prior``). The ranker file
 (``ranker.json``) also stores the semantic prior (:mod:`kinmo.refine.semantic_prior`).
+
+One file may hold a ranker per type set (issue 34): the top-level ranker serves the fine types
+(the motion GNN of a model bundle) and ``coarse`` the coarse types (Table 1's ``OBB_coarse``);
+:meth:`Ranker.for_types` picks the one for a prediction. A coarse GNN's priors (5 types, no
+horizontal / vertical split) deserve other weights than a fine GNN's: out of fold on the 235
+labelled objects, rankers fit per type set lowered the per-category axis error of both
+settings against one fit on their pooled groups (docs/results/table1_four_settings.md).
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from kinmo.data.model import COARSE_TYPES
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json
 from kinmo.refine.features import FEATURES, FEATURE_INDEX
@@ -54,6 +62,10 @@ class Ranker:
     semantic : SemanticPrior or None
         The training objects' direction prior behind the ``sem_prior`` features (stored in
         the same file).
+    coarse : Ranker or None
+        The ranker of coarse-type predictions (:meth:`for_types`), fit on the coarse GNN's
+        groups alone; None: this ranker serves both type sets (files written before issue
+        34's per-type fit). It shares this ranker's ``semantic``.
     """
 
     features: tuple[str, ...]
@@ -64,6 +76,16 @@ class Ranker:
     meta: dict = field(default_factory=dict)
     semantic: SemanticPrior | None = None
     prior_weight: float = 0.0
+    coarse: Ranker | None = None
+
+    def for_types(self, type_names: Sequence[str]) -> Ranker:
+        """The ranker for predictions over ``type_names``: :attr:`coarse` (with this ranker's
+        semantic prior) for :data:`~kinmo.data.model.COARSE_TYPES` when there is one, else this."""
+        if self.coarse is not None and tuple(type_names) == COARSE_TYPES:
+            if self.coarse.semantic is None:
+                self.coarse.semantic = self.semantic
+            return self.coarse
+        return self
 
     def _x(self, x: np.ndarray) -> np.ndarray:
         idx = [FEATURE_INDEX[n] for n in self.features]
@@ -100,6 +122,8 @@ class Ranker:
                "platt": list(self.platt), "prior_weight": self.prior_weight, "meta": self.meta}
         if self.semantic is not None:
             out["semantic_prior"] = self.semantic.to_json()
+        if self.coarse is not None:
+            out["coarse"] = replace(self.coarse, semantic=None, coarse=None).to_json()
         return out
 
     def save(self, path: str | Path) -> Path:
@@ -124,6 +148,19 @@ def load_ranker(path: str | Path) -> Ranker:
 def _load_ranker_cached(path: str) -> Ranker:
     try:
         d = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as e:
+        raise KinmoDataError(path, f"not a ranker file ({type(e).__name__}: {e})") from None
+    ranker = _ranker_from_json(d, path)
+    if "coarse" in d:
+        if not isinstance(d["coarse"], dict) or "coarse" in d["coarse"]:
+            raise KinmoDataError(path, "ranker: 'coarse' must be one ranker")
+        ranker.coarse = _ranker_from_json(d["coarse"], path)
+        ranker.coarse.semantic = ranker.semantic
+    return ranker
+
+
+def _ranker_from_json(d: dict, path: str) -> Ranker:
+    try:
         feats = tuple(d["features"])
         w, m, s = (np.asarray(d[k], dtype=np.float64) for k in ("weights", "mean", "std"))
         platt = (float(d["platt"][0]), float(d["platt"][1]))
@@ -131,7 +168,7 @@ def _load_ranker_cached(path: str) -> Ranker:
         prior_weight = float(d.get("prior_weight", 0.0))
         if not np.isfinite(prior_weight):
             raise ValueError(f"prior_weight {prior_weight}")
-    except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
+    except (ValueError, KeyError, TypeError, IndexError) as e:
         raise KinmoDataError(path, f"not a ranker file ({type(e).__name__}: {e})") from None
     unknown = [f for f in feats if f not in FEATURE_INDEX]
     if unknown or not (len(feats) == w.size == m.size == s.size):

@@ -349,7 +349,7 @@ def refine_predictions(
         from kinmo.refine.ranker import load_ranker
         from kinmo.refine.selector import GNNPriors
 
-        ranker = load_ranker(str(cfg.ranker))
+        ranker = load_ranker(str(cfg.ranker)).for_types(pred.type_names)
         if priors is None:
             priors = GNNPriors(pred.type_prob, pred.type_names)
         if meshes is None and moving.any() and ranker_needs_meshes(ranker):

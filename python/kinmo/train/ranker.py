@@ -28,7 +28,7 @@ from kinmo.refine.fit_selector import (
     DEFAULT_FEATURES,
     EdgeGroups,
     collect_groups,
-    fit_selector,
+    fit_type_rankers,
     fold_ids,
 )
 from kinmo.refine.ranker import Ranker
@@ -275,7 +275,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
         How the ranker's fit weighs categories; chosen by cross-validation when not given
         (:func:`kinmo.refine.fit_selector.fit_selector`).
     types : sequence of {"fine", "coarse"}
-        Fold GNNs of these type sets; their groups are pooled (one ranker serves both).
+        Fold GNNs of these type sets; a ranker is fit per type set, the coarse one kept in the
+        fine one's file (:func:`kinmo.refine.fit_selector.fit_type_rankers`).
     progress : bool
     workers, executor
         Fold GNNs trained at once, and where (:func:`train_folds`).
@@ -283,7 +284,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     Returns
     -------
     (Ranker, dict)
-        The ranker (also written) and the cross-validated numbers (:func:`fit_selector`).
+        The ranker (also written) and the cross-validated numbers per type set
+        (:func:`~kinmo.refine.fit_selector.fit_selector`'s, in ``cv.json``).
 
     Raises
     ------
@@ -298,22 +300,23 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     train_folds(graphs, sorted(train), out, k=folds, preset=preset, types=types, seed=seed,
                 threads=threads, epochs=epochs, workers=workers, executor=executor, progress=progress,
                 augment=augment)
-    parts = []
+    parts = {}
     for t in types:
         preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,
                                 seed=seed, threads=threads, progress=progress, epochs=epochs,
                                 augment=augment)
-        parts.append(collect_groups(list(preds.values()), seed=seed, semantic=semantic))
-    groups = EdgeGroups.concat(parts)
+        parts[t] = collect_groups(list(preds.values()), seed=seed, semantic=semantic)
+    groups = EdgeGroups.concat(list(parts.values()))
     if not groups.y:
         raise KinmoDataError(data, "no moving edge predicted moving in the out-of-fold predictions")
-    ranker, stats = fit_selector(groups, features=DEFAULT_FEATURES, k=folds, seed=seed,
-                                 category_power=category_power)
+    ranker, by_type = fit_type_rankers(parts, features=DEFAULT_FEATURES, k=folds, seed=seed,
+                                       category_power=category_power)
     ranker.semantic = semantic
     ranker.meta["trained_on"] = {"data": str(data), "split": str(split), "types": list(types),
                                  "preset": preset, "folds": folds, "augment": augment,
                                  "epochs": fold_config(preset, "fine", epochs=epochs).epochs}
     groups.save(out / "oof_groups.npz")
     ranker.save(out / "ranker.json")
-    write_json(out / "cv.json", {k: v for k, v in stats.items() if not isinstance(v, np.ndarray)})
+    stats = {t: {k: v for k, v in st.items() if not isinstance(v, np.ndarray)} for t, st in by_type.items()}
+    write_json(out / "cv.json", stats)
     return ranker, stats
