@@ -396,8 +396,11 @@ def fit_type_rankers(groups: dict[str, EdgeGroups], *, features: tuple[str, ...]
     Parameters
     ----------
     groups : dict of {"fine", "coarse"} to EdgeGroups
-        The out-of-fold groups of each type set's GNNs (:func:`collect_groups`); empty sets
-        are left out.
+        The out-of-fold groups of each type set's GNNs (:func:`collect_groups`). A set too
+        thin for :func:`fit_selector` (no right candidate in its groups or in a training part
+        of its cross-validation) is left out, and the other set's ranker serves it; when
+        neither can be fit alone, one ranker is fit on both pooled (key ``"pooled"`` of the
+        numbers).
     features, k, seed, l2, category_power
         As :func:`fit_selector`, for each type set.
 
@@ -409,15 +412,26 @@ def fit_type_rankers(groups: dict[str, EdgeGroups], *, features: tuple[str, ...]
     Raises
     ------
     ValueError
-        No type set with groups, or one not ``"fine"`` / ``"coarse"``.
+        A set not ``"fine"`` / ``"coarse"``, or not even the pooled groups can be fit
+        (:func:`fit_selector`).
     """
     unknown = set(groups) - {"fine", "coarse"}
     if unknown:
         raise ValueError(f"fit_type_rankers: type sets must be fine or coarse, got {sorted(unknown)}")
-    fits = {t: fit_selector(g, features=features, k=k, seed=seed, l2=l2, category_power=category_power)
-            for t, g in groups.items() if g.y}
+    # a type set too thin to fit (tiny data: no right candidate in its groups, or in one of
+    # the inner cross-validation's training parts) is left out, and the other set's ranker
+    # serves it; with neither, one ranker is fit on both sets pooled, as before issue 34
+    fits = {}
+    for t, g in groups.items():
+        try:
+            fits[t] = fit_selector(g, features=features, k=k, seed=seed, l2=l2,
+                                   category_power=category_power)
+        except ValueError:
+            continue
     if not fits:
-        raise ValueError("fit_type_rankers: no groups")
+        ranker, stats = fit_selector(EdgeGroups.concat(list(groups.values())), features=features, k=k,
+                                     seed=seed, l2=l2, category_power=category_power)
+        return ranker, {"pooled": stats}
     ranker = fits["fine"][0] if "fine" in fits else fits["coarse"][0]
     if "fine" in fits and "coarse" in fits:
         ranker.coarse = fits["coarse"][0]
