@@ -423,6 +423,8 @@ def fit_type_rankers(groups: dict[str, EdgeGroups], *, features: tuple[str, ...]
     # serves it; with neither, one ranker is fit on both sets pooled, as before issue 34
     fits = {}
     for t, g in groups.items():
+        if not any(len(y) and np.any(y) for y in g.y):
+            continue  # nothing to fit (and no error to average)
         try:
             fits[t] = fit_selector(g, features=features, k=k, seed=seed, l2=l2,
                                    category_power=category_power)
