@@ -37,7 +37,8 @@ def train_ranker_cmd(
         _, st = train_ranker(data, out, split, folds=folds, preset=preset, types=ts, seed=seed,
                              threads=threads, progress=not quiet, workers=workers, executor=executor)
     c = new_console()
-    c.print(f"wrote {literal(out / 'ranker.json')}: a ranker per type set")
+    what = "one ranker on the type sets pooled" if "pooled" in st else "a ranker per type set"
+    c.print(f"wrote {literal(out / 'ranker.json')}: {what}")
     for t, s in st.items():
         c.print(f"  {t}: {s['groups']} edges, candidate recall {s['recall']:.3f}, out-of-fold top-1 "
                 f"{s['oof_top1']:.3f} (angle {s['oof_angle']:.2f}° vs GNN {s['gnn_angle']:.2f}°)")

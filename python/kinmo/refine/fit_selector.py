@@ -326,7 +326,15 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
         sibling edges it has, as in the per-joint evaluation of Table 1; ``oof_cat_angle``
         and ``gnn_cat_angle``: the per-category means of :func:`selection_error`;
         ``selection``: the error of every pair tried).
+
+    Raises
+    ------
+    ValueError
+        No group with a right candidate (checked first, before any error is averaged), or
+        a cross-validation training part without one (:func:`~kinmo.refine.ranker.fit_ranker`).
     """
+    if not any(len(y) and np.any(y) for y in groups.y):
+        raise ValueError("fit_selector: no group with a positive candidate")
     shapes = sorted(set(groups.shape_id))
     cat_of = {s: c for s, c in zip(groups.shape_id, groups.category)}
     f_of = dict(zip(shapes, fold_ids(shapes, [cat_of[s] for s in shapes], k, seed)))
@@ -423,8 +431,6 @@ def fit_type_rankers(groups: dict[str, EdgeGroups], *, features: tuple[str, ...]
     # serves it; with neither, one ranker is fit on both sets pooled, as before issue 34
     fits = {}
     for t, g in groups.items():
-        if not any(len(y) and np.any(y) for y in g.y):
-            continue  # nothing to fit (and no error to average)
         try:
             fits[t] = fit_selector(g, features=features, k=k, seed=seed, l2=l2,
                                    category_power=category_power)
