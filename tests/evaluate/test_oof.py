@@ -9,6 +9,7 @@ import pytest
 
 from kinmo.errors import KinmoDataError
 from kinmo.evaluate.oof import SETTINGS, oof_table1
+from kinmo.ranges import RangePrior
 from motion_cabinet import cabinet_graph
 
 
@@ -23,6 +24,10 @@ def _no_nan(table):
     """The table with NaN (no joint to score) as None, so that equal tables compare equal."""
     return {k: {m: (None if isinstance(v, float) and math.isnan(v) else v) for m, v in row.items()}
             for k, row in table.items()}
+
+
+def _held_out(out, k):
+    return [json.loads((out / "folds" / f"fine_{f}" / "split.json").read_text())["test"] for f in range(k)]
 
 
 def test_every_object_is_predicted_out_of_fold_in_four_settings(tmp_path):
@@ -43,6 +48,10 @@ def test_every_object_is_predicted_out_of_fold_in_four_settings(tmp_path):
         assert sorted(held) == sorted(g.shape_id for g in graphs)
     assert sorted(p.name for p in (tmp_path / "rankers").iterdir()) == [
         f"ranker_{f}.json" for f in range(3)]
+    # one range prior per fold, fit on the other folds' objects (one door hinge each)
+    for f, held in enumerate(_held_out(tmp_path, 3)):
+        prior = RangePrior.load(tmp_path / "ranges" / f"ranges_{f}.json")
+        assert prior.lookup("hinge", None, None).n == len(graphs) - len(held)
     summary = json.loads((tmp_path / "oof.json").read_text())
     assert summary["objects"] == len(graphs) and summary["folds"] == 3
     assert set(summary["angle_joint"]) == set(SETTINGS)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 
@@ -127,3 +128,60 @@ def test_table1_scores_the_predicted_ranges_against_the_true_ones():
     assert r["range_iou_hinge"] == pytest.approx(1.0) and r["range_end_hinge"] == pytest.approx(0.0)
     assert r["range_iou_slider"] > 0.9 > d["range_iou_slider"]
     assert r["range_cont_acc"] == 1.0
+
+
+def _with_obstacle(meshes: ShapeMeshes, lo, hi) -> ShapeMeshes:
+    """The body (leaf 1) with an extra box ``lo``..``hi`` fixed to it."""
+    v, f = meshes.leaves[1]
+    b = trimesh.creation.box(extents=np.subtract(hi, lo),
+                             transform=trimesh.transformations.translation_matrix(np.add(lo, hi) / 2))
+    leaves = dict(meshes.leaves)
+    leaves[1] = (np.vstack([v, b.vertices]), np.vstack([f, np.asarray(b.faces, np.int64) + len(v)]))
+    return ShapeMeshes(leaves)
+
+
+def test_a_wall_across_the_door_bounds_its_opening_end():
+    """A slab 0.2 in front of the door, over its whole height: the door meets it at about
+    asin(0.2 / 0.5) = 24 degrees, with most of its points, so the sweep bounds the end."""
+    p = _prediction()
+    m = _with_obstacle(_meshes(p.graph), (-0.6, 0.4, 0.5), (0.2, 1.1, 0.52))
+    lo, hi = _limits(predict_ranges(p, _prior(("hinge", None, None, 5, 0.0, 0.0, 120.0)), m))["door"]
+    assert lo == 0.0 and 15.0 <= hi <= 30.0
+
+
+def test_a_graze_keeps_the_learned_opening_end():
+    """The same slab over the top tenth of the door only: a few of its points graze it (an
+    axis slightly off, a handle on a frame), so the learned end is kept (GRAZE_SHARE)."""
+    from kinmo.ranges.predict import GRAZE_SHARE, OPEN_SIDE_TRUST
+
+    p = _prediction()
+    m = _with_obstacle(_meshes(p.graph), (-0.6, 0.9, 0.5), (0.2, 1.1, 0.52))
+    prior = _prior(("hinge", None, None, 5, 0.0, 0.0, 120.0))
+    assert _limits(predict_ranges(p, prior, m))["door"] == (0.0, 120.0)
+    # the sweep alone stops the door at the slab: the graze rule is what keeps the end
+    import kinmo.ranges.predict as rp
+
+    old = rp.GRAZE_SHARE
+    try:
+        rp.GRAZE_SHARE = 0.0
+        assert _limits(predict_ranges(p, prior, m))["door"][1] < OPEN_SIDE_TRUST * 120.0
+    finally:
+        rp.GRAZE_SHARE = old
+    assert 0.0 < GRAZE_SHARE < 0.5
+
+
+def test_a_slider_blocked_on_its_opening_side_and_free_the_other_way_is_turned_round():
+    """A drawer whose predicted direction points into the body: pushed that way it is blocked
+    at once, pulled the other way it is free, so its direction is negated and it pulls out."""
+    p = _prediction()
+    links = []
+    for lk in p.tree.links:
+        if lk.name == "drawer":
+            lk = dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, direction=-lk.joint.direction))
+        links.append(lk)
+    p = dataclasses.replace(p, tree=dataclasses.replace(p.tree, links=links))
+    out = predict_ranges(p, _prior(("slider", None, None, 5, 0.0, 0.0, 1.0)), _meshes(p.graph))
+    drawer = next(lk.joint for lk in out.tree.moving_links if lk.name == "drawer")
+    assert np.allclose(drawer.direction, [0.0, 0.0, 1.0])
+    ext = np.ptp(p.graph.points[[4, 5]].reshape(-1, 3)[:, 2])
+    assert drawer.limit[0] <= 0.0 and drawer.limit[1] == pytest.approx(ext, rel=0.05)

@@ -15,6 +15,11 @@ did not train on it:
    :func:`kinmo.train.ranker.train_ranker` fits them; the semantic prior from the other
    folds' objects) and refines the held-out fold's predictions: the ``OBB_fine`` /
    ``OBB_coarse`` rows, through :class:`kinmo.inference.predictor.Predictor` as every command.
+4. Per fold, the range prior (:func:`kinmo.ranges.fit_range_prior`, issue 35) is fit on the
+   other folds' objects, and the refined rows' joints get their ranges from it, clipped by the
+   sweep, as ``kinmo predict`` gives them: the range columns of the ``OBB`` rows score the
+   learned ranges on every labelled object, and those of the ``GNN`` rows the tree's default
+   ranges (0–90°, 0.3 × size).
 
 Caveat, stated in the output: the groups a fold's ranker is fit on were predicted by GNNs
 that trained on that fold's objects (their features, never their labels, depend on them).
@@ -22,8 +27,8 @@ that trained on that fold's objects (their features, never their labels, depend 
 Outputs (``OUT/``): ``table1.csv``, ``table1.md`` (:func:`kinmo.evaluate.tables.write_report`:
 per category, the ``mean`` over categories and the pooled ``all`` row), ``oof.json`` (the
 per-category mean and pooled joint axis error of the four settings and the selector's gain),
-``folds/<types>_<f>/`` (the GNN runs, reused when present: an interrupted run resumes) and
-``rankers/ranker_<f>.json``.
+``folds/<types>_<f>/`` (the GNN runs, reused when present: an interrupted run resumes),
+``rankers/ranker_<f>.json`` and ``ranges/ranges_<f>.json``.
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ from kinmo.evaluate.shape_metrics import EvalReport, evaluate_graphs
 from kinmo.evaluate.tables import write_report
 from kinmo.inference.predictor import Predictor
 from kinmo.io import write_json
+from kinmo.ranges import fit_range_prior
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.fit_selector import DEFAULT_FEATURES, collect_groups, fit_type_rankers, fold_ids
 from kinmo.refine.semantic_prior import SemanticPrior
@@ -143,15 +149,19 @@ def oof_table1(
               for t in ("fine", "coarse")}
     refined: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
     (out / "rankers").mkdir(parents=True, exist_ok=True)
+    (out / "ranges").mkdir(parents=True, exist_ok=True)
     for f in range(folds):
         rest = {i for i in ids if fold_of[i] != f}
         ranker, _ = fit_type_rankers({t: g.of_shapes(rest) for t, g in groups.items()},
                                      features=DEFAULT_FEATURES, k=3, seed=seed)
         ranker.semantic = SemanticPrior.from_graphs([g for g in graphs if g.shape_id in rest])
         path = ranker.save(out / "rankers" / f"ranker_{f}.json")
+        prior = fit_range_prior(g for g in graphs if g.shape_id in rest)
+        prior_path = out / "ranges" / f"ranges_{f}.json"
+        prior.save(prior_path)
         cfg = RefineConfig(selector="ranker", ranker=str(path))
         for t in refined:
-            pr = Predictor(runs[(t, f)], None, cfg)
+            pr = Predictor(runs[(t, f)], None, cfg, ranges=prior)
             for i in ids:
                 if fold_of[i] == f:
                     refined[t][i] = pr.refine_prediction(gnn[t][i])
