@@ -60,6 +60,12 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
         refine = refine.get("refine") or refine["pseudo"]["refine"]
         assert (refine["selector"], refine["ranker"]) == ("ranker", ranker_file), t1
     assert json.loads((run / "eval/pre-segmented-paper/.done").read_text())["refine"]["selector"] == "paper"
+    # the pseudo-label rule graded on the labelled test objects, with the pseudo-labels' models
+    rule = json.loads((run / "eval/pseudo-label-rule/summary.json").read_text())
+    assert rule["threshold"] == 0.6 and rule["all"]["objects"] == len(split["test"])
+    assert 0 <= rule["all"]["kept"] <= rule["all"]["objects"]
+    assert json.loads((run / "eval/pseudo-label-rule/.done").read_text())["pseudo"]["refine"]["ranker"] == ranker_file
+    assert result["stages"]["pseudo_rule"] == [str(run / "eval/pseudo-label-rule")]
     kept = list((run / "pseudo").glob("*/scores.json"))
     assert kept and all(json.loads(p.read_text())["options"]["refine"]["ranker"] == ranker_file for p in kept)
     assert result["stages"]["table1"] == [str(run / "eval/pre-segmented"), str(run / "eval/pre-segmented-paper")]

@@ -68,7 +68,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -88,6 +88,9 @@ from kinmo.refine.refine import RefineConfig
 from kinmo.refine.selector import graph_meshes
 from kinmo.stages import ShapeStage, cache_key, one_line, source_fingerprint
 
+if TYPE_CHECKING:
+    from kinmo.data.graph import PartGraph
+
 logger = logging.getLogger(__name__)
 
 __all__ = [
@@ -95,8 +98,10 @@ __all__ = [
     "PseudoLabelConfig",
     "PseudoLabelResult",
     "ShapeRecord",
+    "judge",
     "pseudo_label_dataset",
     "pseudo_label_shape",
+    "score_joints",
     "summary_rows",
 ]
 
@@ -353,6 +358,83 @@ def _place(stage: Path, final: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
+def score_joints(graph: PartGraph, sp: Any, refined: Any, config: PseudoLabelConfig
+                 ) -> tuple[list[Any], list[dict[str, Any]]]:
+    """Every predicted moving joint of a refined shape with its pseudo-label score.
+
+    Parameters
+    ----------
+    graph : PartGraph
+    sp : kinmo.mobility_tree.ShapePrediction
+        The refined prediction (:meth:`kinmo.inference.predictor.Predictor.refine_with_details`).
+    refined : kinmo.refine.refine.RefinedPredictions
+        Its per-edge details.
+    config : PseudoLabelConfig
+        ``score`` and ``sign`` are used.
+
+    Returns
+    -------
+    links : list of Link
+        The tree's links (axes turned to the feasible direction with ``sign="feasibility"``).
+    joints : list of dict
+        One per moving link, in link order, as written to the shape's record (``"link"``:
+        the link id; its sibling edge is ``sp.tree.link_edge[link]``).
+    """
+    tree, tree_pred, type_names = sp.tree, sp.edges, refined.type_names
+    links = list(tree.links)
+    joints: list[dict[str, Any]] = []
+    for n, lk in enumerate(links):
+        if not lk.joint.is_moving:
+            continue
+        k = tree.link_edge[lk.id]
+        det = refined.details.get(int(k))
+        if det is None or det.scores.best < 0:  # not refined, or no candidate: score 0
+            score, terms = 0.0, {}
+        else:
+            b = det.scores.best
+            score = float(det.confidence)
+            terms = {"feasibility": float(det.scores.feasibility[b]),
+                     "direction_agreement": float(det.scores.direction[b]),
+                     "position_agreement": float(det.scores.position[b]),
+                     "candidate": det.kind, "n_candidates": len(det.candidates)}
+            if config.sign == "feasibility":
+                lim = lk.joint.limit
+                if lim is not None and float(np.dot(det.direction, lk.joint.direction)) < 0:
+                    lim = (-lim[1], -lim[0])  # the range follows the axis' sign
+                links[n] = replace(lk, joint=replace(lk.joint, direction=det.direction.copy(), limit=lim))
+        i, j = (int(x) for x in graph.sibling_edges[k])
+        type_prob = float(np.max(tree_pred.probs[k]))
+        joints.append({
+            "link": lk.id, "name": lk.name, "joint": lk.joint.type.value,
+            "rotates": bool(lk.joint.rotates),
+            "type": type_names[int(np.argmax(tree_pred.probs[k]))],
+            "type_prob": type_prob,
+            "moving_node": int(graph.node_ids[i]), "reference_node": int(graph.node_ids[j]),
+            "line_confidence": score,
+            "score": score * type_prob if config.score == "joint" else score, **terms,
+        })
+    return links, joints
+
+
+def judge(joints: Sequence[dict[str, Any]], threshold: float) -> tuple[str, str]:
+    """The pseudo-label decision for a shape's scored joints (:func:`score_joints`).
+
+    Returns
+    -------
+    (status, reason)
+        ``("kept", "")`` when every joint scores ``>= threshold``; ``no_moving_joint`` or
+        ``below_threshold`` with a one-line reason otherwise.
+    """
+    if not joints:
+        return "no_moving_joint", "no moving joint predicted"
+    low = [j for j in joints if not j["score"] >= threshold]
+    if not low:
+        return "kept", ""
+    worst = min(low, key=lambda j: j["score"])
+    return "below_threshold", (f"{len(low)} of {len(joints)} joints below {threshold:g} "
+                               f"(lowest: link {worst['link']} {worst['name']!r} {worst['score']:.3f})")
+
+
 def pseudo_label_shape(
     folder: str | Path,
     out: str | Path,
@@ -407,65 +489,24 @@ def pseudo_label_shape(
         gnn = predictor.gnn_predictions([graph], options, consistent=config.consistent)[0]
         sp, refined = predictor.refine_with_details(
             gnn, meshes=lambda g: graph_meshes(g, shape.hierarchy, named()), options=options)
-        tree, tree_pred, type_names = sp.tree, sp.edges, refined.type_names
-        links = list(tree.links)
-        joints: list[dict[str, Any]] = []
-        for n, lk in enumerate(links):
-            if not lk.joint.is_moving:
-                continue
-            k = tree.link_edge[lk.id]
-            det = refined.details.get(int(k))
-            if det is None or det.scores.best < 0:  # not refined, or no candidate: score 0
-                score, terms = 0.0, {}
-            else:
-                b = det.scores.best
-                score = float(det.confidence)
-                terms = {"feasibility": float(det.scores.feasibility[b]),
-                         "direction_agreement": float(det.scores.direction[b]),
-                         "position_agreement": float(det.scores.position[b]),
-                         "candidate": det.kind, "n_candidates": len(det.candidates)}
-                if config.sign == "feasibility":
-                    lim = lk.joint.limit
-                    if lim is not None and float(np.dot(det.direction, lk.joint.direction)) < 0:
-                        lim = (-lim[1], -lim[0])  # the range follows the axis' sign
-                    links[n] = replace(lk, joint=replace(lk.joint, direction=det.direction.copy(), limit=lim))
-            i, j = (int(x) for x in graph.sibling_edges[k])
-            type_prob = float(np.max(tree_pred.probs[k]))
-            joints.append({
-                "link": lk.id, "name": lk.name, "joint": lk.joint.type.value,
-                "rotates": bool(lk.joint.rotates),
-                "type": type_names[int(np.argmax(tree_pred.probs[k]))],
-                "type_prob": type_prob,
-                "moving_node": int(graph.node_ids[i]), "reference_node": int(graph.node_ids[j]),
-                "line_confidence": score,
-                "score": score * type_prob if config.score == "joint" else score, **terms,
-            })
+        links, joints = score_joints(graph, sp, refined, config)
         rec.joints = joints
         rec.n_moving = len(joints)
-        if not joints:
-            rec.status, rec.reason = "no_moving_joint", "no moving joint predicted"
-        else:
+        rec.status, rec.reason = judge(joints, config.threshold)
+        if joints:
             rec.min_score = min(j["score"] for j in joints)
-            low = [j for j in joints if not j["score"] >= config.threshold]
-            if low:
-                worst = min(low, key=lambda j: j["score"])
-                rec.status = "below_threshold"
-                rec.reason = (f"{len(low)} of {len(joints)} joints below {config.threshold:g} "
-                              f"(lowest: link {worst['link']} {worst['name']!r} "
-                              f"{worst['score']:.3f})")
-            else:
-                hfile = next((shape.path / h for h in HIERARCHY_FILES
-                              if (shape.path / h).is_file()), None)
-                if hfile is None:
-                    raise KinmoDataError(shape.path, "no hierarchy file")
-                stage = out / ".staging" / f"{shape.id}-{uuid.uuid4().hex[:8]}"
-                try:
-                    _write_folder(stage, shape, hfile, links, joints, config, models, named)
-                    _place(stage, out / shape.id)
-                finally:
-                    if stage.exists():
-                        shutil.rmtree(stage, ignore_errors=True)
-                rec.status = "kept"
+        if rec.status == "kept":
+            hfile = next((shape.path / h for h in HIERARCHY_FILES
+                          if (shape.path / h).is_file()), None)
+            if hfile is None:
+                raise KinmoDataError(shape.path, "no hierarchy file")
+            stage = out / ".staging" / f"{shape.id}-{uuid.uuid4().hex[:8]}"
+            try:
+                _write_folder(stage, shape, hfile, links, joints, config, models, named)
+                _place(stage, out / shape.id)
+            finally:
+                if stage.exists():
+                    shutil.rmtree(stage, ignore_errors=True)
     except (KinmoError, OSError, ValueError) as e:
         rec.status, rec.reason = "failed", one_line(e)
     except Exception as e:  # keep a long batch going; the reason names the error type

@@ -20,6 +20,7 @@ JSON), so an interrupted run resumes where it stopped. Layout::
     out/ranker/                      kinmo train ranker (the learned selector; --selector learned)
     out/eval/pre-segmented/          kinmo eval pre-segmented (Table 1, OBB rows by the selector)
     out/eval/pre-segmented-paper/    the same with the paper's selector (--selector learned only)
+    out/eval/pseudo-label-rule/      the pseudo-label rule graded on the labelled test objects
     out/pseudo/                      kinmo pseudo-label (with the selector)
     out/ancsh/<Category>/<setting>/  kinmo train ancsh
     out/scans/<Category>/            the rendered scans of a category (every variant shares them)
