@@ -51,13 +51,13 @@ from kinmo.export import DEFAULT_FORMATS, export
 from kinmo.export.collision import DEFAULT_COLLISION
 from kinmo.inference.gnn import infer_edges, infer_edges_with_priors, predict_graphs
 from kinmo.inference.predictor import Predictor
-from kinmo.io import atomic_path, check_outputs_apart, output_dir, staged_folder, write_json, write_text
+from kinmo.io import atomic_path, check_outputs_apart, output_dir, staged_folder, write_text
 from kinmo.refine.selector import graph_meshes
 from kinmo.mobility_tree import ShapePrediction, TreeOptions, consistent_fine
 from kinmo.parallel import resolve_workers, single_threaded_worker, torch_threads
 from kinmo.progress import CountingBar
 from kinmo.stages import cache_key, worker_error
-from kinmo.train.gnn import Run, load_run
+from kinmo.train.gnn import Run
 from kinmo.viz import render_prediction
 
 __all__ = [

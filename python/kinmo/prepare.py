@@ -52,7 +52,6 @@ later stages call, and the run); what it shares with the other per-shape stages 
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import time

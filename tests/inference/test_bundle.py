@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 from conftest import write_cabinet, write_untrained_models
 
 from kinmo.data.build import build_graph

@@ -15,12 +15,10 @@ from __future__ import annotations
 from collections import defaultdict
 
 import numpy as np
-import pytest
 
 from kinmo.data.build import build_graph
 from kinmo.data.model import FINE_TYPES
 from kinmo.data.readers import find_shapes, read_meta, read_shape
-from kinmo.metrics.axis import axis_angle_deg
 from kinmo.mobility_tree import EdgePrediction, build_mobility_tree
 from kinmo.predict import ShapePrediction
 from kinmo.refine.fit_selector import DEFAULT_FEATURES, collect_groups, fit_selector

@@ -4,7 +4,6 @@ moved by an independent forward kinematics of mobility_v2.json; reproducibility;
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np

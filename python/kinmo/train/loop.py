@@ -33,7 +33,6 @@ import copy
 import csv
 import io
 import math
-import os
 import random
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
