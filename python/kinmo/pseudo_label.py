@@ -101,6 +101,7 @@ __all__ = [
     "judge",
     "pseudo_label_dataset",
     "pseudo_label_shape",
+    "score_graph",
     "score_joints",
     "summary_rows",
 ]
@@ -358,6 +359,33 @@ def _place(stage: Path, final: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
+def score_graph(predictor: Any, graph: PartGraph, config: PseudoLabelConfig, meshes: Any = None
+                ) -> tuple[list[Any], list[dict[str, Any]]]:
+    """Predict, refine and score one part graph as :func:`pseudo_label_shape` does.
+
+    Parameters
+    ----------
+    predictor : kinmo.inference.predictor.Predictor
+    graph : PartGraph
+    config : PseudoLabelConfig
+        ``consistent``, ``hinge_limit`` and ``slider_fraction`` shape the prediction;
+        ``score`` and ``sign`` the scores (:func:`score_joints`).
+    meshes : callable, ShapeMeshes or None
+        The graph's leaf meshes for the refinement
+        (:meth:`~kinmo.inference.predictor.Predictor.refine_with_details`); None: read from
+        the graph's source folder.
+
+    Returns
+    -------
+    (links, joints)
+        As :func:`score_joints`.
+    """
+    options = TreeOptions(tuple(config.hinge_limit), config.slider_fraction)
+    gnn = predictor.gnn_predictions([graph], options, consistent=config.consistent)[0]
+    sp, refined = predictor.refine_with_details(gnn, meshes=meshes, options=options)
+    return score_joints(graph, sp, refined, config)
+
+
 def score_joints(graph: PartGraph, sp: Any, refined: Any, config: PseudoLabelConfig
                  ) -> tuple[list[Any], list[dict[str, Any]]]:
     """Every predicted moving joint of a refined shape with its pseudo-label score.
@@ -484,12 +512,8 @@ def pseudo_label_shape(
             if cache is not None:
                 logger.debug("%s: not in the cache %s, building its part graph", folder, cache)
             graph = build_graph(shape, meshes=named())
-        predictor = models.predictor
-        options = TreeOptions(tuple(config.hinge_limit), config.slider_fraction)
-        gnn = predictor.gnn_predictions([graph], options, consistent=config.consistent)[0]
-        sp, refined = predictor.refine_with_details(
-            gnn, meshes=lambda g: graph_meshes(g, shape.hierarchy, named()), options=options)
-        links, joints = score_joints(graph, sp, refined, config)
+        links, joints = score_graph(models.predictor, graph, config,
+                                    meshes=lambda g: graph_meshes(g, shape.hierarchy, named()))
         rec.joints = joints
         rec.n_moving = len(joints)
         rec.status, rec.reason = judge(joints, config.threshold)

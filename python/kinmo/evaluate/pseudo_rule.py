@@ -5,7 +5,8 @@ the threshold (:func:`kinmo.pseudo_label.score_joints`, :func:`kinmo.pseudo_labe
 unlabelled shapes have no motion to grade the kept labels against, so a change that loosens
 the rule (more shapes kept, worse ones) is invisible in the pseudo-labelling run itself. This
 module puts labelled objects the model did not train on (``kinmo train all``'s test split)
-through the same prediction, refinement, scores and decision, and grades every joint of the
+through the same prediction, refinement, scores and decision
+(:func:`kinmo.pseudo_label.score_graph`), and grades every joint of the
 kept objects against the truth:
 
 - **kept**: objects kept / objects;
@@ -35,8 +36,7 @@ from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TYPES
 from kinmo.io import write_json, write_text
 from kinmo.metrics.axis import axis_angle_deg
-from kinmo.mobility_tree import TreeOptions
-from kinmo.pseudo_label import PseudoLabelConfig, judge, score_joints
+from kinmo.pseudo_label import PseudoLabelConfig, judge, score_graph
 
 __all__ = ["JointGrade", "PseudoRuleReport", "grade_pseudo_rule", "write_pseudo_rule"]
 
@@ -135,21 +135,20 @@ def grade_pseudo_rule(predictor: Any, graphs: Sequence[PartGraph], config: Pseud
     -------
     PseudoRuleReport
     """
-    options = TreeOptions(tuple(config.hinge_limit), config.slider_fraction)
     rep = PseudoRuleReport(float(config.threshold), 0)
     for g in graphs:
         if not g.has_labels or not len(g.sibling_edges):
             continue
         rep.n_objects += 1
-        gnn = predictor.gnn_predictions([g], options, consistent=config.consistent)[0]
-        sp, refined = predictor.refine_with_details(gnn, meshes=meshes, options=options)
-        links, joints = score_joints(g, sp, refined, config)
+        links, joints = score_graph(predictor, g, config, meshes=meshes)
         kept = judge(joints, config.threshold)[0] == "kept"
         if kept:
             rep.kept.append(g.shape_id)
         by_id = {lk.id: lk for lk in links}
+        ids = np.asarray(g.node_ids)
+        edge_of = {(int(ids[i]), int(ids[j])): k for k, (i, j) in enumerate(g.sibling_edges)}
         for jd in joints:
-            k = int(sp.tree.link_edge[jd["link"]])
+            k = edge_of[(jd["moving_node"], jd["reference_node"])]  # the joint's sibling edge
             true = FINE_TYPES[int(g.edge_fine[k])]
             moving = true not in _STILL
             pred = str(jd["type"])

@@ -77,6 +77,16 @@ GRAZE_SHARE = 0.2
 SLIDER_FLIP_SHARE = 0.25
 
 
+def _sweep_line(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray, direction: np.ndarray,
+                revolute: bool, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`SweepObstacle.sweep` of one axis over ``reach`` (radians or mesh units) per sign,
+    in :data:`HINGE_STEPS` or :data:`SLIDER_STEPS`: its ``(2,)`` free and colliding fractions."""
+    free, colliding = obstacle.sweep(points, np.asarray(origin, float)[None], np.asarray(direction, float)[None],
+                                     np.array([REVOLUTE if revolute else PRISMATIC]), np.array([reach]),
+                                     n_steps=HINGE_STEPS if revolute else SLIDER_STEPS)
+    return free[0], colliding[0]
+
+
 def free_extents(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray,
                  direction: np.ndarray, revolute: bool, reach: float) -> tuple[float, float]:
     """How far a part moves freely from rest in each direction.
@@ -99,11 +109,8 @@ def free_extents(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray
         Free extent along ``+direction`` and along ``-direction``: degrees for hinges, mesh
         units for sliders; ``reach`` (in those units) when never blocked.
     """
-    steps = HINGE_STEPS if revolute else SLIDER_STEPS
-    free, _ = obstacle.sweep(points, np.asarray(origin, float)[None], np.asarray(direction, float)[None],
-                             np.array([REVOLUTE if revolute else PRISMATIC]), np.array([reach]),
-                             n_steps=steps)
-    ext = free[0] * reach
+    free, _ = _sweep_line(obstacle, points, origin, direction, revolute, reach)
+    ext = free * reach
     if revolute:
         ext = np.degrees(ext)
     return float(ext[0]), float(ext[1])
@@ -113,11 +120,9 @@ def _grazes(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray, dir
              revolute: bool, end: float) -> bool:
     """Whether at most :data:`GRAZE_SHARE` of ``points`` hit the obstacle anywhere from rest
     to ``end`` (degrees or mesh units) along ``+direction``."""
-    reach = math.radians(end) if revolute else end
-    _, colliding = obstacle.sweep(points, np.asarray(origin, float)[None], np.asarray(direction, float)[None],
-                                  np.array([REVOLUTE if revolute else PRISMATIC]), np.array([reach]),
-                                  n_steps=HINGE_STEPS if revolute else SLIDER_STEPS)
-    return float(colliding[0][0]) <= GRAZE_SHARE
+    _, colliding = _sweep_line(obstacle, points, origin, direction, revolute,
+                               math.radians(end) if revolute else end)
+    return float(colliding[0]) <= GRAZE_SHARE
 
 
 def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: int = 0) -> ShapePrediction:
@@ -174,7 +179,7 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
         else:
             reach = 2 * math.pi if hinge else max(2.0, 1.25 * max(abs(entry.lo), abs(entry.hi))) * unit  # type: ignore[arg-type]
             obstacle = SweepObstacle(*meshes.union(rest))
-            e_pos, e_neg = free_extents(obstacle, pts, j.origin, j.direction, hinge, reach)
+            e_pos, e_neg = free_extents(obstacle, pts, j.origin, direction, hinge, reach)
             if not hinge and abs(lo) < hi and e_pos < SLIDER_FLIP_SHARE * hi and e_neg >= hi:
                 direction, e_pos, e_neg = -direction, e_neg, e_pos  # it opens the other way
             c_lo, c_hi = max(lo, -e_neg), min(hi, e_pos)
