@@ -144,7 +144,7 @@ def trimesh_sweep(points, mesh, intersector, origins, dirs, kinds, ranges, skin,
     ok = length > 0
     d = np.where(ok[:, None], v / np.maximum(length, 1e-300)[:, None], [1.0, 0, 0])
     # Per ray: its point, its step; contact points start their first step `skin` later.
-    point_of, step_of, first = [], [], []
+    point_of, step_of = [], []
     for _c, _s, steps in seg_meta:
         point_of.append(np.tile(np.arange(p), steps))
         step_of.append(np.repeat(np.arange(steps), p))

@@ -42,3 +42,8 @@ def train_ranker_cmd(
     for t, s in st.items():
         c.print(f"  {t}: {s['groups']} edges, candidate recall {s['recall']:.3f}, out-of-fold top-1 "
                 f"{s['oof_top1']:.3f} (angle {s['oof_angle']:.2f}° vs GNN {s['gnn_angle']:.2f}°)")
+        if "position_dist_before" in s:
+            c.print(f"  {t} position stage {'kept' if s['position_kept'] else 'not kept'}: hinge line "
+                    f"distance {s['position_dist_before']:.4f} -> {s['position_dist_after']:.4f}, "
+                    f"per category {s['position_cat_dist_before']:.4f} -> "
+                    f"{s['position_cat_dist_after']:.4f} (out of fold, / diagonal)")

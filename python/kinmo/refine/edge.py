@@ -11,7 +11,8 @@ moving:
   0.3 direction + 0.2 position`` (:func:`kinmo.refine.scoring.score_candidates`);
 - :func:`select_edge` (kinmo extension, ``selector="ranker"``): candidates of every
   orientation ranked by the learned selector (:mod:`kinmo.refine.selector`,
-  :mod:`kinmo.refine.ranker`).
+  :mod:`kinmo.refine.ranker`); a hinge line's position re-chosen among the winner's parallel
+  lines by the ranker's position stage (:mod:`kinmo.refine.position`).
 
 With meshes, the learned selector vetoes motions the object's own geometry rules out
 (:attr:`RefineConfig.sweep_vetoes`, kinmo extension, issue 36), by the swept test of its
@@ -51,6 +52,7 @@ from kinmo.refine.candidates import (
 )
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.features import FEATURE_GROUPS, FEATURES
+from kinmo.refine.position import reposition
 from kinmo.refine.motions import (
     candidate_motions,
     network_inputs,
@@ -340,15 +342,19 @@ def select_edge(
                                  gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic,
                                  proxy=proxy)
     p = ranker.probabilities(x)
-    b = int(np.argmax(p))
+    b = b0 = int(np.argmax(p))
     if cfg.sweep_vetoes:
-        b = blocked_slide_veto(cands, x, p, b)
+        b = b0 = blocked_slide_veto(cands, x, p, b)
+    if cands.motion != "P":
+        b = reposition(ranker.position, x, cands.directions, b, np.log(np.maximum(p, 1e-12)))
     sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
                                                 sign, net_sign)
     scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
                              x[:, FEATURES.index("pos_prior")], p, np.asarray(sg, np.int64), b)
     o, d = chosen_line(graph, i, cands, b, int(sg[b]))
-    conf = ranker.confidence(float(p[b]), float(x[b, FEATURES.index("dir_prior")]))
+    # the confidence is the first stage's (its calibration's meaning: the direction's winner;
+    # the position stage moves the line, not the direction)
+    conf = ranker.confidence(float(p[b0]), float(x[b0, FEATURES.index("dir_prior")]))
     return EdgeRefinement(cands, scores, o, d, calibrated=conf,
                           dir_prior=x[:, FEATURES.index("dir_prior")].copy(),
                           free=x[:, FEATURES.index("sweep_free_max")].copy() if meshes is not None else None)

@@ -34,6 +34,7 @@ from kinmo.data.model import FINE_TYPES
 from kinmo.io import atomic_path
 from kinmo.metrics.axis import axis_angle_deg, line_distance
 from kinmo.refine.features import FEATURES, FEATURE_GROUPS
+from kinmo.refine.position import fit_position
 from kinmo.refine.ranker import Ranker, calibrate, fit_ranker
 from kinmo.refine.selector import (
     GNNPriors,
@@ -94,6 +95,9 @@ class EdgeGroups:
         20 panels gives 20 groups), so the per-joint statistics of :func:`fit_selector`
         weight each group by one over its part's group count. May be empty (older groups):
         no per-joint statistics then.
+    directions : list of (C, 3) float64
+        Each candidate's direction (mesh frame), for the position stage
+        (:mod:`kinmo.refine.position`). May be empty (older groups): no position stage then.
     """
 
     x: list[np.ndarray]
@@ -107,6 +111,7 @@ class EdgeGroups:
     gnn_dist: list[float]
     revolute: list[bool]
     joint: list[str] = field(default_factory=list)
+    directions: list[np.ndarray] = field(default_factory=list)
 
     @classmethod
     def concat(cls, parts: Sequence[EdgeGroups]) -> EdgeGroups:
@@ -134,6 +139,7 @@ class EdgeGroups:
                 edge=np.array(self.edge), gnn_angle=np.array(self.gnn_angle),
                 gnn_dist=np.array(self.gnn_dist), revolute=np.array(self.revolute),
                 joint=np.array(self.joint),
+                directions=np.vstack(self.directions) if self.directions else np.zeros((0, 3)),
                 features=np.array(FEATURES))
 
 
@@ -158,7 +164,7 @@ def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = 
     EdgeGroups
     """
 
-    out = EdgeGroups([], [], [], [], [], [], [], [], [], [], [])
+    out = EdgeGroups([], [], [], [], [], [], [], [], [], [], [], [])
     for p in predictions:
         g = p.graph
         pri = p.priors if p.priors is not None else GNNPriors(p.edges.probs, p.type_names)
@@ -195,6 +201,7 @@ def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = 
             out.revolute.append(rev)
             type_set = "fine" if len(names) == len(FINE_TYPES) else "coarse"
             out.joint.append(f"{g.shape_id}/{int(i)}/{type_set}")
+            out.directions.append(np.asarray(cands.directions, np.float64).reshape(-1, 3))
     return out
 
 
@@ -264,10 +271,12 @@ def selection_error(groups: EdgeGroups, angle: np.ndarray) -> dict[str, float]:
 
 
 def _cv_choices(pairs: list, weights: np.ndarray, gf: np.ndarray, k: int,
-                features: tuple[str, ...], l2: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Out-of-fold choice and winning probability of every group (folds ``gf``)."""
+                features: tuple[str, ...], l2: float, seed: int
+                ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """Out-of-fold choice, winning probability and probabilities of every group (folds ``gf``)."""
     chosen = np.zeros(len(pairs), np.int64)
     pmax = np.zeros(len(pairs))
+    probs: list[np.ndarray] = [np.zeros(0)] * len(pairs)
     for f in range(k):
         tr_idx = np.flatnonzero(gf != f)
         te_idx = np.flatnonzero(gf == f)
@@ -277,8 +286,8 @@ def _cv_choices(pairs: list, weights: np.ndarray, gf: np.ndarray, k: int,
                        weights=weights[tr_idx])
         for n in te_idx:
             p = r.probabilities(pairs[n][0])
-            chosen[n], pmax[n] = int(np.argmax(p)), float(p.max())
-    return chosen, pmax
+            chosen[n], pmax[n], probs[n] = int(np.argmax(p)), float(p.max()), p
+    return chosen, pmax, probs
 
 
 def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k: int = 3,
@@ -318,7 +327,11 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
     Returns
     -------
     (Ranker, dict)
-        The calibrated ranker and the cross-validated numbers (``oof_top1``: share of groups
+        The calibrated ranker, with its position stage (:attr:`Ranker.position`,
+        :func:`kinmo.refine.position.fit_position`: fit when ``groups.directions`` is filled,
+        kept when it lowers the same cross-validation's line distance of the revolute
+        groups), and the cross-validated numbers (``position_*``: the position stage's;
+        ``oof_top1``: share of groups
         whose choice is right; ``oof_angle``/``oof_dist`` means of the chosen candidates;
         ``gnn_angle``/``gnn_dist`` the GNN's own; ``recall``: share with a right candidate;
         with ``groups.joint``, the same per joint, ``oof_joint_angle``, ``oof_joint_dist``,
@@ -350,22 +363,28 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
     for power in powers:
         wj = category_weights(groups, power) if per_joint else np.ones(len(pairs))
         for lam in l2s:
-            chosen, pmax = _cv_choices(pairs, wj, gf, k, features, lam, seed)
+            chosen, pmax, probs = _cv_choices(pairs, wj, gf, k, features, lam, seed)
             err = selection_error(groups, np.array([a[c] for a, c in zip(groups.angle, chosen)]))
             tried.append({"l2": lam, "category_power": power, **err})
-            runs.append((err, lam, power, wj, chosen, pmax))
+            runs.append((err, lam, power, wj, chosen, pmax, probs))
     # the lowest per-category mean among the fits whose pooled error is not above the GNN's;
     # without such a fit, the lowest pooled error. (This does not protect a category absent
     # from these groups: issue 34's keyboard, docs/results/table1_four_settings.md.)
     safe = [r for r in runs if r[0]["all"] <= gnn_err["all"] + 1e-9]
     best = (min(safe, key=lambda r: r[0]["mean"]) if safe else min(runs, key=lambda r: r[0]["all"]))
-    best_err, l2, category_power, wj, chosen, pmax = best
+    best_err, l2, category_power, wj, chosen, pmax, probs = best
     correct = np.array([bool(y[c]) for y, c in zip(groups.y, chosen)])
     ranker = fit_ranker(pairs, features=features, l2=l2, seed=seed, weights=wj)
     prior = np.array([x[c, FEATURES.index("dir_prior")] for x, c in zip(groups.x, chosen)])
     a, b, c = calibrate(pmax, correct, prior)
     ranker.platt, ranker.prior_weight = (a, b), c
     conf = np.array([ranker.confidence(p, q) for p, q in zip(pmax, prior)])
+    position_stats: dict[str, float] = {}
+    if len(groups.directions) == len(groups.y):
+        ranker.position, position_stats = fit_position(
+            groups.x, groups.angle, groups.dist, groups.revolute, groups.directions, chosen,
+            [np.log(np.maximum(p, 1e-12)) for p in probs], gf, per_part, groups.category,
+            seed=seed)
     chosen_angle = np.array([a[c] for a, c in zip(groups.angle, chosen)])
     stats = {
         "groups": len(pairs),
@@ -382,6 +401,7 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
         "calibrated_kept_0.6": float(np.mean(conf >= 0.6)),
         "calibrated_kept_0.6_correct": float(correct[conf >= 0.6].mean()) if (conf >= 0.6).any()
         else float("nan"),
+        **position_stats,
     }
     ranker.meta.update({"features_fit": list(features), "folds": k, "seed": seed, "l2": l2,
                         "category_power": category_power, "per_joint": per_joint,

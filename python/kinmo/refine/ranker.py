@@ -66,6 +66,10 @@ class Ranker:
         The ranker of coarse-type predictions (:meth:`for_types`), fit on the coarse GNN's
         groups alone; None: this ranker serves both type sets (files written before issue
         34's per-type fit). It shares this ranker's ``semantic``.
+    position : Ranker or None
+        The second stage of hinge lines (:mod:`kinmo.refine.position`): among the candidates
+        parallel to a revolute edge's winner, it re-chooses the line's position. None: the
+        winner stands (files written before it, or a fit where it did not help).
     """
 
     features: tuple[str, ...]
@@ -77,6 +81,7 @@ class Ranker:
     semantic: SemanticPrior | None = None
     prior_weight: float = 0.0
     coarse: Ranker | None = None
+    position: Ranker | None = None
 
     def for_types(self, type_names: Sequence[str]) -> Ranker:
         """The ranker for predictions over ``type_names``: :attr:`coarse` (with this ranker's
@@ -91,9 +96,13 @@ class Ranker:
         idx = [FEATURE_INDEX[n] for n in self.features]
         return (np.asarray(x, dtype=np.float64)[:, idx] - self.mean) / self.std
 
+    def scores(self, x: np.ndarray) -> np.ndarray:
+        """``(C,) float64`` linear scores ``w . (x - mean) / std`` (features ``(C, len(FEATURES))``)."""
+        return self._x(x) @ self.weights
+
     def probabilities(self, x: np.ndarray) -> np.ndarray:
         """``(C,)`` softmax over the candidates of one edge (features ``(C, len(FEATURES))``)."""
-        s = self._x(x) @ self.weights
+        s = self.scores(x)
         s = s - s.max()
         e = np.exp(s)
         return e / e.sum()
@@ -124,6 +133,9 @@ class Ranker:
             out["semantic_prior"] = self.semantic.to_json()
         if self.coarse is not None:
             out["coarse"] = replace(self.coarse, semantic=None, coarse=None).to_json()
+        if self.position is not None:
+            out["position"] = replace(self.position, semantic=None, coarse=None,
+                                      position=None).to_json()
         return out
 
     def save(self, path: str | Path) -> Path:
@@ -159,6 +171,16 @@ def _load_ranker_cached(path: str) -> Ranker:
     return ranker
 
 
+def _position_from_json(d: dict, path: str) -> Ranker | None:
+    """The ``position`` stage of one ranker's JSON (None without one)."""
+    if "position" not in d:
+        return None
+    p = d["position"]
+    if not isinstance(p, dict) or any(k in p for k in ("coarse", "position", "semantic_prior")):
+        raise KinmoDataError(path, "ranker: 'position' must be one plain ranker")
+    return _ranker_from_json(p, path)
+
+
 def _ranker_from_json(d: dict, path: str) -> Ranker:
     try:
         feats = tuple(d["features"])
@@ -173,7 +195,8 @@ def _ranker_from_json(d: dict, path: str) -> Ranker:
     unknown = [f for f in feats if f not in FEATURE_INDEX]
     if unknown or not (len(feats) == w.size == m.size == s.size):
         raise KinmoDataError(path, f"ranker: unknown features {unknown} or inconsistent lengths")
-    return Ranker(feats, w, m, s, platt, d.get("meta", {}), sem, prior_weight)
+    return Ranker(feats, w, m, s, platt, d.get("meta", {}), sem, prior_weight,
+                  position=_position_from_json(d, path))
 
 
 def fit_ranker(
@@ -184,6 +207,7 @@ def fit_ranker(
     seed: int = 0,
     iters: int = 300,
     weights: Sequence[float] | None = None,
+    offsets: Sequence[np.ndarray] | None = None,
 ) -> Ranker:
     """Fit a :class:`Ranker` by the listwise softmax loss on labelled candidate groups.
 
@@ -205,6 +229,10 @@ def fit_ranker(
         group of weight 0 is left out, also of the standardisation); uniform without.
         :func:`~kinmo.refine.fit_selector.fit_selector` gives each moving part weight one,
         shared by its sibling edges.
+    offsets : sequence of (C,) float64, optional
+        One fixed score per candidate of each group, added to ``w . x`` (the position stage
+        of :mod:`kinmo.refine.position` learns on top of the first stage's log-probability);
+        zeros without.
 
     Returns
     -------
@@ -225,6 +253,10 @@ def fit_ranker(
     wg = np.asarray(weights, dtype=np.float64).reshape(-1)
     if wg.size != len(groups) or not np.all(np.isfinite(wg)) or np.any(wg < 0):
         raise ValueError(f"fit_ranker: weights must be {len(groups)} finite values >= 0")
+    if offsets is not None and (len(offsets) != len(groups) or any(
+            np.shape(o) != (len(y),) or not np.all(np.isfinite(o))
+            for o, (_, y) in zip(offsets, groups))):
+        raise ValueError("fit_ranker: offsets must be one finite (C,) array per group")
     keep = [n for n, (_, y) in enumerate(groups) if len(y) and np.any(y)]
     if not keep:
         raise ValueError("fit_ranker: no group with a positive candidate")
@@ -240,6 +272,8 @@ def fit_ranker(
     torch.manual_seed(seed)
     xs = torch.from_numpy((allx - mean) / std)
     ys = torch.from_numpy(np.concatenate([y for _, y in use]).astype(bool))
+    off = torch.from_numpy(np.concatenate([np.asarray(offsets[n], np.float64) for n in keep])
+                           if offsets is not None else np.zeros(len(ys)))
     sizes = [len(y) for _, y in use]
     gid = torch.repeat_interleave(torch.arange(len(sizes)), torch.tensor(sizes))
     w = torch.zeros(len(idx), dtype=torch.float64, requires_grad=True)
@@ -249,7 +283,7 @@ def fit_ranker(
 
     def loss_fn() -> torch.Tensor:
         opt.zero_grad()
-        s = xs @ w
+        s = xs @ w + off
         mx = torch.zeros(n_g, dtype=s.dtype).scatter_reduce(0, gid, s, "amax", include_self=False)
         e = torch.exp(s - mx[gid])
         tot = torch.zeros(n_g, dtype=s.dtype).index_add(0, gid, e)
