@@ -185,3 +185,32 @@ def test_a_slider_blocked_on_its_opening_side_and_free_the_other_way_is_turned_r
     assert np.allclose(drawer.direction, [0.0, 0.0, 1.0])
     ext = np.ptp(p.graph.points[[4, 5]].reshape(-1, 3)[:, 2])
     assert drawer.limit[0] <= 0.0 and drawer.limit[1] == pytest.approx(ext, rel=0.05)
+
+
+def test_hinge_hardware_at_the_axis_does_not_stop_the_sweep(monkeypatch):
+    """A lug fixed to the body just in front of the door's hinge line, as PartNet models the
+    pins and hooks of hinges: the door's points next to the axis meet it in the first
+    degrees. Those points are left out of a hinge's sweep (HINGE_AXIS_SKIP), so the door
+    keeps its learned end; with them (and the graze rule off) the lug stops it."""
+    import kinmo.ranges.predict as rp
+
+    p = _prediction()
+    m = _with_obstacle(_meshes(p.graph), (-0.5, 0.5, 0.34), (-0.44, 1.0, 0.37))
+    prior = _prior(("hinge", None, None, 5, 0.0, 0.0, 120.0))
+    monkeypatch.setattr(rp, "GRAZE_SHARE", 0.0)
+    assert _limits(predict_ranges(p, prior, m))["door"] == (0.0, 120.0)
+    monkeypatch.setattr(rp, "HINGE_AXIS_SKIP", 0.0)
+    lo, hi = _limits(predict_ranges(p, prior, m))["door"]
+    assert lo == 0.0 and 5.0 <= hi <= 35.0
+
+
+def test_off_axis_points_leave_out_the_points_near_the_line():
+    from kinmo.ranges.predict import off_axis_points
+
+    pts = np.column_stack([np.linspace(0.0, 1.0, 21), np.zeros(21), np.zeros(21)])
+    o, d = np.zeros(3), np.array([0.0, 2.0, 0.0])  # the y axis, not unit
+    kept = off_axis_points(pts, o, d, skip=0.38)
+    np.testing.assert_allclose(kept[:, 0], np.linspace(0.4, 1.0, 13))
+    # too few left, or no direction: every point
+    assert len(off_axis_points(pts, o, d, skip=0.9)) == 21
+    assert len(off_axis_points(pts, o, np.zeros(3), skip=0.3)) == 21
