@@ -14,7 +14,7 @@ oriented so that a positive value opens the part):
    steps, sliders over ``max(2, 1.25 x the learned end)`` extents in :data:`SLIDER_STEPS`.
    A hinge's sweep leaves out the moving points nearest its axis (:data:`HINGE_AXIS_SKIP`,
    :func:`off_axis_points`): PartNet models a hinge's pins, lugs and hooks interlocked, and
-   they stopped bucket handles, stapler arms and knife blades within a few degrees (out of
+   they stopped bucket handles, stapler arms and laptop lids within 15° of rest (out of
    fold, hinge range IoU 0.631 -> 0.668, docs/results/ranges.md).
    The first blocking contact on each side bounds that side: ``hi <= free(+)``,
    ``lo >= -free(-)``, with two exceptions, which out of fold on the 235 shared objects
