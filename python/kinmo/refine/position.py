@@ -41,6 +41,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from kinmo.metrics.axis import axis_angle_deg
 from kinmo.refine.features import FEATURE_INDEX
 from kinmo.refine.ranker import Ranker, fit_ranker
 
@@ -88,7 +89,7 @@ def parallel_candidates(directions: np.ndarray, best: int, max_deg: float = PARA
     Parameters
     ----------
     directions : (C, 3) float64
-        Candidate directions (unit; sign ignored).
+        Candidate directions (non-zero; sign ignored).
     best : int
     max_deg : float
         Largest angle between two lines called parallel, degrees.
@@ -98,9 +99,7 @@ def parallel_candidates(directions: np.ndarray, best: int, max_deg: float = PARA
     (K,) int64, ``K >= 1``
     """
     d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    n = np.linalg.norm(d, axis=1)
-    cos = np.abs(d @ d[best]) / np.maximum(n * n[best], 1e-12)
-    keep = cos >= np.cos(np.radians(max_deg)) - 1e-12
+    keep = np.atleast_1d(axis_angle_deg(d, d[best])) <= max_deg
     keep[best] = True
     return np.flatnonzero(keep)
 
