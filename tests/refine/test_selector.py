@@ -519,3 +519,36 @@ def test_a_ranker_per_type_set_in_one_file(tmp_path):
     pooled, stats = fit_type_rankers({"fine": thin[0], "coarse": thin[1]}, features=(FEATURES[0],),
                                      k=2, l2=0.01, category_power=0.0)
     assert set(stats) == {"pooled"} and pooled.coarse is None
+
+
+def test_part_shape_features_read_the_moving_parts_own_box():
+    """The door (0.5 x 0.5 x 0.02, in front of the body along z) hinges about a long side: the
+    vertical hinge runs along its largest extent and across its thin one and its offset from
+    the body; a line along z (its thin axis, the offset) is what knobs turn about."""
+    g = cabinet_graph(n_points=64)
+    k = _door_edge(g)
+    cands, frames = edge_candidates(g, 2, 1, "R", np.array([0, 1.0, 0]), g.obb_center[2])
+    x, _ = candidate_features(g, 2, 1, k, cands, frames, _priors(g, k, "R_V_S"),
+                              np.array([0, 1.0, 0]), g.obb_center[2])
+    d = cands.directions / np.linalg.norm(cands.directions, axis=1, keepdims=True)
+    y, z = np.abs(d[:, 1]) > 0.99, np.abs(d[:, 2]) > 0.99
+    assert y.any() and z.any()
+    np.testing.assert_allclose(x[y, F["ext_along"]], 1.0, atol=1e-9)  # 0.25 / 0.25
+    np.testing.assert_allclose(x[z, F["ext_along"]], 0.04, atol=1e-9)  # 0.01 / 0.25
+    thin = x[:, F["thin_r_center"]] + x[:, F["thin_r_edge"]]
+    np.testing.assert_allclose(thin[y], 0.0, atol=1e-9)
+    np.testing.assert_allclose(thin[z], 1 - 0.01 / 0.25, atol=1e-9)
+    # a revolute edge fills the revolute columns only, each line in one pivot column
+    assert np.all(x[:, F["thin_p"]] == 0) and np.all(x[:, F["offset_p"]] == 0)
+    assert np.all((x[:, F["thin_r_center"]] == 0) | (x[:, F["thin_r_edge"]] == 0))
+    off = x[:, F["offset_r_center"]] + x[:, F["offset_r_edge"]]
+    u = g.obb_center[2] - g.obb_center[1]
+    np.testing.assert_allclose(off, np.abs(d @ (u / np.linalg.norm(u))), atol=1e-9)
+    # the drawer (node 3) slides: the prismatic columns, the revolute ones stay 0
+    kd = int(np.flatnonzero((g.sibling_edges[:, 0] == 3) & (g.sibling_edges[:, 1] == 1))[0])
+    cands, frames = edge_candidates(g, 3, 1, "P", np.array([0, 0, 1.0]), g.obb_center[3])
+    x, _ = candidate_features(g, 3, 1, kd, cands, frames, _priors(g, kd, "P_H"),
+                              np.array([0, 0, 1.0]), g.obb_center[3])
+    for n in ("thin_r_center", "thin_r_edge", "offset_r_center", "offset_r_edge"):
+        assert np.all(x[:, F[n]] == 0)
+    assert np.all(np.isfinite(x)) and x[:, F["offset_p"]].max() > 0.5

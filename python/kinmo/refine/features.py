@@ -19,6 +19,8 @@ FEATURES: tuple[str, ...] = (
     "sweep_free_min", "sweep_free_max", "sweep_coll_min", "sweep_coll_max", "attach_mesh",
     "d_child", "d_child_edge",
     "sem_prior", "log_sem_prior",
+    "ext_along", "thin_r_center", "thin_r_edge", "thin_p", "offset_r_center", "offset_r_edge",
+    "offset_p",
 )
 #: Column index of each feature name in :data:`FEATURES`.
 FEATURE_INDEX: dict[str, int] = {n: k for k, n in enumerate(FEATURES)}
@@ -34,6 +36,8 @@ FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
     "feasibility": ("feasibility",),
     "handle_side": ("d_child", "d_child_edge"),
     "semantic_prior": ("sem_prior", "log_sem_prior"),
+    "part_shape": ("ext_along", "thin_r_center", "thin_r_edge", "thin_p", "offset_r_center",
+                   "offset_r_edge", "offset_p"),
     "kind_frame": ("kind_edge", "kind_center", "kind_interaction", "kind_axis", "kind_gnn",
                    "frame_moving", "frame_reference", "frame_shape", "shape_aligned",
                    "ref_aligned"),

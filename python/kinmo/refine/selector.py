@@ -589,7 +589,58 @@ def candidate_features(
                                graph.node_names[moving], graph.node_names[reference], d, exclude))
     x[:, _F["sem_prior"]] = sp
     x[:, _F["log_sem_prior"]] = np.log(sp + 0.01)
+    _part_shape_features(x, graph, moving, reference, d, revolute,
+                         central if revolute else None)
     return x, sign
+
+
+def _part_shape_features(x: np.ndarray, graph: PartGraph, moving: int, reference: int,
+                         d: np.ndarray, revolute: bool, central: np.ndarray | None) -> None:
+    """Fill the ``part_shape`` features of ``x`` in place: how the moving part's own OBB sits
+    on each candidate line, cues that hold in any facing and up axis (kinmo extension, issue 34).
+
+    - ``ext_along``: the OBB's half-width along the line over its largest half extent (1: the
+      line runs along the part's longest side, as a door's hinge; small: across it).
+    - ``thin_*``: ``|d . a_thin|`` times how distinctly thin the part is
+      (``1 - h_thin / h_mid``), ``a_thin`` the OBB axis of the smallest extent: knobs, wheels
+      and caps turn about it through their centre, buttons slide along it, and doors and lids
+      never turn about it. Split by motion and, for revolute lines, by a central or an edge
+      pivot (:func:`pivots_are_central`), so that a linear ranker weighs each case alone.
+    - ``offset_*``: ``|d . u|``, ``u`` the unit vector from the reference part's OBB centre to
+      the moving part's: drawers and buttons move along it, knobs turn about it, doors and
+      lids hinge across it. Split as ``thin_*``.
+
+    Parameters
+    ----------
+    x : (C, len(FEATURES)) float64
+    graph : PartGraph
+    moving, reference : int
+    d : (C, 3) float64
+        Candidate directions (normalised here).
+    revolute : bool
+    central : (C,) bool or None
+        Central pivots of the lines (revolute only).
+    """
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+    half = np.asarray(graph.obb_half_extents[moving], dtype=np.float64)
+    axes = np.asarray(graph.obb_axes[moving], dtype=np.float64)
+    cos_obb = np.abs(d @ axes.T)  # (C, 3)
+    x[:, _F["ext_along"]] = (cos_obb @ half) / max(float(half.max()), 1e-12)
+    order = np.argsort(half)
+    thin = cos_obb[:, order[0]] * (1.0 - half[order[0]] / max(float(half[order[1]]), 1e-12))
+    off = (np.asarray(graph.obb_center[moving], dtype=np.float64)
+           - np.asarray(graph.obb_center[reference], dtype=np.float64))
+    n = float(np.linalg.norm(off))
+    offset = np.abs(d @ (off / n)) if n > 1e-9 * max(float(graph.scale), 1e-12) else np.zeros(len(d))
+    if revolute:
+        c = np.asarray(central, bool)
+        x[:, _F["thin_r_center"]] = thin * c
+        x[:, _F["thin_r_edge"]] = thin * ~c
+        x[:, _F["offset_r_center"]] = offset * c
+        x[:, _F["offset_r_edge"]] = offset * ~c
+    else:
+        x[:, _F["thin_p"]] = thin
+        x[:, _F["offset_p"]] = offset
 
 
 def candidate_labels(
