@@ -589,13 +589,14 @@ def candidate_features(
                                graph.node_names[moving], graph.node_names[reference], d, exclude))
     x[:, _F["sem_prior"]] = sp
     x[:, _F["log_sem_prior"]] = np.log(sp + 0.01)
-    _part_shape_features(x, graph, moving, reference, d, revolute,
-                         central if revolute else None)
+    _part_shape_features(x, centre, axes, half, np.asarray(graph.obb_center[reference], np.float64),
+                         d, revolute, central if revolute else None, float(graph.scale))
     return x, sign
 
 
-def _part_shape_features(x: np.ndarray, graph: PartGraph, moving: int, reference: int,
-                         d: np.ndarray, revolute: bool, central: np.ndarray | None) -> None:
+def _part_shape_features(x: np.ndarray, centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
+                         ref_centre: np.ndarray, d: np.ndarray, revolute: bool,
+                         central: np.ndarray | None, scale: float) -> None:
     """Fill the ``part_shape`` features of ``x`` in place: how the moving part's own OBB sits
     on each candidate line, cues that hold in any facing and up axis (kinmo extension, issue 34).
 
@@ -613,25 +614,30 @@ def _part_shape_features(x: np.ndarray, graph: PartGraph, moving: int, reference
     Parameters
     ----------
     x : (C, len(FEATURES)) float64
-    graph : PartGraph
-    moving, reference : int
+    centre : (3,) float64
+        The moving part's OBB centre (mesh frame).
+    axes : (3, 3) float64
+        Its OBB axes (rows).
+    half : (3,) float64
+        Its OBB half extents.
+    ref_centre : (3,) float64
+        The reference part's OBB centre.
     d : (C, 3) float64
         Candidate directions (normalised here).
     revolute : bool
     central : (C,) bool or None
         Central pivots of the lines (revolute only).
+    scale : float
+        The shape's diagonal (an offset below ``1e-9 * scale`` counts as none).
     """
     d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
-    half = np.asarray(graph.obb_half_extents[moving], dtype=np.float64)
-    axes = np.asarray(graph.obb_axes[moving], dtype=np.float64)
     cos_obb = np.abs(d @ axes.T)  # (C, 3)
     x[:, _F["ext_along"]] = (cos_obb @ half) / max(float(half.max()), 1e-12)
     order = np.argsort(half)
     thin = cos_obb[:, order[0]] * (1.0 - half[order[0]] / max(float(half[order[1]]), 1e-12))
-    off = (np.asarray(graph.obb_center[moving], dtype=np.float64)
-           - np.asarray(graph.obb_center[reference], dtype=np.float64))
+    off = centre - ref_centre
     n = float(np.linalg.norm(off))
-    offset = np.abs(d @ (off / n)) if n > 1e-9 * max(float(graph.scale), 1e-12) else np.zeros(len(d))
+    offset = np.abs(d @ (off / n)) if n > 1e-9 * max(scale, 1e-12) else np.zeros(len(d))
     if revolute:
         c = np.asarray(central, bool)
         x[:, _F["thin_r_center"]] = thin * c
