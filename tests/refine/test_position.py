@@ -9,6 +9,7 @@ import torch
 
 from kinmo.errors import KinmoDataError
 from kinmo.evaluate.settings import failure_kind
+from kinmo.refine.groups import EdgeGroups
 from kinmo.refine.position import (
     POSITION_FEATURES,
     fit_position,
@@ -88,11 +89,21 @@ def test_position_groups_keep_revolute_edges_with_a_position_choice():
     angle = [np.array([0.0, 1.0, 60.0])] * 4
     dist = [np.array([0.0, 0.2, 0.0]), np.array([0.0, 0.01, 0.3]), np.array([0.0, 0.2, 0.0]),
             np.array([0.3, 0.2, 0.0])]
-    pairs, idx, kept = position_groups(x, angle, dist, [True, True, False, True])
+    pairs, idx, kept = position_groups(_groups(x, angle, dist, [True, True, False, True]))
     # group 1: both right-direction lines right in position; group 2 a slider; group 3 none right
     assert idx.tolist() == [0] and kept[0].tolist() == [0, 1]
     np.testing.assert_array_equal(pairs[0][0], x[0][:2])
     assert pairs[0][1].tolist() == [True, False]
+
+
+def _groups(x, angle, dist, revolute, directions=(), categories=None) -> EdgeGroups:
+    n = len(x)
+    return EdgeGroups(x=list(x), y=[np.asarray(d) < 0.05 for d in dist], angle=list(angle),
+                      dist=list(dist), shape_id=[f"s{k}" for k in range(n)],
+                      category=list(categories) if categories is not None else ["c"] * n,
+                      edge=list(range(n)), gnn_angle=[0.0] * n, gnn_dist=[0.0] * n,
+                      revolute=list(revolute), joint=[f"s{k}/1/fine" for k in range(n)],
+                      directions=list(directions))
 
 
 def _hinge_groups(n: int, informative: bool, seed: int = 0):
@@ -123,7 +134,7 @@ def test_fit_position_is_kept_only_when_it_lowers_the_line_distance():
     cats = ["a", "b"] * (n // 2)
     xs, a, d, dirs, chosen = _hinge_groups(n, informative=True)
     base = [np.zeros(4)] * n  # a first stage with no preference
-    stage, st = fit_position(xs, a, d, [True] * n, dirs, chosen, base, folds, w, cats)
+    stage, st = fit_position(_groups(xs, a, d, [True] * n, dirs, cats), chosen, base, folds, w)
     assert stage is not None and stage.features == POSITION_FEATURES
     assert st["position_dist_after"] < 0.5 * st["position_dist_before"]
     assert st["position_cat_dist_after"] < 0.5 * st["position_cat_dist_before"]
@@ -132,10 +143,10 @@ def test_fit_position_is_kept_only_when_it_lowers_the_line_distance():
     # a feature that says nothing: the stage does not help out of fold and is not kept
     xs, a, d, dirs, chosen = _hinge_groups(n, informative=False, seed=1)
     chosen = np.array([int(np.argmin(dd)) for dd in d])  # the first stage is already right
-    stage, st = fit_position(xs, a, d, [True] * n, dirs, chosen, base, folds, w, cats)
+    stage, st = fit_position(_groups(xs, a, d, [True] * n, dirs, cats), chosen, base, folds, w)
     assert stage is None and st["position_dist_before"] == 0.0 and st["position_kept"] == 0.0
     # sliders only: nothing to fit
-    stage, st = fit_position(xs, a, d, [False] * n, dirs, chosen, base, folds, w, cats)
+    stage, st = fit_position(_groups(xs, a, d, [False] * n, dirs, cats), chosen, base, folds, w)
     assert stage is None and st == {"position_groups": 0.0}
 
 

@@ -270,7 +270,8 @@ def test_collect_groups_and_fit_selector_on_oracle_predictions():
 
 
 def test_per_joint_statistics_weigh_each_moving_part_once():
-    from kinmo.refine.fit_selector import EdgeGroups, _joint_stats, joint_weights
+    from kinmo.refine.fit_selector import _joint_stats
+    from kinmo.refine.groups import EdgeGroups, joint_weights
 
     # part A has three sibling edges (all chose a 90-degree line), part B one (0 degrees):
     # per edge the mean is 67.5, per joint 45.
@@ -403,7 +404,7 @@ def test_point_line_distance_is_the_norm_of_the_cross_product_bit_for_bit():
 
 
 def _groups_of(categories, angles, gnn, joints=None):
-    from kinmo.refine.fit_selector import EdgeGroups
+    from kinmo.refine.groups import EdgeGroups
 
     n = len(categories)
     return EdgeGroups(
@@ -415,7 +416,7 @@ def _groups_of(categories, angles, gnn, joints=None):
 
 
 def test_category_weights_shrink_large_categories():
-    from kinmo.refine.fit_selector import category_weights
+    from kinmo.refine.groups import category_weights
 
     g = _groups_of(["a", "a", "a", "a", "b"], [0] * 5, [0] * 5)
     np.testing.assert_allclose(category_weights(g, 0.0), np.ones(5))
@@ -426,7 +427,7 @@ def test_category_weights_shrink_large_categories():
 
 
 def test_selection_error_is_per_category_and_pooled_per_type_set():
-    from kinmo.refine.fit_selector import selection_error
+    from kinmo.refine.groups import selection_error
 
     # fine: a (0, 0, 0) and b (90): pooled 22.5, per category (0 + 90) / 2 = 45;
     # coarse: a (10): 10 both ways; the type sets are averaged

@@ -25,15 +25,13 @@ Outputs (``OUT/``, written by :func:`kinmo.train.ranker.train_ranker`): ``ranker
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from kinmo.data.model import FINE_TYPES
-from kinmo.io import atomic_path
 from kinmo.metrics.axis import axis_angle_deg, line_distance
 from kinmo.refine.features import FEATURES, FEATURE_GROUPS
+from kinmo.refine.groups import EdgeGroups, category_weights, joint_weights, selection_error
 from kinmo.refine.position import fit_position
 from kinmo.refine.ranker import Ranker, calibrate, fit_ranker
 from kinmo.refine.selector import (
@@ -45,9 +43,8 @@ from kinmo.refine.selector import (
 )
 from kinmo.refine.semantic_prior import SemanticPrior
 
-__all__ = ["CATEGORY_POWERS", "DEFAULT_FEATURES", "EdgeGroups", "L2_GRID", "category_weights",
-           "collect_groups", "fit_selector", "fit_type_rankers", "fold_ids", "joint_weights", "select_groups",
-           "selection_error"]
+__all__ = ["CATEGORY_POWERS", "DEFAULT_FEATURES", "L2_GRID", "collect_groups", "fit_selector",
+           "fit_type_rankers", "fold_ids", "select_groups"]
 
 
 def fold_ids(ids: Sequence[str], categories: Sequence[str], k: int, seed: int = 0) -> list[int]:
@@ -72,75 +69,6 @@ def fold_ids(ids: Sequence[str], categories: Sequence[str], k: int, seed: int = 
             out[n] = (start + r) % k
         start += len(members)
     return out
-
-
-@dataclass
-class EdgeGroups:
-    """Labelled candidate groups of moving edges.
-
-    Attributes
-    ----------
-    x : list of (C, len(FEATURES)) float64
-    y : list of (C,) bool
-    angle, dist : list of (C,) float64
-        Each candidate's angle (degrees) and line distance (/ shape diagonal) to the truth.
-    shape_id, category : list of str
-    edge : list of int
-    gnn_angle, gnn_dist : list of float
-        The GNN's own error on the edge.
-    revolute : list of bool
-    joint : list of str
-        The moving part of each edge, ``"shape_id/node/type set"``. One joint of the mobility
-        tree is one moving part, whatever the number of its sibling edges (a drawer touching
-        20 panels gives 20 groups), so the per-joint statistics of :func:`fit_selector`
-        weight each group by one over its part's group count. May be empty (older groups):
-        no per-joint statistics then.
-    directions : list of (C, 3) float64
-        Each candidate's direction (mesh frame), for the position stage
-        (:mod:`kinmo.refine.position`). May be empty (older groups): no position stage then.
-    """
-
-    x: list[np.ndarray]
-    y: list[np.ndarray]
-    angle: list[np.ndarray]
-    dist: list[np.ndarray]
-    shape_id: list[str]
-    category: list[str]
-    edge: list[int]
-    gnn_angle: list[float]
-    gnn_dist: list[float]
-    revolute: list[bool]
-    joint: list[str] = field(default_factory=list)
-    directions: list[np.ndarray] = field(default_factory=list)
-
-    @classmethod
-    def concat(cls, parts: Sequence[EdgeGroups]) -> EdgeGroups:
-        """The groups of ``parts`` one after the other (e.g. the fine and the coarse type set)."""
-        return cls(*[[v for part in parts for v in getattr(part, f)]
-                     for f in cls.__dataclass_fields__])
-
-    def of_shapes(self, keep: set[str]) -> EdgeGroups:
-        """The groups of the shapes in ``keep``, in order."""
-        idx = [n for n, s in enumerate(self.shape_id) if s in keep]
-        return EdgeGroups(*[[getattr(self, f)[n] for n in idx] if len(getattr(self, f)) else []
-                            for f in EdgeGroups.__dataclass_fields__])
-
-    def save(self, path: Path) -> None:
-        """Write all groups into one ``.npz`` (ragged arrays concatenated with offsets)."""
-
-        sizes = np.array([len(y) for y in self.y], dtype=np.int64)
-        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-            np.savez_compressed(
-                fh, x=np.vstack(self.x) if self.x else np.zeros((0, len(FEATURES))),
-                y=np.concatenate(self.y) if self.y else np.zeros(0, bool),
-                angle=np.concatenate(self.angle) if self.angle else np.zeros(0),
-                dist=np.concatenate(self.dist) if self.dist else np.zeros(0),
-                sizes=sizes, shape_id=np.array(self.shape_id), category=np.array(self.category),
-                edge=np.array(self.edge), gnn_angle=np.array(self.gnn_angle),
-                gnn_dist=np.array(self.gnn_dist), revolute=np.array(self.revolute),
-                joint=np.array(self.joint),
-                directions=np.vstack(self.directions) if self.directions else np.zeros((0, 3)),
-                features=np.array(FEATURES))
 
 
 def collect_groups(predictions: Sequence, *, seed: int = 0, with_meshes: bool = True,
@@ -227,47 +155,6 @@ L2_GRID: tuple[float, ...] = (0.003, 0.01, 0.03, 0.1)
 #: groups. 0: every joint alike; 0.5: large categories count less (Table 1's headline is a
 #: mean over categories, and the GNN's flips are in the small ones).
 CATEGORY_POWERS: tuple[float, ...] = (0.0, 0.5)
-
-
-def category_weights(groups: EdgeGroups, power: float) -> np.ndarray:
-    """``(G,) float64``: :func:`joint_weights` times ``n_c ** -power`` (``n_c``: the summed joint
-    weight of the group's category), the fit weights of :func:`fit_selector`."""
-    w = joint_weights(groups)
-    if power == 0.0 or not groups.category:
-        return w
-    cat = np.asarray(groups.category)
-    total = {c: float(w[cat == c].sum()) for c in set(groups.category)}
-    return w * np.array([total[c] for c in groups.category]) ** -float(power)
-
-
-def _type_sets(groups: EdgeGroups) -> list[np.ndarray]:
-    """Masks of the groups of each type set (``fine`` / ``coarse`` by ``groups.joint``)."""
-    if len(groups.joint) != len(groups.y):
-        return [np.ones(len(groups.y), bool)]
-    sets = [np.array([j.endswith("/" + t) for j in groups.joint]) for t in ("fine", "coarse")]
-    sets = [m for m in sets if m.any()]
-    return sets or [np.ones(len(groups.y), bool)]
-
-
-def selection_error(groups: EdgeGroups, angle: np.ndarray) -> dict[str, float]:
-    """Per-joint mean angle (degrees) of one value per group: pooled (``all``) and the mean
-    over categories (``mean``), each averaged over the type sets (fine, coarse).
-
-    Parameters
-    ----------
-    groups : EdgeGroups
-    angle : (G,) float64
-        The angle error of each group's chosen line (or the GNN's own).
-    """
-    w = joint_weights(groups)
-    cat = np.asarray(groups.category)
-    pooled, per_cat = [], []
-    for m in _type_sets(groups):
-        pooled.append(float((angle * w)[m].sum() / w[m].sum()))
-        cats = sorted(set(cat[m]))
-        per_cat.append(float(np.mean([(angle * w)[m & (cat == c)].sum() / w[m & (cat == c)].sum()
-                                      for c in cats])))
-    return {"all": float(np.mean(pooled)), "mean": float(np.mean(per_cat))}
 
 
 def _cv_choices(pairs: list, weights: np.ndarray, gf: np.ndarray, k: int,
@@ -382,8 +269,7 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
     position_stats: dict[str, float] = {}
     if len(groups.directions) == len(groups.y):
         ranker.position, position_stats = fit_position(
-            groups.x, groups.angle, groups.dist, groups.revolute, groups.directions, chosen,
-            [np.log(np.maximum(p, 1e-12)) for p in probs], gf, per_part, groups.category,
+            groups, chosen, [np.log(np.maximum(p, 1e-12)) for p in probs], gf, per_part,
             seed=seed)
     chosen_angle = np.array([a[c] for a, c in zip(groups.angle, chosen)])
     stats = {
@@ -464,19 +350,6 @@ def fit_type_rankers(groups: dict[str, EdgeGroups], *, features: tuple[str, ...]
     if "fine" in fits and "coarse" in fits:
         ranker.coarse = fits["coarse"][0]
     return ranker, {t: stats for t, (_, stats) in fits.items()}
-
-
-def joint_weights(groups: EdgeGroups) -> np.ndarray:
-    """``(G,) float64``: one over the number of groups of each group's moving part.
-
-    Ones when ``groups.joint`` is empty (groups collected without parts).
-    """
-    from collections import Counter
-
-    if len(groups.joint) != len(groups.y):
-        return np.ones(len(groups.y))
-    n_of = Counter(groups.joint)
-    return np.array([1.0 / n_of[k] for k in groups.joint], dtype=np.float64)
 
 
 def _joint_stats(groups: EdgeGroups, chosen: np.ndarray, w: np.ndarray) -> dict[str, float]:

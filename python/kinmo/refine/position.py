@@ -43,6 +43,7 @@ import numpy as np
 
 from kinmo.metrics.axis import axis_angle_deg
 from kinmo.refine.features import FEATURE_INDEX
+from kinmo.refine.groups import EdgeGroups, joint_means
 from kinmo.refine.ranker import Ranker, fit_ranker
 
 __all__ = ["FREE_SLACK", "PARALLEL_DEG", "POSITION_FEATURES", "POSITION_L2", "TRAIN_ANGLE_DEG", "fit_position",
@@ -140,17 +141,15 @@ def reposition(position: Ranker | None, x: np.ndarray, directions: np.ndarray, b
     return int(same[int(np.argmax(score))])
 
 
-def position_groups(x: Sequence[np.ndarray], angle: Sequence[np.ndarray],
-                    dist: Sequence[np.ndarray], revolute: Sequence[bool]
+def position_groups(groups: EdgeGroups
                     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray, list[np.ndarray]]:
     """Training groups of the position stage.
 
     Parameters
     ----------
-    x, angle, dist, revolute
-        Per group, as :class:`kinmo.refine.fit_selector.EdgeGroups`: features ``(C, F)``,
-        each candidate's angle to the truth (degrees) and line distance (/ diagonal), and
-        whether the true joint turns.
+    groups : EdgeGroups
+        Its features ``x`` ``(C, F)``, each candidate's ``angle`` to the truth (degrees) and
+        line distance ``dist`` (/ diagonal), and whether the true joint turns (``revolute``).
 
     Returns
     -------
@@ -160,7 +159,7 @@ def position_groups(x: Sequence[np.ndarray], angle: Sequence[np.ndarray],
         information); the index of each in the input; and the candidates kept of each.
     """
     out, idx, kept = [], [], []
-    for n, (xs, a, d, rv) in enumerate(zip(x, angle, dist, revolute)):
+    for n, (xs, a, d, rv) in enumerate(zip(groups.x, groups.angle, groups.dist, groups.revolute)):
         if not rv:
             continue
         m = np.asarray(a) < TRAIN_ANGLE_DEG
@@ -175,19 +174,16 @@ def position_groups(x: Sequence[np.ndarray], angle: Sequence[np.ndarray],
     return out, np.asarray(idx, np.int64), kept
 
 
-def fit_position(x: Sequence[np.ndarray], angle: Sequence[np.ndarray], dist: Sequence[np.ndarray],
-                 revolute: Sequence[bool], directions: Sequence[np.ndarray], chosen: np.ndarray,
-                 base: Sequence[np.ndarray], folds: np.ndarray, weights: np.ndarray,
-                 categories: Sequence[str], *, seed: int = 0
+def fit_position(groups: EdgeGroups, chosen: np.ndarray, base: Sequence[np.ndarray],
+                 folds: np.ndarray, weights: np.ndarray, *, seed: int = 0
                  ) -> tuple[Ranker | None, dict[str, float]]:
     """Fit the position stage and decide, by cross-validation, whether to keep it.
 
     Parameters
     ----------
-    x, angle, dist, revolute
-        Per group, as :func:`position_groups`.
-    directions : sequence of (C, 3) float64
-        Each group's candidate directions.
+    groups : EdgeGroups
+        The first stage's training groups, with ``directions`` (each group's candidate
+        directions, ``(C, 3) float64``); ``category`` serves the per-category numbers only.
     chosen : (G,) int64
         The first stage's out-of-fold winner of every group.
     base : sequence of (C,) float64
@@ -195,9 +191,8 @@ def fit_position(x: Sequence[np.ndarray], angle: Sequence[np.ndarray], dist: Seq
     folds : (G,) int64
         The inner cross-validation fold of every group (by shape, as the first stage's).
     weights : (G,) float64
-        Per-joint weights of the groups (each moving part counts once).
-    categories : sequence of str
-        Each group's object category (the per-category numbers, reported only).
+        Per-joint weights of the groups (each moving part counts once,
+        :func:`kinmo.refine.groups.joint_weights`).
     seed : int
 
     Returns
@@ -211,20 +206,18 @@ def fit_position(x: Sequence[np.ndarray], angle: Sequence[np.ndarray], dist: Seq
         out of fold, of the stage's; ``position_angle_before`` / ``_after`` the pooled
         angle; ``position_kept`` (1 or 0).
     """
-    pairs, idx, kept = position_groups(x, angle, dist, revolute)
+    pairs, idx, kept = position_groups(groups)
     offsets = [np.asarray(base[n], np.float64)[m] for n, m in zip(idx, kept)]
     stats: dict[str, float] = {"position_groups": float(len(pairs))}
-    rv = np.flatnonzero(np.asarray(revolute, bool))
+    rv = np.flatnonzero(np.asarray(groups.revolute, bool))
     if len(pairs) < 2 or rv.size == 0:
         return None, stats
     gf = np.asarray(folds)[idx]
     w = np.asarray(weights, np.float64)[rv]
-    cat = np.asarray(categories)[rv]
+    cat = np.asarray(groups.category)[rv]
 
     def means(v: Sequence[np.ndarray], c: np.ndarray) -> tuple[float, float]:
-        e = np.array([v[n][c[n]] for n in rv], np.float64)
-        per_cat = [float(np.sum((w * e)[cat == k]) / np.sum(w[cat == k])) for k in sorted(set(cat))]
-        return float(np.sum(w * e) / w.sum()), float(np.mean(per_cat))
+        return joint_means(np.array([v[n][c[n]] for n in rv], np.float64), w, cat)
 
     after = np.asarray(chosen, np.int64).copy()
     for f in np.unique(folds):
@@ -234,7 +227,8 @@ def fit_position(x: Sequence[np.ndarray], angle: Sequence[np.ndarray], dist: Seq
         r = fit_ranker([pairs[n] for n in tr], features=POSITION_FEATURES, l2=POSITION_L2,
                        seed=seed, offsets=[offsets[n] for n in tr])
         for n in rv[np.asarray(folds)[rv] == f]:
-            after[n] = reposition(r, x[n], directions[n], int(chosen[n]), base[n])
+            after[n] = reposition(r, groups.x[n], groups.directions[n], int(chosen[n]), base[n])
+    dist, angle = groups.dist, groups.angle
     (before, cat_before), (pooled, per_cat) = means(dist, chosen), means(dist, after)
     stats.update({"position_dist_before": before, "position_dist_after": pooled,
                   "position_cat_dist_before": cat_before, "position_cat_dist_after": per_cat,

@@ -24,13 +24,8 @@ from kinmo.inference.predictor import Predictor
 from kinmo.io import write_json
 from kinmo.parallel import resolve_workers
 from kinmo.progress import CountingBar
-from kinmo.refine.fit_selector import (
-    DEFAULT_FEATURES,
-    EdgeGroups,
-    collect_groups,
-    fit_type_rankers,
-    fold_ids,
-)
+from kinmo.refine.fit_selector import DEFAULT_FEATURES, collect_groups, fit_type_rankers, fold_ids
+from kinmo.refine.groups import EdgeGroups
 from kinmo.refine.ranker import Ranker
 from kinmo.refine.semantic_prior import SemanticPrior
 from kinmo.train.config import NO_AUGMENTATIONS, TrainConfig, preset as make_preset
