@@ -342,7 +342,7 @@ def select_edge(
                                  gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic,
                                  proxy=proxy)
     p = ranker.probabilities(x)
-    b = b0 = int(np.argmax(p))
+    b = b0 = ranker.choose(p, cands.directions)
     if cfg.sweep_vetoes:
         b = b0 = blocked_slide_veto(cands, x, p, b)
     if cands.motion != "P":

@@ -10,12 +10,12 @@ shape's diagonal of the truth)``, the meaning of the pseudo-label threshold, fro
 probability and the GNN's axis-candidate mass on the winner's direction (``dir_prior``). The ranker file
 (``ranker.json``) also stores the semantic prior (:mod:`kinmo.refine.semantic_prior`).
 
-One file may hold a ranker per type set (issue 34): the top-level ranker serves the fine types
-(the motion GNN of a model bundle) and ``coarse`` the coarse types (Table 1's ``OBB_coarse``);
-:meth:`Ranker.for_types` picks the one for a prediction. A coarse GNN's priors (5 types, no
-horizontal / vertical split) deserve other weights than a fine GNN's: out of fold on the 235
-labelled objects, rankers fit per type set lowered the per-category axis error of both
-settings against one fit on their pooled groups (docs/results/table1_four_settings.md).
+Since issue 34's direction choice, one ranker fit on the groups of both type sets serves fine
+and coarse predictions (:func:`kinmo.refine.fit_selector.fit_type_rankers`), and picks the
+likeliest line of the likeliest direction (:func:`direction_choice`). A file may still hold a
+ranker per type set (files of before): the top-level ranker serves the fine types and
+``coarse`` the coarse types (Table 1's ``OBB_coarse``); :meth:`Ranker.for_types` picks the
+one for a prediction.
 """
 
 from __future__ import annotations
@@ -31,10 +31,62 @@ import numpy as np
 from kinmo.data.model import COARSE_TYPES
 from kinmo.errors import KinmoDataError
 from kinmo.io import write_json
+from kinmo.metrics.axis import axis_angle_deg
 from kinmo.refine.features import FEATURES, FEATURE_INDEX
 from kinmo.refine.semantic_prior import SemanticPrior
 
-__all__ = ["Ranker", "calibrate", "fit_ranker", "load_ranker"]
+__all__ = ["CHOICES", "DIRECTION_TOL_DEG", "Ranker", "calibrate", "direction_choice", "fit_ranker",
+           "load_ranker"]
+
+#: How a ranker picks a candidate from its probabilities (:meth:`Ranker.choose`): ``"line"``,
+#: the likeliest line; ``"direction"``, the likeliest line of the likeliest direction
+#: (:func:`direction_choice`).
+CHOICES: tuple[str, ...] = ("line", "direction")
+
+#: Candidate directions within this angle (degrees, up to sign) are one direction for
+#: :func:`direction_choice`: the tolerance of a right candidate (``candidate_labels``).
+DIRECTION_TOL_DEG = 5.0
+
+
+def direction_choice(p: np.ndarray, directions: np.ndarray,
+                     max_deg: float = DIRECTION_TOL_DEG) -> int:
+    """The likeliest line of the direction with the largest probability mass.
+
+    One direction is often offered by several lines (an OBB edge, the centre, an
+    interaction-region line) that share its probability, while a wrong direction offered by
+    one line keeps all of its own; the arg-max over lines then picks the wrong direction. The
+    mass of candidate ``c``'s direction is the sum of ``p`` over the candidates within
+    ``max_deg`` of it (up to sign); the direction of largest mass wins (the first candidate's
+    on ties), then its likeliest line. kinmo extension of the refinement of Liu et al. 2023,
+    Sec. 3.3 (issue 34: out of fold on the 235 labelled objects of the shared data it lowered
+    the per-category mean axis error of both Table 1 settings, docs/results/table1_four_settings.md).
+
+    Parameters
+    ----------
+    p : (C,) float64
+        The candidates' probabilities (:meth:`Ranker.probabilities`).
+    directions : (C, 3) float64
+        The candidates' directions (any frame, any length > 0).
+    max_deg : float
+
+    Returns
+    -------
+    int
+        A candidate index.
+
+    Raises
+    ------
+    ValueError
+        ``p`` and ``directions`` differ in length, or are empty.
+    """
+    p = np.asarray(p, dtype=np.float64).reshape(-1)
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    if len(p) != len(d) or not len(p):
+        raise ValueError(f"direction_choice: {len(p)} probabilities, {len(d)} directions")
+    same = np.atleast_2d(axis_angle_deg(d[:, None, :], d[None, :, :])) <= max_deg
+    mass = same @ p
+    members = np.flatnonzero(same[int(np.argmax(mass))])
+    return int(members[int(np.argmax(p[members]))])
 
 
 @dataclass
@@ -42,7 +94,8 @@ class Ranker:
     """Linear listwise ranker of candidate lines with a Platt-calibrated confidence.
 
     ``p = softmax_c(w . (x_c - mean) / std)`` over the candidates of one edge; the selected
-    line is the arg-max; its confidence is
+    line is :meth:`choose`'s (the arg-max, or the likeliest line of the likeliest direction);
+    its confidence is
     ``sigmoid(a * logit(p_max) + c * log(dir_prior + 1e-3) + b)``, ``dir_prior`` the GNN's
     axis-candidate mass on the selected line's direction (issue 34: on the out-of-fold groups
     of the shared data it tells right directions from wrong ones with an AUC of 0.88, the
@@ -70,6 +123,9 @@ class Ranker:
         The second stage of hinge lines (:mod:`kinmo.refine.position`): among the candidates
         parallel to a revolute edge's winner, it re-chooses the line's position. None: the
         winner stands (files written before it, or a fit where it did not help).
+    choice : str
+        How :meth:`choose` picks the winner (:data:`CHOICES`); ``"line"`` in files written
+        before the direction choice.
     """
 
     features: tuple[str, ...]
@@ -82,6 +138,22 @@ class Ranker:
     prior_weight: float = 0.0
     coarse: Ranker | None = None
     position: Ranker | None = None
+    choice: str = "line"
+
+    def choose(self, p: np.ndarray, directions: np.ndarray | None = None) -> int:
+        """The winner among one edge's candidates: the arg-max of ``p`` (:attr:`choice`
+        ``"line"``, or without ``directions``), else :func:`direction_choice`.
+
+        Parameters
+        ----------
+        p : (C,) float64
+            :meth:`probabilities` of the candidates.
+        directions : (C, 3) float64, optional
+            The candidates' directions.
+        """
+        if self.choice == "direction" and directions is not None and len(directions):
+            return direction_choice(p, directions)
+        return int(np.argmax(p))
 
     def for_types(self, type_names: Sequence[str]) -> Ranker:
         """The ranker for predictions over ``type_names``: :attr:`coarse` (with this ranker's
@@ -129,6 +201,8 @@ class Ranker:
         out = {"features": list(self.features), "weights": self.weights.tolist(),
                "mean": self.mean.tolist(), "std": self.std.tolist(),
                "platt": list(self.platt), "prior_weight": self.prior_weight, "meta": self.meta}
+        if self.choice != "line":
+            out["choice"] = self.choice
         if self.semantic is not None:
             out["semantic_prior"] = self.semantic.to_json()
         if self.coarse is not None:
@@ -190,13 +264,16 @@ def _ranker_from_json(d: dict, path: str) -> Ranker:
         prior_weight = float(d.get("prior_weight", 0.0))
         if not np.isfinite(prior_weight):
             raise ValueError(f"prior_weight {prior_weight}")
+        choice = d.get("choice", "line")
+        if choice not in CHOICES:
+            raise ValueError(f"choice {str(choice)[:40]!r} (expected one of {', '.join(CHOICES)})")
     except (ValueError, KeyError, TypeError, IndexError) as e:
         raise KinmoDataError(path, f"not a ranker file ({type(e).__name__}: {e})") from None
     unknown = [f for f in feats if f not in FEATURE_INDEX]
     if unknown or not (len(feats) == w.size == m.size == s.size):
         raise KinmoDataError(path, f"ranker: unknown features {unknown} or inconsistent lengths")
     return Ranker(feats, w, m, s, platt, d.get("meta", {}), sem, prior_weight,
-                  position=_position_from_json(d, path))
+                  position=_position_from_json(d, path), choice=choice)
 
 
 def fit_ranker(

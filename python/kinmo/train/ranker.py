@@ -270,8 +270,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
         How the ranker's fit weighs categories; chosen by cross-validation when not given
         (:func:`kinmo.refine.fit_selector.fit_selector`).
     types : sequence of {"fine", "coarse"}
-        Fold GNNs of these type sets; a ranker is fit per type set, the coarse one kept in the
-        fine one's file (:func:`kinmo.refine.fit_selector.fit_type_rankers`).
+        Fold GNNs of these type sets; one ranker is fit on the groups of all of them
+        (:func:`kinmo.refine.fit_selector.fit_type_rankers`).
     progress : bool
     workers, executor
         Fold GNNs trained at once, and where (:func:`train_folds`).
@@ -279,8 +279,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     Returns
     -------
     (Ranker, dict)
-        The ranker (also written) and the cross-validated numbers per type set
-        (:func:`~kinmo.refine.fit_selector.fit_selector`'s, in ``cv.json``).
+        The ranker (also written) and the cross-validated numbers (key ``"pooled"``;
+        :func:`~kinmo.refine.fit_selector.fit_selector`'s, in ``cv.json``).
 
     Raises
     ------
