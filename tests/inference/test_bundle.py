@@ -18,6 +18,7 @@ from kinmo.errors import KinmoDataError
 from kinmo.inference.bundle import find_ranker, read_bundle, resolve_bundle, write_bundle
 from kinmo.inference.predictor import Predictor
 from kinmo.mobility_tree import ShapePrediction
+from kinmo.refine.axis_io import load_axis_models
 from kinmo.refine.selector import FEATURES
 from kinmo.refine.ranker import Ranker
 
@@ -63,6 +64,38 @@ def test_a_bundle_naming_a_path_outside_is_refused(runs, tmp_path) -> None:
     f.write_text(json.dumps({**doc, "gnn": "../../etc"}))
     with pytest.raises(KinmoDataError, match="must name an entry"):
         read_bundle(tmp_path / "model")
+
+
+def test_a_bundle_takes_the_axis_networks_its_run_uses(runs, tmp_path) -> None:
+    """Only model.pt, config.json, categories.json and the networks it lists are copied: not
+    the last epoch, nor a per-category file an earlier run left in the same folder."""
+    import shutil
+
+    axis = tmp_path / "axis"
+    shutil.copytree(runs / "axis", axis)
+    (axis / "categories").mkdir(exist_ok=True)
+    shutil.copy2(axis / "model.pt", axis / "categories" / "Box.pt")
+    shutil.copy2(axis / "model.pt", axis / "categories" / "Stale.pt")
+    shutil.copy2(axis / "model.pt", axis / "last.pt")
+    (axis / "categories.json").write_text(json.dumps(
+        {"categories": {"Box": {"file": "categories/Box.pt"}}}))
+    b = write_bundle(tmp_path / "model", runs / "gnn_fine", axis)
+    got = sorted(str(f.relative_to(b.axis)) for f in b.axis.rglob("*") if f.is_file())
+    assert "categories/Box.pt" in got and "model.pt" in got and "categories.json" in got
+    assert "categories/Stale.pt" not in got and "last.pt" not in got
+    assert set(load_axis_models(b.axis).categories) == {"Box"}
+    # the index is read from a file: a name that leaves categories/ is refused, never opened
+    for bad in ("../model.pt", "categories/../../x.pt", "/etc/x.pt", "categories/sub/x.pt"):
+        (axis / "categories.json").write_text(json.dumps({"categories": {"Box": {"file": bad}}}))
+        with pytest.raises(KinmoDataError, match="categories/<name>.pt"):
+            load_axis_models(axis)
+        with pytest.raises(KinmoDataError, match="categories/<name>.pt"):
+            write_bundle(tmp_path / "bad", runs / "gnn_fine", axis)
+    # a listed network that is missing is one clear error
+    (axis / "categories.json").write_text(json.dumps(
+        {"categories": {"Pen": {"file": "categories/Pen.pt"}}}))
+    with pytest.raises(KinmoDataError, match="missing"):
+        write_bundle(tmp_path / "bad", runs / "gnn_fine", axis)
 
 
 def test_the_ranker_beside_the_axis_model_is_found(runs) -> None:

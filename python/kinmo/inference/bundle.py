@@ -29,6 +29,7 @@ from pathlib import Path
 
 from kinmo.errors import KinmoDataError
 from kinmo.io import read_json_document, write_json
+from kinmo.refine.axis_io import CATEGORIES_FILE, category_files
 
 __all__ = ["BUNDLE_FILE", "BUNDLE_FORMAT", "BUNDLE_VERSION", "ModelBundle", "find_ranker",
            "read_bundle", "resolve_bundle", "write_bundle"]
@@ -210,8 +211,16 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
                 (tmp / "axis").mkdir()
                 shutil.copy2(axis, tmp / "axis" / "model.pt")
             elif (axis / "model.pt").is_file():
-                shutil.copytree(axis, tmp / "axis", ignore=shutil.ignore_patterns(
-                    "*.csv", "*.png", "*.log", "checkpoint*", "*.tmp"))
+                # the networks the run uses and nothing else (not its last epoch, logs or
+                # the per-category files an earlier run left in the same folder)
+                files = ["model.pt", *sorted(category_files(axis).values())]
+                files += [n for n in (CATEGORIES_FILE, "config.json") if (axis / n).is_file()]
+                for rel in files:
+                    if not (axis / rel).is_file():
+                        raise KinmoDataError(axis / rel, "per-category axis network missing "
+                                             f"(listed in {CATEGORIES_FILE})")
+                    (tmp / "axis" / rel).parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copy2(axis / rel, tmp / "axis" / rel)
             else:
                 axis = None
         if ranker is not None:

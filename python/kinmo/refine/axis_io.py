@@ -26,7 +26,7 @@ from kinmo.errors import KinmoDataError
 from kinmo.refine.axis_net import AxisNetConfig, AxisSelectionNet
 from kinmo.train.loop import build_or_refuse, load_checkpoint, save_checkpoint
 
-__all__ = ["AxisModelSet", "load_axis_model", "load_axis_models", "save_axis_model"]
+__all__ = ["AxisModelSet", "category_files", "load_axis_model", "load_axis_models", "save_axis_model"]
 
 #: ``format`` tag of the checkpoints.
 CHECKPOINT_FORMAT = "kinmo-axis-selection"
@@ -65,15 +65,32 @@ def _read_checkpoint(p: Path, device: str) -> AxisSelectionNet:
     return build_or_refuse(p, build).to(device).eval()
 
 
-def _category_index(run: Path) -> dict[str, str]:
-    f = run / CATEGORIES_FILE
+def category_files(run: str | Path) -> dict[str, str]:
+    """The per-category networks a run kept: category -> file relative to ``run``.
+
+    Read from ``categories.json`` (empty without one). The file names come from the file, so
+    each must be ``categories/<name>.pt`` with a plain name (no folder, no ``..``): the index
+    never points outside its run.
+
+    Raises
+    ------
+    KinmoDataError
+        Unreadable index, or a file name of another form (one line naming the index).
+    """
+    f = Path(run) / CATEGORIES_FILE
     if not f.is_file():
         return {}
     try:
         data = json.loads(f.read_text())
-        return {str(c): str(v["file"]) for c, v in data.get("categories", {}).items()}
+        files = {str(c): str(v["file"]) for c, v in data.get("categories", {}).items()}
     except (ValueError, KeyError, TypeError, AttributeError) as e:
         raise KinmoDataError(f, f"cannot read the per-category index: {e}") from None
+    for rel in files.values():
+        parts = rel.split("/")
+        if (len(parts) != 2 or parts[0] != "categories" or not parts[1].endswith(".pt")
+                or parts[1] in (".pt", "..") or "\\" in rel or parts[1].startswith(".")):
+            raise KinmoDataError(f, f"per-category network {rel[:80]!r} is not categories/<name>.pt")
+    return files
 
 
 def load_axis_model(path: str | Path, device: str = "cpu", category: str | None = None
@@ -101,7 +118,7 @@ def load_axis_model(path: str | Path, device: str = "cpu", category: str | None 
     """
     p = Path(path)
     if p.is_dir():
-        files = _category_index(p) if category is not None else {}
+        files = category_files(p) if category is not None else {}
         p = p / files[category] if category in files else p / "model.pt"
     return _read_checkpoint(p, device)
 
@@ -141,5 +158,5 @@ def load_axis_models(path: str | Path, device: str = "cpu") -> AxisModelSet:
     p = Path(path)
     if not p.is_dir():
         return AxisModelSet(_read_checkpoint(p, device))
-    cats = {c: _read_checkpoint(p / f, device) for c, f in sorted(_category_index(p).items())}
+    cats = {c: _read_checkpoint(p / f, device) for c, f in sorted(category_files(p).items())}
     return AxisModelSet(_read_checkpoint(p / "model.pt", device), cats)
