@@ -478,7 +478,7 @@ def test_a_ranker_per_type_set_in_one_file(tmp_path):
 
     ranker, stats = fit_type_rankers({"fine": marked(1.0, "fine"), "coarse": marked(-1.0, "coarse")},
                                      features=(FEATURES[0],), k=3, l2=0.01, category_power=0.0,
-                                     per_type=True)
+                                     coarse_from="coarse")
     assert set(stats) == {"fine", "coarse"} and ranker.coarse is not None
     x = np.zeros((2, len(FEATURES)))
     x[:, 0] = [1.0, 0.0]
@@ -501,22 +501,27 @@ def test_a_ranker_per_type_set_in_one_file(tmp_path):
         load_ranker(tmp_path / "bad.json")
     with pytest.raises(ValueError, match="type sets"):
         fit_type_rankers({"medium": marked(1.0, "fine")})
-    # the default: one ranker on both sets' groups serves both (no coarse ranker)
+    with pytest.raises(ValueError, match="coarse_from"):
+        fit_type_rankers({"fine": marked(1.0, "fine")}, coarse_from="fine")
+    # the default: the coarse ranker is fit on both sets' groups, without the fine-only priors
+    feats = (FEATURES[0], "orient_prior")
     both, stats = fit_type_rankers({"fine": marked(1.0, "fine"), "coarse": marked(1.0, "coarse")},
-                                   features=(FEATURES[0],), k=3, l2=0.01, category_power=0.0)
-    assert set(stats) == {"pooled"} and both.coarse is None
-    assert both.for_types(COARSE_TYPES) is both and both.meta["cv"]["groups"] == 48
+                                   features=feats, k=3, l2=0.01, category_power=0.0)
+    assert set(stats) == {"fine", "coarse"}
+    assert stats["fine"]["groups"] == 24 and stats["coarse"]["groups"] == 48
+    assert both.features == feats and both.coarse.features == (FEATURES[0],)
+    assert both.for_types(COARSE_TYPES) is both.coarse
     # a type set without a right candidate in any group (tiny data: `train all` on six
     # objects) is left out, and the other set's ranker serves both
     none_right = marked(-1.0, "coarse")
     none_right.y = [np.zeros(2, bool)] * len(none_right.y)
     alone, stats = fit_type_rankers({"fine": marked(1.0, "fine"), "coarse": none_right},
                                     features=(FEATURES[0],), k=3, l2=0.01, category_power=0.0,
-                                    per_type=True)
+                                    coarse_from="coarse")
     assert set(stats) == {"fine"} and alone.coarse is None
     assert alone.for_types(COARSE_TYPES) is alone
     with pytest.raises(ValueError, match="positive"):
-        fit_type_rankers({"coarse": none_right}, per_type=True)
+        fit_type_rankers({"coarse": none_right}, coarse_from="coarse")
     # two sets each too thin for the inner cross-validation: one ranker on both pooled
     thin = [marked(s, t).of_shapes({"s0", "s1"}) for s, t in ((1.0, "fine"), (1.0, "coarse"))]
     thin[1].shape_id = ["s2", "s3"]
@@ -525,7 +530,7 @@ def test_a_ranker_per_type_set_in_one_file(tmp_path):
     with pytest.raises(ValueError):
         fit_selector(thin[0], features=(FEATURES[0],), k=2, l2=0.01, category_power=0.0)
     pooled, stats = fit_type_rankers({"fine": thin[0], "coarse": thin[1]}, features=(FEATURES[0],),
-                                     k=2, l2=0.01, category_power=0.0, per_type=True)
+                                     k=2, l2=0.01, category_power=0.0, coarse_from="coarse")
     assert set(stats) == {"pooled"} and pooled.coarse is None
 
 

@@ -17,7 +17,7 @@ def train_ranker_cmd(
     split: Path = typer.Option(..., "--split", help="The GNN runs' split.json: only its training ids are used."),
     folds: int = typer.Option(3, "--folds", min=2, help="Out-of-fold GNNs on the training ids."),
     preset: str = typer.Option("quick", "--preset", help="Preset of the fold GNNs."),
-    types: str = typer.Option("fine,coarse", "--types", help="Comma-separated type sets of the fold GNNs (one ranker is fit on the groups of all of them)."),
+    types: str = typer.Option("fine,coarse", "--types", help="Comma-separated type sets of the fold GNNs (a ranker per type set, in one file; the coarse one fit on the groups of both)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (folds, GNNs, ranker)."),
     threads: int = typer.Option(1, "--threads", min=0, help="CPU threads for torch (per fold GNN)."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Fold GNNs trained at once (0: one per CPU)."),
@@ -37,7 +37,7 @@ def train_ranker_cmd(
         _, st = train_ranker(data, out, split, folds=folds, preset=preset, types=ts, seed=seed,
                              threads=threads, progress=not quiet, workers=workers, executor=executor)
     c = new_console()
-    what = "one ranker on the type sets' groups" if "pooled" in st else "a ranker per type set"
+    what = "one ranker on the type sets pooled" if "pooled" in st else "a ranker per type set"
     c.print(f"wrote {literal(out / 'ranker.json')}: {what}")
     for t, s in st.items():
         c.print(f"  {t}: {s['groups']} edges, candidate recall {s['recall']:.3f}, out-of-fold top-1 "

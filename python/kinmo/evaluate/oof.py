@@ -11,7 +11,7 @@ did not train on it:
    configuration of ``kinmo train all``'s own motion GNNs (:func:`kinmo.train.ranker.fold_config`),
    and predicts the held-out fold: the ``GNN_fine`` / ``GNN_coarse`` rows.
 3. Per fold, the learned selector (:mod:`kinmo.refine.ranker`) is fit on the candidate groups
-   of the *other* folds' out-of-fold predictions (one ranker on both type sets' groups, as
+   of the *other* folds' out-of-fold predictions (a ranker per type set, as
    :func:`kinmo.train.ranker.train_ranker` fits them; the semantic prior from the other
    folds' objects) and refines the held-out fold's predictions: the ``OBB_fine`` /
    ``OBB_coarse`` rows, through :class:`kinmo.inference.predictor.Predictor` as every command.

@@ -43,7 +43,8 @@ from kinmo.refine.selector import (
 )
 from kinmo.refine.semantic_prior import SemanticPrior
 
-__all__ = ["CATEGORY_POWERS", "DEFAULT_FEATURES", "L2_GRID", "collect_groups", "fit_selector",
+__all__ = ["CATEGORY_POWERS", "DEFAULT_FEATURES", "FINE_ONLY_FEATURES", "L2_GRID", "collect_groups",
+           "fit_selector",
            "fit_type_rankers", "fold_ids", "select_groups"]
 
 
@@ -338,64 +339,79 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
     return ranker, {**stats, "chosen": chosen, "pmax": pmax, "correct": correct}
 
 
+#: Features only a fine GNN gives (horizontal / vertical, central / side pivot): constant on
+#: coarse predictions, so the coarse ranker, fit on both type sets' groups, leaves them out.
+FINE_ONLY_FEATURES: tuple[str, ...] = ("orient_prior", "pivot_prior")
+
+
 def fit_type_rankers(groups: dict[str, EdgeGroups], *, features: tuple[str, ...] = FEATURES,
                      k: int = 3, seed: int = 0, l2: float | None = None,
-                     category_power: float | None = None, per_type: bool = False,
+                     category_power: float | None = None, coarse_from: str = "both",
                      choice: str = "direction", repeats: int = 3
                      ) -> tuple[Ranker, dict[str, dict]]:
-    """The ranker of fine and coarse GNN predictions: one fit on both type sets' groups, or
-    one :func:`fit_selector` per type set (``per_type``).
+    """The rankers of fine and coarse GNN predictions, kept in one :class:`Ranker`.
 
-    **Pooled (the default).** One ranker, fit on the groups of both type sets, serves both
-    (:attr:`~kinmo.refine.ranker.Ranker.coarse` None). Its features should leave out what
-    only a fine GNN gives (:data:`DEFAULT_FEATURES` does: ``orient_prior`` and
-    ``pivot_prior``, constant on coarse predictions). Out of fold on the 235 labelled objects
-    of the shared data, with the direction choice, it lowered the per-category mean axis error
-    of both settings against rankers per type set: the coarse groups alone taught the coarse
-    ranker to keep the GNN's flips (docs/results/table1_four_settings.md, issue 34).
-
-    **Per type set.** The fine ranker is the top-level one and the coarse ranker its
+    The fine ranker is the top-level one, fit on the fine groups; the coarse ranker is its
     :attr:`~kinmo.refine.ranker.Ranker.coarse` (:meth:`~kinmo.refine.ranker.Ranker.for_types`
-    picks it for coarse predictions); with one type set, that set's ranker alone. A set too
-    thin for :func:`fit_selector` (no right candidate in its groups or in a training part of
-    its cross-validation) is left out, and the other set's ranker serves it; when neither
-    can be fit alone, one ranker is fit on both pooled (key ``"pooled"`` of the numbers).
+    picks it for coarse predictions). With ``coarse_from="both"`` (the default) the coarse
+    ranker is fit on the groups of **both** type sets, without :data:`FINE_ONLY_FEATURES`;
+    with ``"coarse"``, on the coarse groups alone with ``features``. The coarse groups alone
+    taught the coarse ranker to keep the GNN's flips: out of fold on the 235 labelled objects
+    of the shared data (two fold seeds, groups of their fold GNNs), the per-category mean
+    axis error of the coarse edges against the GNN's went from -7 % / +6 % to -27 % / -6 %;
+    the same pooled fit served fine predictions worse than the fine groups' own ranker
+    (-44 % / -14 % against -40 % / -34 %; docs/results/table1_four_settings.md, issue 34).
+
+    A set too thin for :func:`fit_selector` (no right candidate in its groups or in a
+    training part of its cross-validation) is left out, and the other ranker serves it; when
+    neither can be fit, one ranker is fit on both sets pooled with ``features`` (key
+    ``"pooled"`` of the numbers).
 
     Parameters
     ----------
     groups : dict of {"fine", "coarse"} to EdgeGroups
         The out-of-fold groups of each type set's GNNs (:func:`collect_groups`).
     features, k, seed, l2, category_power, choice, repeats
-        As :func:`fit_selector`.
-    per_type : bool
+        As :func:`fit_selector` (``features``: the fine ranker's).
+    coarse_from : {"both", "coarse"}
 
     Returns
     -------
     (Ranker, dict of str to dict)
-        The ranker, and :func:`fit_selector`'s numbers per type set (per type) or under
-        ``"pooled"``.
+        The ranker, and :func:`fit_selector`'s numbers per type set (``"fine"``,
+        ``"coarse"``) or under ``"pooled"``.
 
     Raises
     ------
     ValueError
-        A set not ``"fine"`` / ``"coarse"``, or not even the pooled groups can be fit
-        (:func:`fit_selector`).
+        A set not ``"fine"`` / ``"coarse"``, an unknown ``coarse_from``, or not even the
+        pooled groups can be fit (:func:`fit_selector`).
     """
     unknown = set(groups) - {"fine", "coarse"}
     if unknown:
         raise ValueError(f"fit_type_rankers: type sets must be fine or coarse, got {sorted(unknown)}")
-    opts = {"features": features, "k": k, "seed": seed, "l2": l2, "category_power": category_power,
-            "choice": choice, "repeats": repeats}
+    if coarse_from not in ("both", "coarse"):
+        raise ValueError(f"fit_type_rankers: coarse_from must be 'both' or 'coarse', got {coarse_from!r}")
+    opts = {"k": k, "seed": seed, "l2": l2, "category_power": category_power, "choice": choice,
+            "repeats": repeats}
+    both = EdgeGroups.concat([groups[t] for t in ("fine", "coarse") if t in groups])
     fits = {}
-    if per_type:
-        for t, g in groups.items():
-            try:
-                fits[t] = fit_selector(g, **opts)
-            except ValueError:
-                continue
+    if "fine" in groups:
+        try:
+            fits["fine"] = fit_selector(groups["fine"], features=features, **opts)
+        except ValueError:
+            pass
+    if "coarse" in groups:
+        try:
+            if coarse_from == "both":
+                coarse_features = tuple(f for f in features if f not in FINE_ONLY_FEATURES)
+                fits["coarse"] = fit_selector(both, features=coarse_features or features, **opts)
+            else:
+                fits["coarse"] = fit_selector(groups["coarse"], features=features, **opts)
+        except ValueError:
+            pass
     if not fits:
-        ranker, stats = fit_selector(EdgeGroups.concat([groups[t] for t in ("fine", "coarse")
-                                                        if t in groups]), **opts)
+        ranker, stats = fit_selector(both, features=features, **opts)
         return ranker, {"pooled": stats}
     ranker = fits["fine"][0] if "fine" in fits else fits["coarse"][0]
     if "fine" in fits and "coarse" in fits:
@@ -425,13 +441,11 @@ def _joint_stats(groups: EdgeGroups, chosen: np.ndarray, w: np.ndarray) -> dict[
 
 
 #: Features of the default ranker: all but the axis network's feasibility (the OOF groups are
-#: built without a network, so that the selector runs without one), the point proxy of
-#: the collision (``collide_*``), which the swept collision supersedes (on the 1,410
-#: out-of-fold groups of the 132 training objects, docs/results/table1_four_settings.md,
-#: it is the one group whose removal improves both the OOF angle, 9.47 -> 9.11 deg, and the
-#: OOF line distance, 0.0464 -> 0.0456), and the fine GNN's horizontal / vertical and
-#: central / side priors (``orient_prior``, ``pivot_prior``): one ranker serves fine and
-#: coarse GNNs (:func:`fit_type_rankers`), and a coarse GNN has neither.
+#: built without a network, so that the selector runs without one) and the point proxy of
+#: the collision (``collide_*``), which the swept collision supersedes: on the 1,410
+#: out-of-fold groups of the 132 training objects (docs/results/table1_four_settings.md)
+#: it is the one group whose removal improves both the OOF angle (9.47 -> 9.11 deg) and the
+#: OOF line distance (0.0464 -> 0.0456). The coarse ranker also leaves out
+#: :data:`FINE_ONLY_FEATURES` (:func:`fit_type_rankers`).
 DEFAULT_FEATURES: tuple[str, ...] = tuple(
-    f for f in FEATURES if f not in ("feasibility", "orient_prior", "pivot_prior")
-    and f not in FEATURE_GROUPS["collision"])
+    f for f in FEATURES if f != "feasibility" and f not in FEATURE_GROUPS["collision"])

@@ -10,12 +10,12 @@ shape's diagonal of the truth)``, the meaning of the pseudo-label threshold, fro
 probability and the GNN's axis-candidate mass on the winner's direction (``dir_prior``). The ranker file
 (``ranker.json``) also stores the semantic prior (:mod:`kinmo.refine.semantic_prior`).
 
-Since issue 34's direction choice, one ranker fit on the groups of both type sets serves fine
-and coarse predictions (:func:`kinmo.refine.fit_selector.fit_type_rankers`), and picks the
-likeliest line of the likeliest direction (:func:`direction_choice`). A file may still hold a
-ranker per type set (files of before): the top-level ranker serves the fine types and
-``coarse`` the coarse types (Table 1's ``OBB_coarse``); :meth:`Ranker.for_types` picks the
-one for a prediction.
+One file holds a ranker per type set (issue 34): the top-level ranker serves the fine types
+(the motion GNN of a model bundle) and ``coarse`` the coarse types (Table 1's ``OBB_coarse``);
+:meth:`Ranker.for_types` picks the one for a prediction. The coarse ranker is fit on the groups
+of both type sets (:func:`kinmo.refine.fit_selector.fit_type_rankers`). Rankers fit since
+issue 34's direction choice pick the likeliest line of the likeliest direction
+(:func:`direction_choice`).
 """
 
 from __future__ import annotations

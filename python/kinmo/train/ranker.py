@@ -270,7 +270,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
         How the ranker's fit weighs categories; chosen by cross-validation when not given
         (:func:`kinmo.refine.fit_selector.fit_selector`).
     types : sequence of {"fine", "coarse"}
-        Fold GNNs of these type sets; one ranker is fit on the groups of all of them
+        Fold GNNs of these type sets; the fine ranker is fit on the fine groups, the coarse
+        one on the groups of both, kept in one file
         (:func:`kinmo.refine.fit_selector.fit_type_rankers`).
     progress : bool
     workers, executor
@@ -279,8 +280,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     Returns
     -------
     (Ranker, dict)
-        The ranker (also written) and the cross-validated numbers (key ``"pooled"``;
-        :func:`~kinmo.refine.fit_selector.fit_selector`'s, in ``cv.json``).
+        The ranker (also written) and the cross-validated numbers per type set
+        (:func:`~kinmo.refine.fit_selector.fit_selector`'s, in ``cv.json``).
 
     Raises
     ------
