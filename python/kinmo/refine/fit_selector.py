@@ -44,8 +44,7 @@ from kinmo.refine.selector import (
 from kinmo.refine.semantic_prior import SemanticPrior
 
 __all__ = ["CATEGORY_POWERS", "DEFAULT_FEATURES", "FINE_ONLY_FEATURES", "L2_GRID", "collect_groups",
-           "fit_selector",
-           "fit_type_rankers", "fold_ids", "select_groups"]
+           "fit_selector", "fit_type_rankers", "fold_ids", "select_groups"]
 
 
 def fold_ids(ids: Sequence[str], categories: Sequence[str], k: int, seed: int = 0) -> list[int]:
