@@ -309,7 +309,7 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
     ranker.platt, ranker.prior_weight = (a, b), c
     conf = np.array([ranker.confidence(p, q) for p, q in zip(pmax, prior)])
     position_stats: dict[str, float] = {}
-    if len(groups.directions) == len(groups.y):
+    if has_dirs:
         ranker.position, position_stats = fit_position(
             groups, chosen, [np.log(np.maximum(p, 1e-12)) for p in probs], gf, per_part,
             seed=seed)
