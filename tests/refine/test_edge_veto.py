@@ -40,8 +40,8 @@ def test_a_free_or_vertical_or_turning_choice_is_kept():
     # no horizontal line free enough (a vertical one is): kept, never turned vertical
     cands, x, p = _case([0.04, OPEN_FREE - 0.01, 1.0])
     assert blocked_slide_veto(cands, x, p, 0) == 0
-    # a vertical choice (a button pressed down) is not vetoed
-    cands, x, p = _case([1.0, 1.0, 0.0])
+    # a vertical choice free one way (a button pressed down, a lid lifted) is not vetoed
+    cands, x, p = _case([1.0, 1.0, 0.95])
     assert blocked_slide_veto(cands, x, p, 2) == 2
     # hinges and cylindrical joints are left alone
     for t in ("R_H_S", "PR_H"):
@@ -50,6 +50,16 @@ def test_a_free_or_vertical_or_turning_choice_is_kept():
     # without meshes every line is free (sweep_free_max = 1): nothing changes
     cands, x, p = _case([1.0, 1.0, 1.0])
     assert blocked_slide_veto(cands, x, p, 0) == 0
+
+
+def test_a_drawer_typed_a_vertical_slider_and_blocked_slides_out_the_front():
+    # Meta-World's drawer: typed P_V, its vertical line meets the carcass's floor and top;
+    # z (out of the open front) is free
+    cands, x, p = _case([1.0, 0.02, 0.05], "P_V")
+    assert blocked_slide_veto(cands, x, p, 2) == 0
+    # no horizontal line free one way: the vertical choice stays
+    cands, x, p = _case([0.5, 0.02, 0.05], "P_V")
+    assert blocked_slide_veto(cands, x, p, 2) == 2
 
 
 def test_of_the_free_horizontal_lines_the_likeliest_wins():

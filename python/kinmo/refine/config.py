@@ -81,8 +81,9 @@ class RefineConfig(BaseModel):
         a column of drawers) take the direction most of them chose
         (:mod:`kinmo.refine.repeated`).
     sweep_vetoes : bool
-        kinmo extension (issue 36): with the learned selector and meshes, a horizontal slider
-        line blocked both ways by the swept test gives way to a horizontal line free one way
+        kinmo extension (issue 36): with the learned selector and meshes, a slider line
+        (horizontal or vertical) blocked both ways by the swept test gives way to a
+        horizontal line free one way
         (:func:`kinmo.refine.edge.blocked_slide_veto`), and a revolute edge none of whose
         lines can turn becomes a slider when one of its slider lines is free
         (:func:`kinmo.refine.edge.hinge_blocked`, :func:`kinmo.refine.refine.as_slider`).

@@ -18,12 +18,14 @@ With meshes, the learned selector vetoes motions the object's own geometry rules
 (:attr:`RefineConfig.sweep_vetoes`, kinmo extension, issue 36), by the swept test of its
 features (the part against the rest of the object, contact at rest not counted):
 
-- a **blocked slide** (:func:`blocked_slide_veto`): a horizontal slider line along which the
-  part cannot move either way (the sweep frees less than :data:`BLOCKED_FREE`) gives way to
-  the likeliest horizontal line free one way (at least :data:`OPEN_FREE`). The ranker's
+- a **blocked slide** (:func:`blocked_slide_veto`): a slider line along which the part
+  cannot move either way (the sweep frees less than :data:`BLOCKED_FREE`) gives way to the
+  likeliest horizontal line free one way (at least :data:`OPEN_FREE`). The ranker's
   direction priors (the GNN's, the semantic prior's) hold in PartNet's frame, front +z; a
   drawer of a cabinet that faces +x (the ROS convention) is pulled to z, into the carcass's
-  side walls;
+  side walls, and a drawer typed a vertical slider (a lid, a button) is pushed into the
+  carcass's floor and top. A blocked line of either orientation is replaced by a horizontal
+  one only: a vertical line never replaces another (a drawer's own rails free its lift);
 - a **blocked hinge** (:func:`hinge_blocked`): when no candidate line of a revolute edge
   lets the part turn either way, :func:`kinmo.refine.refine.refine_predictions` tries the
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
@@ -270,15 +272,15 @@ def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray
     -------
     int
         ``best``, unless the edge is prismatic (``"P"``; cylindrical and revolute edges are
-        left alone), ``best`` is horizontal and blocked (``sweep_free_max <``
-        :data:`BLOCKED_FREE`) and some horizontal line is free one way (``>=``
-        :data:`OPEN_FREE`): then the most probable of those.
+        left alone), ``best`` is blocked (``sweep_free_max <`` :data:`BLOCKED_FREE`; horizontal
+        or vertical) and some horizontal line is free one way (``>=`` :data:`OPEN_FREE`):
+        then the most probable of those.
     """
     if cands.motion != "P" or best < 0:
         return best
     free = np.asarray(features[:, FEATURES.index("sweep_free_max")], dtype=np.float64)
     horizontal = np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y
-    if free[best] >= BLOCKED_FREE or not horizontal[best]:
+    if free[best] >= BLOCKED_FREE:
         return best
     ok = np.flatnonzero(horizontal & (free >= OPEN_FREE))
     return best if ok.size == 0 else int(ok[np.argmax(np.asarray(prob)[ok])])
