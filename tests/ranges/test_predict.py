@@ -90,7 +90,7 @@ def test_blocked_everywhere_keeps_the_learned_range_with_a_warning_naming_the_pa
     # a learned range entirely on the closing side of the door: blocked at every state
     with caplog.at_level(logging.WARNING):
         out = predict_ranges(p, _prior(("hinge", None, "door", 5, 0.0, -120.0, -30.0)), _meshes(p.graph))
-    assert _limits(out)["door"] == (-120.0, -30.0)
+    assert _limits(out)["door"] == (-120.0, 0.0)  # kept, widened to hold the rest state
     assert any("'door'" in r.getMessage() and "cabinet0" in r.getMessage() for r in caplog.records)
 
 
@@ -101,6 +101,18 @@ def test_a_range_is_never_empty_or_nan(lo, hi):
                          _meshes(p.graph))
     for a, b in _limits(out).values():
         assert math.isfinite(a) and math.isfinite(b) and b > a
+
+
+@pytest.mark.parametrize("meshes", [True, False])
+def test_every_range_holds_the_rest_state(meshes):
+    # a prior written before the rule (the bundle's dishwasher shelves: 0.08 to 0.9 extents)
+    p = _prediction()
+    prior = _prior(("hinge", None, None, 5, 0.0, 30.0, 120.0), ("slider", None, None, 5, 0.0, 0.08, 0.9))
+    out = predict_ranges(p, prior, _meshes(p.graph) if meshes else None)
+    for name, (lo, hi) in _limits(out).items():
+        assert lo <= 0.0 <= hi and hi > 0.0, name
+    if not meshes:  # the learned ends, widened to 0
+        assert _limits(out)["door"] == (0.0, 120.0)
 
 
 def test_deterministic():

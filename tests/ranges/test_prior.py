@@ -58,6 +58,19 @@ def test_fit_takes_the_medoid_and_the_most_specific_group():
     assert RangePrior().lookup("hinge", "StorageFurniture", "door") is None
 
 
+def test_a_training_range_without_the_rest_state_is_widened_to_it():
+    # a door annotated 70 to 178 degrees (a washing machine of the shared data) and two
+    # ranges from rest: the group's range holds 0, whichever is the medoid
+    gs = [_with_limits(cabinet_graph(seed=s, jitter=0.1), lim, [0.1, 0.9])
+          for s, lim in enumerate(([-178.0, -70.0], [-178.0, -70.0], [-90.0, 0.0]))]
+    assert (true_ranges(gs[0])[0].lo, true_ranges(gs[0])[0].hi) == pytest.approx((70.0, 178.0))
+    prior = fit_range_prior(gs)
+    door = prior.lookup("hinge", "StorageFurniture", "door")
+    assert (door.lo, door.hi) == pytest.approx((0.0, 178.0))
+    drawer = prior.lookup("slider", "StorageFurniture", "drawer")
+    assert drawer.lo == 0.0 and drawer.hi > 0.0
+
+
 def test_save_load_round_trip(tmp_path):
     prior = fit_range_prior([cabinet_graph(seed=0)])
     prior.save(tmp_path / "ranges.json")

@@ -36,7 +36,9 @@ oriented so that a positive value opens the part):
    object and part; a part free in both directions keeps the learned range unclipped; a
    joint no group covers keeps the tree's default range (:class:`~kinmo.mobility_tree.TreeOptions`,
    ``--hinge-max`` / ``--slider-fraction``). A range is never empty or NaN: at least
-   :data:`MIN_HINGE_SPAN_DEG` degrees, or :data:`MIN_SLIDER_SPAN` extents.
+   :data:`MIN_HINGE_SPAN_DEG` degrees, or :data:`MIN_SLIDER_SPAN` extents; and it always
+   holds the rest state 0 (URDF and MJCF load a part at 0; a prior written before that rule,
+   such as one whose dishwasher shelves slide 0.08 to 0.9 extents, is widened to it).
 
 Frames and units: mesh frame (PartNet is y-up), degrees for hinges, mesh units for sliders.
 Deterministic: the moving points are subsampled with a fixed seed.
@@ -224,6 +226,7 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
         span = MIN_HINGE_SPAN_DEG if hinge else MIN_SLIDER_SPAN * unit
         if not (math.isfinite(lo) and math.isfinite(hi)):
             lo, hi = 0.0, span
+        lo, hi = min(lo, 0.0), max(hi, 0.0)  # the rest state lies in the range
         if hi - lo < span:
             hi = lo + span
         out.append(dataclasses.replace(lk, joint=dataclasses.replace(j, direction=direction,
