@@ -62,9 +62,13 @@ def test_right_answers_grade_right_and_a_wrong_type_is_counted(predictor, monkey
     assert s["joints"] == 6 and s["joint_precision"] == 1.0
     assert s["type_acc"] == 1.0 and s["fine_type_acc"] == 1.0
     assert 0.0 <= s["axis_mean_deg"] <= 90.0
+    # per link: the door and the drawer of each cabinet, matched to the true links
+    assert s["links"] == 6 and s["link_precision"] == 1.0 and s["link_type_acc"] == 1.0
+    assert 0.0 <= s["link_axis_mean_deg"] <= 90.0
     _gnn(monkeypatch, door_as_slider=True)
     wrong = grade_pseudo_rule(predictor, _graphs(), cfg).summary()
     assert wrong["joint_precision"] == 1.0 and wrong["type_acc"] == pytest.approx(0.5)
+    assert wrong["link_precision"] == 1.0 and wrong["link_type_acc"] == pytest.approx(0.5)
 
 
 def test_a_rule_that_keeps_nothing_writes_null_not_nan(predictor, monkeypatch, tmp_path):
@@ -76,4 +80,5 @@ def test_a_rule_that_keeps_nothing_writes_null_not_nan(predictor, monkeypatch, t
     assert "NaN" not in text and json.loads(text) == doc
     assert doc["all"]["kept"] == 0 and doc["all"]["type_acc"] is None
     md = (tmp_path / "summary.md").read_text()
-    assert "| **all** | 3 | 0 | – |" in md
+    assert "| **all** | 3 | 0 | – |" in md and "link precision" in md
+    assert len(rep.links) == 6 and doc["all"]["links"] == 0 and doc["all"]["link_precision"] is None

@@ -69,6 +69,8 @@ __all__ = [
     "evaluate_graphs",
     "evaluate_shape",
     "gt_links",
+    "leaf_link_map",
+    "match_joints",
     "match_links",
     "nanmean",
 ]
@@ -165,6 +167,59 @@ def match_links(pred: dict[int, set[int]], true: dict[int, set[int]],
     rows, cols = linear_sum_assignment(-iou)
     out = [(pk[r], tk[c], float(iou[r, c])) for r, c in zip(rows, cols) if iou[r, c] >= threshold]
     return sorted(out)
+
+
+def leaf_link_map(graph: PartGraph, links: Sequence[Link]) -> dict[int, int]:
+    """Leaf node index -> id of the link that holds it, from the links' ``parts`` (PartNet
+    node ids; a listed inner node holds every leaf below it); -1 for a leaf of no link.
+
+    The map :func:`match_joints` needs for links read back without their tree (a
+    pseudo-label's, a ``mobility_v2.json``'s)."""
+    owner = {int(p): lk.id for lk in links for p in lk.parts}
+    ids = np.asarray(graph.node_ids)
+    parent = np.asarray(graph.parent)
+    out: dict[int, int] = {}
+    for n in np.flatnonzero(np.asarray(graph.is_leaf, bool)):
+        k = int(n)
+        while k >= 0 and int(ids[k]) not in owner:
+            k = int(parent[k])
+        out[int(n)] = owner[int(ids[k])] if k >= 0 else -1
+    return out
+
+
+def match_joints(graph: PartGraph, links: Sequence[Link], leaf_link: dict[int, int] | None = None
+                 ) -> tuple[int, list[tuple[Link, Link, float]]]:
+    """Predicted moving links matched to the graph's true ones, as Table 1 matches them
+    (:func:`evaluate_shape`): each link's moved leaf set (its rigid group's), one to one,
+    IoU >= 0.5 (:func:`match_links`).
+
+    Parameters
+    ----------
+    graph : PartGraph
+        Labelled (``meta["links"]``, ``node_link``).
+    links : sequence of Link
+        The predicted links (a mobility tree's, or a pseudo-label's).
+    leaf_link : dict of int to int, optional
+        Leaf node index -> predicted link id; by default :func:`leaf_link_map` of ``links``.
+
+    Returns
+    -------
+    (int, list of (Link, Link, float))
+        The number of predicted moving rigid groups, and the matched (predicted, true, IoU)
+        pairs.
+
+    Raises
+    ------
+    ValueError
+        The graph has no ground-truth links.
+    """
+    true = gt_links(graph)
+    node_link = np.asarray(graph.node_link)
+    leaves = np.flatnonzero(np.asarray(graph.is_leaf, bool))
+    pred_groups = _moving_groups(links, leaf_link if leaf_link is not None else leaf_link_map(graph, links))
+    true_groups = _moving_groups(true, {int(n): int(node_link[n]) for n in leaves})
+    by_p, by_t = {lk.id: lk for lk in links}, {lk.id: lk for lk in true}
+    return len(pred_groups), [(by_p[a], by_t[b], iou) for a, b, iou in match_links(pred_groups, true_groups)]
 
 
 @dataclass

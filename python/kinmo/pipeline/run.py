@@ -246,6 +246,7 @@ class _Context:
         f = folder / "summary.json"
         if f.is_file():
             a = json.loads(f.read_text())["all"]
+            a = {"link_precision": None, "link_type_acc": None, "link_axis_mean_deg": None, **a}  # older runs
 
             def num(k: str, p: int = 3) -> str:
                 return "–" if a[k] is None else f"{a[k]:.{p}f}"  # null: nothing to average
@@ -253,7 +254,8 @@ class _Context:
             self.console.print(
                 f"{v.prefix}pseudo-label rule at {pcfg.threshold:g} on {int(a['objects'])} labelled test "
                 f"objects: {int(a['kept'])} kept, joint precision {num('joint_precision')}, type accuracy "
-                f"{num('type_acc')} (fine {num('fine_type_acc')}), axis error {num('axis_mean_deg', 2)}°")
+                f"{num('type_acc')} (fine {num('fine_type_acc')}), axis error {num('axis_mean_deg', 2)}°; "
+                f"per link {num('link_precision')}, {num('link_type_acc')}, {num('link_axis_mean_deg', 2)}°")
         self.res.stages[f"{v.prefix}pseudo_rule"] = [str(folder)]
         return folder
 
