@@ -124,3 +124,19 @@ def test_copies_turned_about_the_shape_vote_in_their_own_frames():
                          direction=UP.copy())
     changed = vote_repeated(graph, edges, ["R_H_S"] * 4, details, _conf)
     assert sorted(changed) == [2] and np.allclose(np.abs(changed[2].direction), np.abs(turn[0]))
+
+
+def test_a_copy_that_deferred_to_a_sure_gnn_neither_votes_nor_follows():
+    # four knobs: the pooled ranker leans sideways, but two copies deferred to the GNN's
+    # sure vertical (kinmo.refine.edge.sure_prior); they keep it, and the sideways majority
+    # of the other two does not count them
+    graph, edges = _keyboard(4)
+    types = ["T_V"] * 4
+    up_deferred = replace(_choice(0.3, True), deferred=True)
+    details = {0: up_deferred, 1: replace(_choice(0.3, True), deferred=True),
+               2: _choice(0.3, False), 3: _choice(0.3, False)}
+    changed = vote_repeated(graph, edges, types, details, _conf)
+    assert 0 not in changed and 1 not in changed
+    # the same without the flags: the copies vote, and sideways wins
+    plain = {k: replace(r, deferred=False) for k, r in details.items()}
+    assert sorted(vote_repeated(graph, edges, types, plain, _conf)) == [0, 1]

@@ -31,6 +31,15 @@ features (the part against the rest of the object, contact at rest not counted):
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
   or shaped like a flap).
 
+Before the vetoes, the selector defers to a **sure GNN** (:func:`sure_prior`): when its choice
+gets almost none of the GNN's axis-candidate mass (below :data:`PRIOR_AGAINST`), the GNN puts
+nearly all of it on another direction (at least :data:`PRIOR_SURE`), and the selector's own
+calibrated confidence is below :data:`UNSURE_CONFIDENCE`, the likeliest line of the GNN's
+direction wins. An oven's knobs typed ``R_H_S`` by the type head, whose axis head was sure of
+the vertical, had been turned horizontal by the type's orientation prior. Only rankers that
+weigh that prior (``orient_prior``: the fine one) defer; out of fold, the coarse ranker's
+deferrals turned one right dishwasher joint 90° off (docs/results/table1_four_settings.md).
+
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
 feasible direction, and its confidence.
@@ -68,8 +77,8 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates
 
-__all__ = ["BLOCKED_FREE", "OPEN_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line",
-           "hinge_blocked", "refine_edge", "select_edge"]
+__all__ = ["BLOCKED_FREE", "OPEN_FREE", "PRIOR_AGAINST", "PRIOR_SURE", "UNSURE_CONFIDENCE", "EdgeRefinement",
+           "blocked_slide_veto", "chosen_line", "hinge_blocked", "refine_edge", "select_edge", "sure_prior"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -78,6 +87,12 @@ BLOCKED_FREE = 0.1
 OPEN_FREE = 0.9
 #: Largest ``|y|`` of a unit direction counted as horizontal (y-up; 60° from vertical).
 _HORIZONTAL_Y = 0.5
+#: :func:`sure_prior`: the GNN's axis head holds at least this mass on one direction ...
+PRIOR_SURE = 0.95
+#: ... the selector's choice at most this much ...
+PRIOR_AGAINST = 0.05
+#: ... and the selector's calibrated confidence in its choice is below this.
+UNSURE_CONFIDENCE = 0.1
 
 
 @dataclass(frozen=True)
@@ -105,6 +120,9 @@ class EdgeRefinement:
     free : (C,) float64 or None
         The learned selector's swept test of every candidate (``sweep_free_max``: the larger
         free fraction of the two directions); None without meshes.
+    deferred : bool
+        The selector deferred to a sure GNN (:func:`sure_prior`); the repeated-parts vote
+        leaves such an edge alone.
     """
 
     candidates: Candidates
@@ -116,6 +134,7 @@ class EdgeRefinement:
     dir_prior: np.ndarray | None = None
     voted: bool = False
     free: np.ndarray | None = None
+    deferred: bool = False
 
     @property
     def confidence(self) -> float:
@@ -246,6 +265,41 @@ def _network_feasibility(graph: PartGraph, moving: int, reference: int, cands: C
     return line_feasibility(s, mot.line, mot.sign, len(cands))
 
 
+def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
+    """The learned selector's choice, or the GNN's direction where the GNN is sure and the
+    selector is not (module docstring).
+
+    Parameters
+    ----------
+    ranker : kinmo.refine.ranker.Ranker
+        Gives the calibrated confidence (:meth:`~kinmo.refine.ranker.Ranker.confidence`).
+    features : (C, len(FEATURES)) float64
+        The candidates' features; ``dir_prior`` is the GNN's axis-candidate mass on each
+        candidate's direction.
+    prob : (C,) float64
+        The ranker's probabilities.
+    best : int
+        The selector's choice.
+
+    Returns
+    -------
+    int
+        ``best``, unless its ``dir_prior`` is below :data:`PRIOR_AGAINST`, some candidate's
+        is at least :data:`PRIOR_SURE` and the calibrated confidence of ``best`` is below
+        :data:`UNSURE_CONFIDENCE`: then the most probable of the candidates the GNN is sure
+        of.
+    """
+    if best < 0:
+        return best
+    prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
+    if prior[best] >= PRIOR_AGAINST or prior.max() < PRIOR_SURE:
+        return best
+    if ranker.confidence(float(prob[best]), float(prior[best])) >= UNSURE_CONFIDENCE:
+        return best
+    ok = np.flatnonzero(prior >= PRIOR_SURE)
+    return int(ok[np.argmax(np.asarray(prob)[ok])])
+
+
 def hinge_blocked(refinement: EdgeRefinement) -> bool:
     """True when no candidate line of a revolute edge lets the part turn: every line's swept
     test frees less than :data:`BLOCKED_FREE` either way (False without the sweep)."""
@@ -344,7 +398,10 @@ def select_edge(
                                  gnn_origin, feas, meshes, seed=cfg.seed, semantic=ranker.semantic,
                                  proxy=proxy)
     p = ranker.probabilities(x)
-    b = b0 = ranker.choose(p, cands.directions)
+    chosen = ranker.choose(p, cands.directions)
+    # only a ranker that weighs the fine type's orientation prior can overrule a sure axis head
+    b = b0 = sure_prior(ranker, x, p, chosen) if "orient_prior" in ranker.features else chosen
+    deferred = b != chosen
     if cfg.sweep_vetoes:
         b = b0 = blocked_slide_veto(cands, x, p, b)
     if cands.motion != "P":
@@ -359,4 +416,5 @@ def select_edge(
     conf = ranker.confidence(float(p[b0]), float(x[b0, FEATURES.index("dir_prior")]))
     return EdgeRefinement(cands, scores, o, d, calibrated=conf,
                           dir_prior=x[:, FEATURES.index("dir_prior")].copy(),
-                          free=x[:, FEATURES.index("sweep_free_max")].copy() if meshes is not None else None)
+                          free=x[:, FEATURES.index("sweep_free_max")].copy() if meshes is not None else None,
+                          deferred=deferred)

@@ -128,7 +128,7 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
         The edges whose choice changed, with their new refinement (``voted`` True).
     """
     cos = float(np.cos(np.radians(angle_deg)))
-    valid = [k for k, r in details.items() if r.scores.best >= 0 and not r.abstained]
+    valid = [k for k, r in details.items() if r.scores.best >= 0 and not r.abstained and not r.deferred]
     changed: dict[int, EdgeRefinement] = {}
     for group in repeated_groups(graph, edges, types, valid, extent_tol=extent_tol,
                                  min_group=min_group):
