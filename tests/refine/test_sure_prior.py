@@ -13,6 +13,8 @@ _PRIOR = FEATURES.index("dir_prior")
 class _Ranker:
     """A stand-in whose calibrated confidence is the winner's probability times 0.2."""
 
+    features = ("dir_prior", "orient_prior")
+
     def confidence(self, p_max: float, dir_prior: float = 1.0) -> float:
         return 0.2 * p_max
 
@@ -41,3 +43,7 @@ def test_otherwise_the_choice_stands():
     assert sure_prior(_Ranker(), _x([0.0, 0.0, 1.0, 1.0]), np.array([0.6, 0.1, 0.1, 0.2]), 0) == 0
     # no candidate
     assert sure_prior(_Ranker(), _x([0.0]), np.array([1.0]), -1) == -1
+    # a ranker without the fine type's orientation prior (the coarse one) never defers
+    coarse = _Ranker()
+    coarse.features = ("dir_prior",)
+    assert sure_prior(coarse, _x([0.0, 0.0, 1.0, 1.0]), p, 0) == 0

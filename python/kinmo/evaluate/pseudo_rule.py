@@ -191,7 +191,7 @@ def grade_pseudo_rule(predictor: Any, graphs: Sequence[PartGraph], config: Pseud
         kept = judge(joints, config.threshold)[0] == "kept"
         if kept:
             rep.kept.append(g.shape_id)
-        _, matches = match_joints(g, links)
+        _, _, matches = match_joints(g, links)
         hit = {p.id: (joint_kind(p.joint) == joint_kind(t.joint),
                       float(axis_angle_deg(p.joint.direction, t.joint.direction)))
                for p, t, _ in matches}

@@ -188,7 +188,7 @@ def leaf_link_map(graph: PartGraph, links: Sequence[Link]) -> dict[int, int]:
 
 
 def match_joints(graph: PartGraph, links: Sequence[Link], leaf_link: dict[int, int] | None = None
-                 ) -> tuple[int, list[tuple[Link, Link, float]]]:
+                 ) -> tuple[int, int, list[tuple[Link, Link, float]]]:
     """Predicted moving links matched to the graph's true ones, as Table 1 matches them
     (:func:`evaluate_shape`): each link's moved leaf set (its rigid group's), one to one,
     IoU >= 0.5 (:func:`match_links`).
@@ -204,9 +204,9 @@ def match_joints(graph: PartGraph, links: Sequence[Link], leaf_link: dict[int, i
 
     Returns
     -------
-    (int, list of (Link, Link, float))
-        The number of predicted moving rigid groups, and the matched (predicted, true, IoU)
-        pairs.
+    (int, int, list of (Link, Link, float))
+        The numbers of predicted and true moving rigid groups, and the matched (predicted,
+        true, IoU) pairs, sorted by predicted id.
 
     Raises
     ------
@@ -219,7 +219,8 @@ def match_joints(graph: PartGraph, links: Sequence[Link], leaf_link: dict[int, i
     pred_groups = _moving_groups(links, leaf_link if leaf_link is not None else leaf_link_map(graph, links))
     true_groups = _moving_groups(true, {int(n): int(node_link[n]) for n in leaves})
     by_p, by_t = {lk.id: lk for lk in links}, {lk.id: lk for lk in true}
-    return len(pred_groups), [(by_p[a], by_t[b], iou) for a, b, iou in match_links(pred_groups, true_groups)]
+    return len(pred_groups), len(true_groups), [(by_p[a], by_t[b], iou)
+                                                for a, b, iou in match_links(pred_groups, true_groups)]
 
 
 @dataclass
@@ -291,18 +292,13 @@ def evaluate_shape(graph: PartGraph, probs: np.ndarray, direction: np.ndarray,
                                 np.asarray(graph.edge_axis_direction)[rot])
         r.dist_edge = list(np.atleast_1d(d) / scale)
 
-    links_true = gt_links(graph)
-    node_link = np.asarray(graph.node_link)
     leaves = np.flatnonzero(graph.is_leaf)
-    true_groups = _moving_groups(links_true, {int(n): int(node_link[n]) for n in leaves})
-    pred_groups = _moving_groups(tree.links, {int(n): int(tree.leaf_link[n]) for n in leaves})
-    r.n_true, r.n_pred = len(true_groups), len(pred_groups)
-    r.matches = match_links(pred_groups, true_groups)
+    r.n_pred, r.n_true, pairs = match_joints(graph, tree.links,
+                                             {int(n): int(tree.leaf_link[n]) for n in leaves})
+    r.matches = [(p.id, t.id, iou) for p, t, iou in pairs]
     r.n_matched = len(r.matches)
-    pj = {lk.id: lk.joint for lk in tree.links}
-    tj = {lk.id: lk.joint for lk in links_true}
-    for p, t, _ in r.matches:
-        a, b = pj[p], tj[t]
+    for p, t, _ in pairs:
+        a, b = p.joint, t.joint
         r.joint_type_correct += int(joint_kind(a) == joint_kind(b))
         r.angle_joint.append(float(axis_angle_deg(a.direction, b.direction)))
         if joint_kind(b) in ("R", "PR"):

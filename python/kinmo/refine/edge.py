@@ -272,7 +272,7 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
     Parameters
     ----------
     ranker : kinmo.refine.ranker.Ranker
-        Gives the calibrated confidence (:meth:`~kinmo.refine.ranker.Ranker.confidence`).
+        Its ``features`` and calibrated confidence (:meth:`~kinmo.refine.ranker.Ranker.confidence`).
     features : (C, len(FEATURES)) float64
         The candidates' features; ``dir_prior`` is the GNN's axis-candidate mass on each
         candidate's direction.
@@ -284,12 +284,14 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
     Returns
     -------
     int
-        ``best``, unless its ``dir_prior`` is below :data:`PRIOR_AGAINST`, some candidate's
-        is at least :data:`PRIOR_SURE` and the calibrated confidence of ``best`` is below
+        ``best``, unless the ranker weighs the fine type's orientation prior
+        (``orient_prior``: only such a ranker can overrule a sure axis head), the ``dir_prior``
+        of ``best`` is below :data:`PRIOR_AGAINST`, some candidate's is at least
+        :data:`PRIOR_SURE` and the calibrated confidence of ``best`` is below
         :data:`UNSURE_CONFIDENCE`: then the most probable of the candidates the GNN is sure
         of.
     """
-    if best < 0:
+    if best < 0 or "orient_prior" not in ranker.features:
         return best
     prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
     if prior[best] >= PRIOR_AGAINST or prior.max() < PRIOR_SURE:
@@ -399,8 +401,7 @@ def select_edge(
                                  proxy=proxy)
     p = ranker.probabilities(x)
     chosen = ranker.choose(p, cands.directions)
-    # only a ranker that weighs the fine type's orientation prior can overrule a sure axis head
-    b = b0 = sure_prior(ranker, x, p, chosen) if "orient_prior" in ranker.features else chosen
+    b = b0 = sure_prior(ranker, x, p, chosen)
     deferred = b != chosen
     if cfg.sweep_vetoes:
         b = b0 = blocked_slide_veto(cands, x, p, b)
