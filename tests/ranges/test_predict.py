@@ -226,3 +226,68 @@ def test_off_axis_points_leave_out_the_points_near_the_line():
     # too few left, or no direction: every point
     assert len(off_axis_points(pts, o, d, skip=0.9)) == 21
     assert len(off_axis_points(pts, o, np.zeros(3), skip=0.3)) == 21
+
+
+def _door_joint(p):
+    return next(lk.joint for lk in p.tree.moving_links if lk.name == "door")
+
+
+def _open_door(p, degrees: float):
+    """The cabinet with its door turned ``degrees`` open about its predicted axis (points and
+    mesh): a mesh that shows the door half open, as PartNet-Mobility's safes do."""
+    j = _door_joint(p)
+    rot = trimesh.transformations.rotation_matrix(math.radians(degrees), j.direction, j.origin)
+    g = p.graph
+    g.points[2] = trimesh.transform_points(np.asarray(g.points[2], float), rot)
+    meshes = _meshes(g)
+    box = trimesh.creation.box(extents=[0.5, 0.5, 0.02], transform=trimesh.transformations.translation_matrix(
+        [-0.25, 0.75, 0.31]))
+    box.apply_transform(rot)
+    leaves = dict(meshes.leaves)
+    leaves[2] = (np.asarray(box.vertices, float), np.asarray(box.faces, np.int64))
+    return ShapeMeshes(leaves)
+
+
+def test_a_door_open_at_rest_gets_its_closed_end_from_the_sweep():
+    """The door shown 60 degrees open: turned back it meets the body at about -60, which
+    becomes the closed end, and the learned 0-120 is shifted with it."""
+    from kinmo.ranges.predict import protrusion
+
+    p = _prediction()
+    m = _open_door(p, 60.0)
+    body = p.graph.points[[1, 4, 5]]
+    assert protrusion(p.graph.points[2], body) > 0.3  # it sticks out of the body: open
+    lo, hi = _limits(predict_ranges(p, _prior(("hinge", None, None, 5, 0.0, 0.0, 120.0)), m))["door"]
+    assert -65.0 <= lo <= -50.0 and hi == pytest.approx(120.0 + lo)
+
+
+def test_a_closed_door_that_could_swing_into_a_hollow_body_stays_closed(monkeypatch):
+    """A hollow body (open at the front): the closed door turns inwards freely until it meets
+    a side wall, but it does not stick out of the body, so it is not taken as open."""
+    import kinmo.ranges.predict as rp
+
+    p = _prediction()
+    slabs = [((-0.5, 0.0, -0.3), (0.5, 0.02, 0.3)), ((-0.5, 1.01, -0.3), (0.5, 1.03, 0.3)),
+             ((-0.5, 0.0, -0.3), (-0.48, 1.0, 0.3)), ((0.48, 0.0, -0.3), (0.5, 1.0, 0.3)),
+             ((-0.5, 0.0, -0.3), (0.5, 1.0, -0.28))]
+    parts = [trimesh.creation.box(extents=np.subtract(hi, lo),
+                                  transform=trimesh.transformations.translation_matrix(np.add(lo, hi) / 2))
+             for lo, hi in slabs]
+    hollow = trimesh.util.concatenate(parts)
+    leaves = dict(_meshes(p.graph).leaves)
+    leaves[1] = (np.asarray(hollow.vertices, float), np.asarray(hollow.faces, np.int64))
+    m = ShapeMeshes(leaves)
+    prior = _prior(("hinge", None, None, 5, 0.0, 0.0, 120.0))
+    assert _limits(predict_ranges(p, prior, m))["door"] == (0.0, 120.0)
+    # the sweep alone would call it open: the protrusion test is what keeps it closed
+    monkeypatch.setattr(rp, "OPEN_AT_REST_PROTRUSION", 0.0)
+    assert _limits(predict_ranges(p, prior, m))["door"][0] <= -rp.OPEN_AT_REST_MIN_DEG
+
+
+def test_protrusion_is_the_farthest_distance_outside_the_box():
+    from kinmo.ranges.predict import protrusion
+
+    box = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    assert protrusion(np.array([[0.5, 0.5, 0.5], [0.2, 0.9, 0.1]]), box) == 0.0
+    assert protrusion(np.array([[0.5, 0.5, 0.5], [1.3, 1.4, 0.5]]), box) == pytest.approx(0.5)
+    assert protrusion(np.zeros((0, 3)), box) == 0.0 and protrusion(box, np.zeros((0, 3))) == 0.0
