@@ -39,10 +39,10 @@ oriented so that a positive value opens the part):
      rest of the object as an open part would (:func:`protrusion` at least
      :data:`OPEN_AT_REST_PROTRUSION` of ``r sin(min(free, 90))``, ``r`` its farthest point's
      distance from the axis), the rest pose is taken as open by that free turn: the learned
-     range is shifted by it, so the stop becomes the closed end. The protrusion test keeps closed doors closed that could
-     swing into a hollow body. Out of fold on the 235 shared objects (``kinmo eval oof``,
-     OBB_fine, pooled), hinge range IoU 0.665 -> 0.687 (fold seed 0) and 0.687 -> 0.696
-     (seed 1) (docs/results/ranges.md).
+     range is shifted by it, so the stop becomes the closed end. The protrusion test keeps
+     closed doors closed that could swing into a hollow body. Out of fold on the 235 shared
+     objects (``kinmo eval oof``, OBB_fine, pooled), hinge range IoU 0.665 -> 0.687 (fold
+     seed 0) and 0.687 -> 0.696 (seed 1) (docs/results/ranges.md).
 3. **Fallbacks.** A part blocked on both sides within 5 % of the learned range (or whose
    sweep cannot run: no meshes) keeps the learned range, with one warning line naming the
    object and part; a part free in both directions keeps the learned range unclipped; a
@@ -71,8 +71,8 @@ from kinmo.mobility_tree import ShapePrediction
 from kinmo.ranges.prior import RangePrior, axial_extent
 
 __all__ = ["HINGE_STEPS", "MIN_HINGE_SPAN_DEG", "MIN_SLIDER_SPAN", "OPEN_AT_REST_MAX_DEG",
-           "OPEN_AT_REST_MIN_DEG", "OPEN_AT_REST_PROTRUSION", "SLIDER_STEPS", "SWEEP_POINTS", "free_extents", "predict_ranges",
-           "protrusion"]
+           "OPEN_AT_REST_MIN_DEG", "OPEN_AT_REST_PROTRUSION", "SLIDER_STEPS", "SWEEP_POINTS",
+           "free_extents", "predict_ranges", "protrusion"]
 
 logger = logging.getLogger(__name__)
 
@@ -101,7 +101,7 @@ HINGE_AXIS_SKIP = 0.3
 #: over the whole end the other way, opens the other way: its direction is negated.
 SLIDER_FLIP_SHARE = 0.25
 #: A hinge whose learned range starts above minus this many degrees, free on its closing side
-#: for at least this many degrees (and less than a full turn), may be open at rest ...
+#: for at least this many degrees, may be open at rest ...
 OPEN_AT_REST_MIN_DEG = 30.0
 #: ... and at most this many (a part that turns back further before it meets anything is not
 #: a door shown open, but one that turns nearly freely) ...
@@ -147,8 +147,9 @@ def _open_at_rest(points: np.ndarray, others: np.ndarray, origin: np.ndarray, di
         return False
     u = np.asarray(direction, np.float64) / np.linalg.norm(direction)
     v = np.asarray(points, np.float64) - np.asarray(origin, np.float64)
-    r = float(np.linalg.norm(v - np.outer(v @ u, u), axis=1).max())
-    return protrusion(points, others) >= OPEN_AT_REST_PROTRUSION * r * math.sin(math.radians(min(closing_free, 90.0)))
+    r = float(np.linalg.norm(v - np.outer(v @ u, u), axis=1).max()) if len(v) else 0.0
+    return r > 0.0 and protrusion(points, others) >= \
+        OPEN_AT_REST_PROTRUSION * r * math.sin(math.radians(min(closing_free, 90.0)))
 
 
 def _sweep_line(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray, direction: np.ndarray,
