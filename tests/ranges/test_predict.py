@@ -291,3 +291,17 @@ def test_protrusion_is_the_farthest_distance_outside_the_box():
     assert protrusion(np.array([[0.5, 0.5, 0.5], [0.2, 0.9, 0.1]]), box) == 0.0
     assert protrusion(np.array([[0.5, 0.5, 0.5], [1.3, 1.4, 0.5]]), box) == pytest.approx(0.5)
     assert protrusion(np.zeros((0, 3)), box) == 0.0 and protrusion(box, np.zeros((0, 3))) == 0.0
+
+
+def test_predicted_slider_travel_uses_the_prior_s_own_floor():
+    """The same learned travel in extents means more travel under a coarser floor, for a part
+    thinner than the floors (the cabinet's drawer along x, 0.5 wide, is not; a floor of half
+    the diagonal is)."""
+    p = _prediction()
+    ext = np.ptp(p.graph.points[[4, 5]].reshape(-1, 3)[:, 2])  # the drawer's depth, ~0.06
+    fine = RangePrior([RangeEntry("slider", None, None, 5, 0.0, 0.0, 1.0)], min_extent=0.002)
+    coarse = RangePrior([RangeEntry("slider", None, None, 5, 0.0, 0.0, 1.0)], min_extent=0.5)
+    a = _limits(predict_ranges(p, fine, None))["drawer"]
+    b = _limits(predict_ranges(p, coarse, None))["drawer"]
+    assert a == pytest.approx((0.0, ext), rel=0.05)
+    assert b == pytest.approx((0.0, 0.5 * p.graph.scale), rel=1e-6)

@@ -75,7 +75,32 @@ def test_save_load_round_trip(tmp_path):
     prior = fit_range_prior([cabinet_graph(seed=0)])
     prior.save(tmp_path / "ranges.json")
     again = RangePrior.load(tmp_path / "ranges.json")
-    assert again.entries == prior.entries
+    assert again.entries == prior.entries and again.min_extent == prior.min_extent
+
+
+def test_the_slider_unit_floor_is_stored_with_the_prior(tmp_path):
+    """A button thinner than the floor: its travel is learned per floor, so the floor is
+    part of the prior; a file written before it was stored used the legacy 2 %."""
+    from kinmo.ranges.prior import LEGACY_MIN_EXTENT_FRACTION, MIN_EXTENT_FRACTION, axial_extent
+
+    g = _with_limits(cabinet_graph(seed=0), [0.0, 90.0], [0.0, 0.004])
+    thin = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.003 * g.scale]])
+    assert axial_extent(thin, np.array([0.0, 0.0, 1.0]), g.scale) == pytest.approx(0.003 * g.scale)
+    assert axial_extent(thin, np.array([0.0, 0.0, 1.0]), g.scale, 0.02) == pytest.approx(0.02 * g.scale)
+    new, old = fit_range_prior([g]), fit_range_prior([g], LEGACY_MIN_EXTENT_FRACTION)
+    assert (new.min_extent, old.min_extent) == (MIN_EXTENT_FRACTION, LEGACY_MIN_EXTENT_FRACTION)
+    f = tmp_path / "ranges.json"
+    old.save(f)
+    doc = json.loads(f.read_text())
+    assert doc["min_extent"] == LEGACY_MIN_EXTENT_FRACTION
+    del doc["min_extent"]  # as written before session 16
+    f.write_text(json.dumps(doc))
+    assert RangePrior.load(f).min_extent == LEGACY_MIN_EXTENT_FRACTION
+    for bad in (0, -0.1, 2.0, "0.02", True):
+        f.write_text(json.dumps({**doc, "min_extent": bad}))
+        with pytest.raises(KinmoDataError, match="min_extent") as e:
+            RangePrior.load(f)
+        assert "\n" not in str(e.value)
 
 
 @pytest.mark.parametrize("entry, why", [

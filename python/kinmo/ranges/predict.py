@@ -246,7 +246,7 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
         if len(pts) > SWEEP_POINTS:
             pts = pts[np.sort(np.random.default_rng(seed).choice(len(pts), SWEEP_POINTS, replace=False))]
         direction = np.asarray(j.direction, dtype=np.float64)
-        unit = 1.0 if hinge else axial_extent(pts, direction, g.scale)
+        unit = 1.0 if hinge else axial_extent(pts, direction, g.scale, prior.min_extent)
         lo, hi = float(entry.lo) * unit, float(entry.hi) * unit  # type: ignore[arg-type]
         if meshes is None or not len(rest) or not len(pts):
             if meshes is None and not warned_meshes:
