@@ -117,14 +117,19 @@ def off_axis_points(points: np.ndarray, origin: np.ndarray, direction: np.ndarra
     the farthest point's distance (:data:`HINGE_AXIS_SKIP` without); all of them when fewer
     than 8 would remain or the line has no direction."""
     skip = HINGE_AXIS_SKIP if skip is None else float(skip)
-    d = np.asarray(direction, np.float64)
-    n = float(np.linalg.norm(d))
-    if not n > 0 or not len(points):
+    if not float(np.linalg.norm(direction)) > 0 or not len(points):
         return points
-    v = np.asarray(points, np.float64) - np.asarray(origin, np.float64)
-    r = np.linalg.norm(v - np.outer(v @ (d / n), d / n), axis=1)
+    r = _axis_distances(points, origin, direction)
     keep = r > skip * r.max()
     return points[keep] if keep.sum() >= 8 else points
+
+
+def _axis_distances(points: np.ndarray, origin: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """``(P,)`` distances of ``points`` ``(P, 3)`` from the line (``direction`` non-zero)."""
+    d = np.asarray(direction, np.float64)
+    d = d / float(np.linalg.norm(d))
+    v = np.asarray(points, np.float64).reshape(-1, 3) - np.asarray(origin, np.float64)
+    return np.linalg.norm(v - np.outer(v @ d, d), axis=1)
 
 
 def protrusion(points: np.ndarray, others: np.ndarray) -> float:
@@ -145,9 +150,7 @@ def _open_at_rest(points: np.ndarray, others: np.ndarray, origin: np.ndarray, di
     degrees on its closing side, is open at rest (module docstring, :data:`OPEN_AT_REST_MIN_DEG`)."""
     if not (lo > -OPEN_AT_REST_MIN_DEG and OPEN_AT_REST_MIN_DEG <= closing_free <= OPEN_AT_REST_MAX_DEG):
         return False
-    u = np.asarray(direction, np.float64) / np.linalg.norm(direction)
-    v = np.asarray(points, np.float64) - np.asarray(origin, np.float64)
-    r = float(np.linalg.norm(v - np.outer(v @ u, u), axis=1).max()) if len(v) else 0.0
+    r = float(_axis_distances(points, origin, direction).max()) if len(points) else 0.0
     return r > 0.0 and protrusion(points, others) >= \
         OPEN_AT_REST_PROTRUSION * r * math.sin(math.radians(min(closing_free, 90.0)))
 

@@ -52,8 +52,8 @@ from kinmo.io import read_json_document, write_json
 from kinmo.metrics.motion_range import hinge_interval, range_iou
 from kinmo.mobility_tree import opening_direction
 
-__all__ = ["LEGACY_MIN_EXTENT_FRACTION", "MIN_EXTENT_FRACTION", "PRIOR_FORMAT", "PRIOR_VERSION", "RangeEntry", "RangePrior", "TrueRange", "axial_extent",
-           "fit_range_prior", "true_ranges"]
+__all__ = ["LEGACY_MIN_EXTENT_FRACTION", "MIN_EXTENT_FRACTION", "PRIOR_FORMAT", "PRIOR_VERSION", "RangeEntry",
+           "RangePrior", "TrueRange", "axial_extent", "fit_range_prior", "true_ranges"]
 
 PRIOR_FORMAT = "kinmo-range-prior"
 PRIOR_VERSION = 1
