@@ -94,6 +94,38 @@ def test_blocked_everywhere_keeps_the_learned_range_with_a_warning_naming_the_pa
     assert any("'door'" in r.getMessage() and "cabinet0" in r.getMessage() for r in caplog.records)
 
 
+def _walled(g, reach_deg: float) -> ShapeMeshes:
+    """The cabinet's meshes with a wall in front of the door (part of the body), where the
+    door's free edge (0.5 from its hinge line) meets it after ``reach_deg`` degrees."""
+    meshes = _meshes(g)
+    z0 = 0.31 + 0.5 * math.sin(math.radians(reach_deg))
+    wall = trimesh.creation.box(extents=(0.5, 0.5, 0.1),
+                                transform=trimesh.transformations.translation_matrix((-0.25, 0.75, z0 + 0.05)))
+    body = trimesh.util.concatenate([trimesh.Trimesh(*meshes.leaves[1], process=False), wall])
+    return ShapeMeshes({**meshes.leaves, 1: (np.asarray(body.vertices, float), np.asarray(body.faces, np.int64))})
+
+
+def test_a_part_the_sweep_frees_for_a_small_share_of_its_learned_range_keeps_that_range(caplog):
+    # the door meets the wall after ~13 of its learned 120 degrees (11 %, over the former 5 %
+    # bar), and cannot close: a part annotated as moving that turns this little is held by
+    # its meshes (a stapler's arm clipped into its base), not by a real stop (HINGE_BLOCKED_SHARE);
+    # test_a_wall_across_the_door_bounds_its_opening_end is the real stop, at ~24 degrees
+    import kinmo.ranges.predict as rp
+
+    p = _prediction()
+    prior = _prior(("hinge", None, "door", 5, 0.0, 0.0, 120.0))
+    with caplog.at_level(logging.WARNING):
+        out = predict_ranges(p, prior, _walled(p.graph, 14.0))
+    assert _limits(out)["door"] == (0.0, 120.0)
+    assert any("'door'" in r.getMessage() and "cabinet0" in r.getMessage() for r in caplog.records)
+    old = rp.HINGE_BLOCKED_SHARE
+    try:  # the sweep alone stops it at the wall: the share is what keeps the range
+        rp.HINGE_BLOCKED_SHARE = 0.05
+        assert 5.0 <= _limits(predict_ranges(p, prior, _walled(p.graph, 14.0)))["door"][1] <= 20.0
+    finally:
+        rp.HINGE_BLOCKED_SHARE = old
+
+
 @pytest.mark.parametrize("lo, hi", [(0.0, 0.0), (5.0, 5.0)])
 def test_a_range_is_never_empty_or_nan(lo, hi):
     p = _prediction()
