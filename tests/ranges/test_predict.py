@@ -43,7 +43,9 @@ def _limits(pred):
 
 def test_the_sweep_closes_the_blocked_side_and_keeps_the_learned_open_end():
     p = _prediction()
-    prior = _prior(("hinge", None, None, 5, 0.0, -90.0, 120.0), ("slider", None, None, 5, 0.0, -0.5, 1.0))
+    # a learned lower end above -OPEN_AT_REST_MIN_DEG: a range annotated about a closed rest
+    # (one below it is shifted when the part is closed at rest, the test of that rule below)
+    prior = _prior(("hinge", None, None, 5, 0.0, -20.0, 120.0), ("slider", None, None, 5, 0.0, -0.5, 1.0))
     out = predict_ranges(p, prior, _meshes(p.graph))
     door, drawer = _limits(out)["door"], _limits(out)["drawer"]
     # the door cannot turn into the body (the tree's axis opens it outwards): closed at ~0
@@ -293,12 +295,8 @@ def test_a_door_open_at_rest_gets_its_closed_end_from_the_sweep():
     assert -65.0 <= lo <= -50.0 and hi == pytest.approx(120.0 + lo)
 
 
-def test_a_closed_door_that_could_swing_into_a_hollow_body_stays_closed(monkeypatch):
-    """A hollow body (open at the front): the closed door turns inwards freely until it meets
-    a side wall, but it does not stick out of the body, so it is not taken as open."""
-    import kinmo.ranges.predict as rp
-
-    p = _prediction()
+def _hollow_body(p) -> ShapeMeshes:
+    """The cabinet with its body a hollow box open at the front (the door closes it)."""
     slabs = [((-0.5, 0.0, -0.3), (0.5, 0.02, 0.3)), ((-0.5, 1.01, -0.3), (0.5, 1.03, 0.3)),
              ((-0.5, 0.0, -0.3), (-0.48, 1.0, 0.3)), ((0.48, 0.0, -0.3), (0.5, 1.0, 0.3)),
              ((-0.5, 0.0, -0.3), (0.5, 1.0, -0.28))]
@@ -308,12 +306,53 @@ def test_a_closed_door_that_could_swing_into_a_hollow_body_stays_closed(monkeypa
     hollow = trimesh.util.concatenate(parts)
     leaves = dict(_meshes(p.graph).leaves)
     leaves[1] = (np.asarray(hollow.vertices, float), np.asarray(hollow.faces, np.int64))
-    m = ShapeMeshes(leaves)
+    return ShapeMeshes(leaves)
+
+
+def test_a_closed_door_that_could_swing_into_a_hollow_body_stays_closed(monkeypatch):
+    """A hollow body (open at the front): the closed door turns inwards freely until it meets
+    a side wall, but it does not stick out of the body, so it is not taken as open."""
+    import kinmo.ranges.predict as rp
+
+    p = _prediction()
+    m = _hollow_body(p)
     prior = _prior(("hinge", None, None, 5, 0.0, 0.0, 120.0))
     assert _limits(predict_ranges(p, prior, m))["door"] == (0.0, 120.0)
     # the sweep alone would call it open: the protrusion test is what keeps it closed
     monkeypatch.setattr(rp, "OPEN_AT_REST_PROTRUSION", 0.0)
     assert _limits(predict_ranges(p, prior, m))["door"][0] <= -rp.OPEN_AT_REST_MIN_DEG
+
+
+def test_a_closed_door_with_a_range_learned_open_at_rest_opens_its_whole_span_from_closed(monkeypatch):
+    """The fridge door case: its group's medoid, -110 to 60, was annotated on a door shown
+    open. This door is closed (it does not stick out of the body) and turned inwards it meets
+    the hollow body's side wall before -110, so it is closed at rest: the learned 170 degrees
+    open from 0 instead of reaching 110 degrees into the body."""
+    import kinmo.ranges.predict as rp
+
+    p = _prediction()
+    m = _hollow_body(p)
+    prior = _prior(("hinge", None, None, 5, 0.0, -110.0, 60.0))
+    lo, hi = _limits(predict_ranges(p, prior, m))["door"]
+    assert lo == 0.0 and hi == pytest.approx(170.0)
+    # without the rule the sweep alone bounds the closing side somewhere inside the body
+    monkeypatch.setattr(rp, "CLOSED_AT_REST_PROTRUSION", -1.0)
+    lo, hi = _limits(predict_ranges(p, prior, m))["door"]
+    assert -110.0 < lo < -rp.OPEN_AT_REST_MIN_DEG and hi == pytest.approx(60.0)
+
+
+def test_a_part_free_both_ways_keeps_a_range_learned_about_a_mid_range_rest(monkeypatch):
+    """A faucet handle annotated -90 to 90 about its rest and free both ways over it is not
+    closed at rest, however little it sticks out: the rule needs a stop on the closing side
+    before the learned lower end."""
+    import kinmo.ranges.predict as rp
+
+    p = _prediction()
+    leaves = _meshes(p.graph).leaves
+    m = ShapeMeshes({k: v for k, v in leaves.items() if k != 1})  # no body: nothing stops the door
+    monkeypatch.setattr(rp, "CLOSED_AT_REST_PROTRUSION", 1e9)  # the protrusion test always passes
+    prior = _prior(("hinge", None, None, 5, 0.0, -90.0, 90.0))
+    assert _limits(predict_ranges(p, prior, m))["door"] == (-90.0, 90.0)
 
 
 def test_protrusion_is_the_farthest_distance_outside_the_box():
