@@ -107,7 +107,7 @@ def _walled(g, reach_deg: float) -> ShapeMeshes:
     return ShapeMeshes({**meshes.leaves, 1: (np.asarray(body.vertices, float), np.asarray(body.faces, np.int64))})
 
 
-def test_a_part_the_sweep_frees_for_a_small_share_of_its_learned_range_keeps_that_range(caplog):
+def test_a_part_the_sweep_frees_for_a_small_share_of_its_learned_range_keeps_that_range(caplog, monkeypatch):
     # the door meets the wall after ~13 of its learned 120 degrees (11 %, over the former 5 %
     # bar), and cannot close: a part annotated as moving that turns this little is held by
     # its meshes (a stapler's arm clipped into its base), not by a real stop (HINGE_BLOCKED_SHARE);
@@ -120,12 +120,9 @@ def test_a_part_the_sweep_frees_for_a_small_share_of_its_learned_range_keeps_tha
         out = predict_ranges(p, prior, _walled(p.graph, 14.0))
     assert _limits(out)["door"] == (0.0, 120.0)
     assert any("'door'" in r.getMessage() and "cabinet0" in r.getMessage() for r in caplog.records)
-    old = rp.HINGE_BLOCKED_SHARE
-    try:  # the sweep alone stops it at the wall: the share is what keeps the range
-        rp.HINGE_BLOCKED_SHARE = 0.05
-        assert 5.0 <= _limits(predict_ranges(p, prior, _walled(p.graph, 14.0)))["door"][1] <= 20.0
-    finally:
-        rp.HINGE_BLOCKED_SHARE = old
+    # the sweep alone stops it at the wall: the share is what keeps the range
+    monkeypatch.setattr(rp, "HINGE_BLOCKED_SHARE", 0.05)
+    assert 5.0 <= _limits(predict_ranges(p, prior, _walled(p.graph, 14.0)))["door"][1] <= 20.0
 
 
 @pytest.mark.parametrize("lo, hi", [(0.0, 0.0), (5.0, 5.0)])
