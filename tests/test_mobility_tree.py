@@ -276,3 +276,38 @@ def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
     # parts of similar size never merge this way
     off_big = dataclasses.replace(g, sibling_contact=off.sibling_contact)
     assert len(build_mobility_tree(off_big, _pred(off_big, other)).moving_links) == 2
+
+
+def test_a_small_slider_mounted_on_a_moving_part_slides_only_into_it():
+    """Rule 2b (issue 36): a small part predicted to slide relative to a moving part it sits on
+    keeps its motion only along the normal of that face (a button pressed into a safe's door);
+    sliding across the face (a drawer handle sliding up its drawer's front) it is fixed to the
+    part and moves with it."""
+    import dataclasses
+
+    g = cabinet_graph()
+    # node 3 made a small block on the front face (+z) of the door (node 2: half extents
+    # 0.25, 0.25, 0.01 about (-0.25, 0.75, 0.31)), 2.9 % of the door's OBB volume
+    centre = g.obb_center.copy()
+    centre[3] = [-0.25, 0.75, 0.34]
+    half = g.obb_half_extents.copy()
+    half[3] = [0.03, 0.03, 0.02]
+    button = dataclasses.replace(g, obb_center=centre, obb_half_extents=half)
+    door = ("R", 0.9, [0, 1, 0], [-0.5, 0.75, 0.31])
+    across = build_mobility_tree(button, _pred(button, {(2, 1): door, (3, 2): ("P", 0.9, [0, 1, 0])}))
+    assert [sorted(lk.parts) for lk in across.moving_links] == [[2, 3]]
+    assert across.moving_links[0].joint.type is JointType.HINGE
+    # pressed along the face normal: its own link, nested in the door's
+    into = build_mobility_tree(button, _pred(button, {(2, 1): door, (3, 2): ("P", 0.9, [0, 0, 1])}))
+    links = _by_name(into)
+    assert links["drawer"].parts == (3,) and links["drawer"].joint.type is JointType.SLIDER
+    assert links["drawer"].parent == links["door"].id
+    # a turning part (a knob on the door) keeps its motion whatever its axis
+    knob = build_mobility_tree(button, _pred(button, {(2, 1): door, (3, 2): ("R", 0.9, [0, 1, 0])}))
+    assert len(knob.moving_links) == 2
+    # not small beside the door (the drawer's own size): it keeps its motion
+    big = dataclasses.replace(button, obb_half_extents=g.obb_half_extents)
+    assert len(build_mobility_tree(big, _pred(big, {(2, 1): door, (3, 2): ("P", 0.9, [0, 1, 0])})).moving_links) == 2
+    # not on a moving part (the door static): its own link
+    alone = build_mobility_tree(button, _pred(button, {(3, 2): ("P", 0.9, [0, 1, 0])}))
+    assert [sorted(lk.parts) for lk in alone.moving_links] == [[3]]

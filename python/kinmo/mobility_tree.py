@@ -13,6 +13,12 @@ by the following deterministic rules.
 2. **Cycles.** Among siblings, "moves relative to" must be acyclic: in every cycle of
    references (``i -> j -> i``, ``i -> j -> k -> i``) the least confident edge is dropped
    (ties: the higher edge index), repeatedly, until none is left.
+   **Mounted sliders** (issue 36): a moving node predicted to slide relative to a *moving*
+   node it touches, at most :data:`MERGE_VOLUME_RATIO` of its OBB volume, across the face of
+   that node's OBB it sits on (at least :data:`ACROSS_FACE_DEG` from the face's normal; the
+   face is the one whose axis holds the largest share of its offset) loses its motion and
+   joins that node's group (rule 4): a drawer handle "sliding" up its drawer's front. A button
+   pressed into a safe's door slides along the face normal and keeps its motion.
 3. **Fixed merge.** Moving nodes with the same reference that are joined by an edge predicted
    ``Fixed`` (either direction) are one rigid part (a door and its handle, both moving
    relative to the cabinet): they form one *motion group* whose joint is that of its largest
@@ -102,6 +108,10 @@ MERGE_VOLUME_RATIO = 0.05
 #: ... and, for turning types, the largest distance between the two axis lines, relative to
 #: the larger part's OBB diagonal.
 MERGE_LINE_FRACTION = 0.1
+
+#: Rule 2b: a small slider mounted on a moving part whose slide is at least this far from
+#: the normal of the face it sits on (degrees) moves with the part.
+ACROSS_FACE_DEG = 60.0
 
 _MOVING = (_P, _R, _PR)
 
@@ -316,6 +326,35 @@ def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.n
     return float(np.linalg.norm(gap)) <= MERGE_LINE_FRACTION * 2.0 * float(np.linalg.norm(half[big]))
 
 
+def _is_small_beside(i: int, j: int, volume: np.ndarray, contact: np.ndarray,
+                     edge_index: dict[tuple[int, int], int]) -> bool:
+    """Node ``i`` touches node ``j`` and its OBB volume is at most :data:`MERGE_VOLUME_RATIO`
+    of ``j``'s."""
+    return bool(volume[j] > 0.0 and volume[i] <= MERGE_VOLUME_RATIO * volume[j]) and \
+        _touch(i, j, contact, edge_index)
+
+
+def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, half: np.ndarray,
+                   axes: np.ndarray, volume: np.ndarray, contact: np.ndarray,
+                   edge_index: dict[tuple[int, int], int]) -> bool:
+    """Rule 2b: node ``i`` predicted to slide along ``direction`` relative to the moving node
+    ``j`` is small beside it (OBB volume at most :data:`MERGE_VOLUME_RATIO` of ``j``'s), touches
+    it, and slides across the face of ``j``'s OBB it sits on: the face whose axis holds the
+    largest share of ``i``'s offset from ``j``'s centre (offset over half extent), the slide at
+    least :data:`ACROSS_FACE_DEG` from that face's normal. A button pressed into a door slides
+    along the normal and keeps its motion."""
+    if not _is_small_beside(i, j, volume, contact, edge_index):
+        return False
+    d = np.asarray(direction, dtype=np.float64)
+    nd = float(np.linalg.norm(d))
+    if nd == 0.0:
+        return False
+    a = np.asarray(axes[j], dtype=np.float64)
+    offset = np.abs(a @ (np.asarray(center[i], dtype=np.float64) - np.asarray(center[j], dtype=np.float64)))
+    face = int(np.argmax(offset / np.maximum(np.asarray(half[j], dtype=np.float64), 1e-12)))
+    return abs(float(a[face] @ d)) / nd <= np.cos(np.radians(ACROSS_FACE_DEG))
+
+
 def build_mobility_tree(
     graph: PartGraph, pred: EdgePrediction, options: TreeOptions = TreeOptions()
 ) -> MobilityTree:
@@ -371,6 +410,17 @@ def build_mobility_tree(
             ref[i] = (j, k)
     # 2. acyclic references
     _break_cycles(ref, conf, dropped)
+    # 2b. a small slider mounted on a moving part, sliding across the face it sits on, is
+    # fixed to that part (it joins the part's group below, rule 4)
+    mounted: dict[int, int] = {}
+    for i in sorted(ref):
+        j, k = ref[i]
+        if lab[k] == _P and j in ref and _slides_across(i, j, pred.direction[k], center, half, graph.obb_axes,
+                                                        volume, contact, edge_index):
+            mounted[i] = j
+    for i in mounted:
+        dropped.append(ref.pop(i)[1])
+    dropped.sort()
 
     # 3. Fixed merge of moving nodes sharing a reference
     moving = sorted(ref)
@@ -409,6 +459,12 @@ def build_mobility_tree(
             continue
         j = int(edges[k, 1])
         if j in node_group and groups[node_group[j]]["ref"] != i:  # never the group's own reference
+            groups[node_group[j]]["attached"].append(i)
+    taken = {n for g in groups.values() for n in g["attached"]}
+    for i, j in sorted(mounted.items()):  # rule 2b: mounted on its part, not fixed elsewhere
+        while j in mounted:  # a mounted node's part mounted in turn
+            j = mounted[j]
+        if j in node_group and i not in taken:
             groups[node_group[j]]["attached"].append(i)
     for rep, g in groups.items():
         for n in g["attached"]:
