@@ -64,7 +64,7 @@ def _hinge_on_largest_leaf(monkeypatch):
             out.append(EdgePrediction(p, d, o))
         return out
 
-    def fake_with_priors(run, graphs, batch_size=8):
+    def fake_with_priors(run, graphs, batch_size=8, turns="unnamed"):
         out = fake(run, graphs, batch_size)
         names = tuple(run.config.model.type_names)
         return out, [GNNPriors(e.probs.copy(), names) for e in out]

@@ -276,6 +276,30 @@ def test_up_is_refused_for_a_dataset_folder_and_for_other_axes(inputs, mobility_
 
 
 @pytest.mark.exactdata
+def test_turns_reach_the_predictor_and_a_bad_one_is_refused(inputs, tmp_path):
+    """``kinmo predict --turns`` (issue 36): ``always`` predicts the asset as the average of its
+    four quarter turns, ``never`` in one pass, and the default one pass for an asset whose part
+    names the model knows (this GLB keeps PartNet's leaf names)."""
+    import json
+
+    def probs(*extra):
+        out = tmp_path / "_".join(("o",) + extra)
+        r = CliRunner().invoke(app, ["predict", str(inputs["glb"]), "--model", str(inputs["run"]),
+                                     "--out", str(out), "--format", "mobility_v2", "--device", "cpu",
+                                     "--quiet", *extra])
+        assert r.exit_code == 0, r.output
+        edges = json.loads((out / "dishwasher" / "edges.json").read_text())["edges"]
+        return [e["probs"] for e in edges]
+
+    never, always = probs("--turns", "never"), probs("--turns", "always")
+    assert never != always
+    assert probs() == never
+    r = CliRunner().invoke(app, ["predict", str(inputs["glb"]), "--model", str(inputs["run"]),
+                                 "--out", str(tmp_path / "bad"), "--turns", "sometimes", "--quiet"])
+    assert r.exit_code == 2 and "--turns must be one of unnamed, always, never" in r.output
+
+
+@pytest.mark.exactdata
 def test_an_asset_that_stands_on_another_axis_is_warned_about(inputs, mobility_root, tmp_path, caplog):
     from kinmo.inference.predictor import Predictor
     from kinmo.user_input import predict_user_input

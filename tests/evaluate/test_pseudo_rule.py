@@ -35,7 +35,7 @@ def _gnn(monkeypatch, door_as_slider: bool = False):
     from kinmo.mobility_tree import EdgePrediction
     from kinmo.refine.selector import GNNPriors
 
-    def fake(run, graphs, batch_size=8):
+    def fake(run, graphs, batch_size=8, turns="unnamed"):
         out = []
         for g in graphs:
             e = oracle_prediction(g)

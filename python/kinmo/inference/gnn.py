@@ -5,18 +5,32 @@ Moved out of :mod:`kinmo.predict` (issue 22) so that every caller (``predict``, 
 ``pseudo-label``, the pipeline, the ranker's out-of-fold fit) shares one implementation,
 through :class:`kinmo.inference.predictor.Predictor` where a refinement follows.
 
+**Quarter turns for unnamed objects** (issue 36). A user's asset faces any way, and without
+part names the GNN's types and axes lean on PartNet's facing (drawers out along ``+z``): the
+same cabinet facing ``+x`` (the ROS convention) lost a quarter of its right joints. For a graph
+none of whose nodes has a name the vocabulary knows (``part_<k>``, the names of a GLB exporter),
+:func:`infer_edges_with_priors` runs the GNN on the object turned 0, 1, 2 and 3 quarter turns
+about the vertical (:meth:`kinmo.features.GraphTensors.turned`) and averages the four answers
+once turned back (:func:`turn_averaged`): type probabilities and axis points are averaged,
+directions by their mean axis, and each axis candidate's probability summed over
+the turns' nearest candidates. The prediction then no longer depends on which quarter the
+object faces (up to its own point samples and OBB fits). A named object (PartNet format, URDF
+links with known names) gets one pass, as before: there the names and PartNet's facing are
+the better cue (docs/results/foreign_assets.md, "Quarter turns for unnamed objects").
+
 Frames: axes in each graph's mesh frame (PartNet is y-up), mesh units.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 import torch
 
 from kinmo.data.graph import PartGraph
-from kinmo.features import collate, graph_tensors
+from kinmo.features import GraphTensors, collate, graph_tensors, quarter_turn
 from kinmo.mobility_tree import (
     EdgePrediction,
     ShapePrediction,
@@ -27,7 +41,13 @@ from kinmo.mobility_tree import (
 from kinmo.refine.selector import GNNPriors
 from kinmo.train.gnn import Run
 
-__all__ = ["infer_edges", "infer_edges_with_priors", "predict_graphs"]
+__all__ = ["TURNS", "TurnPolicy", "forward", "infer_edges", "infer_edges_with_priors", "predict_graphs",
+           "turn_averaged"]
+
+#: When :func:`infer_edges_with_priors` averages over quarter turns (module docs): ``"unnamed"``
+#: (the default: graphs without a known node name), ``"always"`` or ``"never"``.
+TurnPolicy = Literal["unnamed", "always", "never"]
+TURNS: tuple[str, ...] = ("unnamed", "always", "never")
 
 
 @torch.no_grad()
@@ -44,8 +64,8 @@ def infer_edges(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8) -> l
 
 
 @torch.no_grad()
-def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8
-                            ) -> tuple[list[EdgePrediction], list]:
+def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: int = 8,
+                            turns: TurnPolicy = "unnamed") -> tuple[list[EdgePrediction], list]:
     """Run the motion GNN on part graphs; also return its raw outputs as refinement priors.
 
     Parameters
@@ -56,6 +76,10 @@ def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: i
         Labels, if present, are ignored.
     batch_size : int
         Graphs per forward pass.
+    turns : {"unnamed", "always", "never"}
+        Which graphs are predicted as the average over four quarter turns about the vertical
+        (:func:`turn_averaged`, module docs): those without a node name in the model's
+        vocabulary (default), every graph, or none.
 
     Returns
     -------
@@ -65,44 +89,133 @@ def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: i
         probabilities as predicted (before :func:`consistent_fine`) and the softmax of the
         axis-candidate logits with the 10 candidate directions (``None`` for a model without
         them).
+
+    Raises
+    ------
+    ValueError
+        ``turns`` is not one of :data:`TURNS`.
     """
+    if turns not in TURNS:
+        raise ValueError(f"turns must be one of {', '.join(TURNS)}, got {turns!r}")
     run.model.eval()
     out: list[EdgePrediction] = []
     priors: list[GNNPriors] = []
-    names = tuple(run.config.model.type_names)
     tensors = [graph_tensors(g, run.vocab) for g in graphs]
     for t in tensors:  # labels are not needed at inference
         t.edge_fine = t.axis_origin = t.axis_direction = t.has_axis = None
     for start in range(0, len(tensors), max(1, batch_size)):
-        chunk = tensors[start:start + batch_size]
-        batch = collate(chunk, n_points=run.config.n_points).to(run.device)
-        res = run.model(batch)
-        probs = torch.softmax(res.logits, dim=1).double().cpu().numpy()
-        d = res.direction.double().cpu().numpy()
-        o = res.origin.double().cpu().numpy()
-        eo = batch.edge_offsets.tolist()
-        for b, t in enumerate(chunk):
-            s = slice(eo[b], eo[b + 1])
-            dd = d[s]
-            n = np.linalg.norm(dd, axis=1, keepdims=True)
-            dd = np.where(n > 0, dd / np.where(n > 0, n, 1.0), np.array([0.0, 1.0, 0.0]))
-            out.append(EdgePrediction(probs[s], dd, t.to_mesh(o[s])))
-            ap = ad = None
-            if getattr(res, "axis_logits", None) is not None:
-                ap = torch.softmax(res.axis_logits[s].double(), dim=1).cpu().numpy()
-                ad = res.axis_candidates[s].double().cpu().numpy()
-            priors.append(GNNPriors(probs[s].copy(), names, ap, ad))
+        o, p = forward(run, tensors[start:start + batch_size])
+        out += o
+        priors += p
+    for n, t in enumerate(tensors):
+        if turns == "always" or (turns == "unnamed" and not bool((t.semantic != 0).any())):
+            out[n], priors[n] = turn_averaged(run, t, out[n], priors[n])
     return out, priors
 
 
+@torch.no_grad()
+def forward(run: Run, tensors: Sequence[GraphTensors]) -> tuple[list[EdgePrediction], list[GNNPriors]]:
+    """One forward pass of the motion GNN over graph tensors (labels unset), batched.
+
+    Returns
+    -------
+    (list of EdgePrediction, list of GNNPriors)
+        One per graph, as :func:`infer_edges_with_priors` gives them: probabilities
+        ``(E, K)``, unit directions ``(E, 3)`` (``+y`` where the network gives none) and axis
+        points ``(E, 3)`` in the mesh frame of each tensors' ``center``/``scale``; the
+        axis-candidate softmax ``(E, 10)`` and directions ``(E, 10, 3)`` (normalised-frame
+        orientation), or None. float64.
+    """
+    if not tensors:
+        return [], []
+    names = tuple(run.config.model.type_names)
+    batch = collate(list(tensors), n_points=run.config.n_points).to(run.device)
+    res = run.model(batch)
+    probs = torch.softmax(res.logits, dim=1).double().cpu().numpy()
+    d = res.direction.double().cpu().numpy()
+    o = res.origin.double().cpu().numpy()
+    eo = batch.edge_offsets.tolist()
+    out: list[EdgePrediction] = []
+    priors: list[GNNPriors] = []
+    for b, t in enumerate(tensors):
+        s = slice(eo[b], eo[b + 1])
+        dd = d[s]
+        n = np.linalg.norm(dd, axis=1, keepdims=True)
+        dd = np.where(n > 0, dd / np.where(n > 0, n, 1.0), np.array([0.0, 1.0, 0.0]))
+        out.append(EdgePrediction(probs[s], dd, t.to_mesh(o[s])))
+        ap = ad = None
+        if getattr(res, "axis_logits", None) is not None:
+            ap = torch.softmax(res.axis_logits[s].double(), dim=1).cpu().numpy()
+            ad = res.axis_candidates[s].double().cpu().numpy()
+        priors.append(GNNPriors(probs[s].copy(), names, ap, ad))
+    return out, priors
+
+
+@torch.no_grad()
+def turn_averaged(run: Run, tensors: GraphTensors, pred: EdgePrediction, prior: GNNPriors
+                  ) -> tuple[EdgePrediction, GNNPriors]:
+    """One graph's GNN answer averaged over the four quarter turns about the vertical.
+
+    Parameters
+    ----------
+    run : Run
+        The loaded model (in eval mode).
+    tensors : GraphTensors
+        The graph's tensors (labels unset), as given.
+    pred, prior : EdgePrediction, GNNPriors
+        The GNN's answer for the graph as given (turn 0, mesh frame).
+
+    Returns
+    -------
+    (EdgePrediction, GNNPriors)
+        Type probabilities ``(E, K)`` and axis points ``(E, 3)`` the means of the four turns'
+        (each turned back); unit directions ``(E, 3)`` the mean axis of the turns' (the
+        principal eigenvector of the sum of ``d d^T``, so signs do not matter), signed to
+        agree with turn 0's; the axis-candidate probabilities ``(E, 10)`` over
+        turn 0's candidate directions, each turn's mass added to the turn-0 candidate nearest
+        (largest ``|cos|``), then normalised. Mesh frame, float64.
+    """
+    e = pred.probs.shape[0]
+    if e == 0:
+        return pred, prior
+    preds, pris = forward(run, [tensors.turned(q) for q in (1, 2, 3)])
+    p_sum = np.array(pred.probs, dtype=np.float64, copy=True)
+    d0 = np.asarray(pred.direction, dtype=np.float64)
+    scatter = np.einsum("ei,ej->eij", d0, d0)
+    o_sum = np.array(pred.origin, dtype=np.float64, copy=True)
+    has_axes = prior.axis_prob is not None and prior.axis_dirs is not None
+    ap = np.array(prior.axis_prob, dtype=np.float64, copy=True) if has_axes else None
+    centre = np.asarray(tensors.center, dtype=np.float64)
+    rows = np.arange(e)
+    for q, pq, prq in zip((1, 2, 3), preds, pris):
+        back = quarter_turn(q)  # row vectors v turned back: v @ R (= R^T v)
+        p_sum += pq.probs
+        dq = pq.direction @ back
+        scatter += np.einsum("ei,ej->eij", dq, dq)
+        o_sum += (pq.origin - centre) @ back + centre  # turned about the frame's centre
+        if ap is not None and prq.axis_prob is not None and prq.axis_dirs is not None:
+            cos = np.abs(np.einsum("eci,edi->ecd", prq.axis_dirs @ back, np.asarray(prior.axis_dirs)))
+            nearest = np.argmax(cos, axis=2)  # (E, 10): the turn-0 candidate of each candidate
+            np.add.at(ap, (np.repeat(rows, nearest.shape[1]), nearest.ravel()), prq.axis_prob.ravel())
+    direction = np.linalg.eigh(scatter)[1][:, :, -1]  # the mean axis, whatever the signs
+    direction *= np.where(np.sum(direction * d0, axis=1, keepdims=True) < 0, -1.0, 1.0)
+    probs_avg = p_sum / 4.0
+    if ap is not None:
+        ap = ap / ap.sum(axis=1, keepdims=True)
+    return (EdgePrediction(probs_avg, direction, o_sum / 4.0),
+            GNNPriors(probs_avg.copy(), prior.type_names, ap, prior.axis_dirs))
+
+
 def predict_graphs(run: Run, graphs: Sequence[PartGraph], options: TreeOptions = TreeOptions(),
-                   batch_size: int = 8, consistent: bool = True) -> list[ShapePrediction]:
-    """Edge predictions and mobility trees of part graphs (see :func:`infer_edges`).
+                   batch_size: int = 8, consistent: bool = True,
+                   turns: TurnPolicy = "unnamed") -> list[ShapePrediction]:
+    """Edge predictions and mobility trees of part graphs (see :func:`infer_edges`; ``turns``:
+    :func:`infer_edges_with_priors`'s).
 
     With ``consistent`` (default) fine types are made to agree with the predicted axes
     (:func:`consistent_fine`).
     """
-    preds, priors = infer_edges_with_priors(run, graphs, batch_size)
+    preds, priors = infer_edges_with_priors(run, graphs, batch_size, turns)
     if consistent:
         preds = [consistent_fine(g, p) for g, p in zip(graphs, preds)]
     names = run.config.model.type_names

@@ -36,7 +36,7 @@ from typing import Any, Literal
 from kinmo.data.graph import PartGraph
 from kinmo.errors import KinmoDataError
 from kinmo.inference.bundle import ModelBundle, resolve_bundle
-from kinmo.inference.gnn import predict_graphs
+from kinmo.inference.gnn import TurnPolicy, predict_graphs
 from kinmo.mobility_tree import ShapePrediction, TreeOptions
 from kinmo.ranges import RangePrior, predict_ranges
 from kinmo.refine.axis_io import load_axis_model
@@ -82,6 +82,10 @@ class Predictor:
         Where the parts came from.
     ranges : RangePrior or None
         The range-of-motion prior (issue 35); None: the default ranges of ``options``.
+    turns : {"unnamed", "always", "never"}
+        Which objects the GNN predicts as the average of their four quarter turns about the
+        vertical (:func:`kinmo.inference.gnn.infer_edges_with_priors`; issue 36): by default
+        those without a part name the model knows.
     """
 
     run: Run
@@ -90,6 +94,7 @@ class Predictor:
     options: TreeOptions = TreeOptions()
     bundle: ModelBundle | None = None
     ranges: RangePrior | None = None
+    turns: TurnPolicy = "unnamed"
 
     @classmethod
     def from_parts(cls, run: str | Path | Run, axis_model: str | Path | None = None,
@@ -231,7 +236,7 @@ class Predictor:
         (:func:`kinmo.inference.gnn.predict_graphs` of this predictor's run; ``options``:
         this predictor's by default), for :meth:`refine_with_details`."""
         return predict_graphs(self.run, graphs, options or self.options, batch_size,
-                              consistent=consistent)
+                              consistent=consistent, turns=self.turns)
 
     def predict_many(self, graphs: list[PartGraph], meshes: MeshSource = None,
                      batch_size: int = 8) -> list[ShapePrediction]:
