@@ -60,6 +60,7 @@ def test_the_averaged_answer_does_not_depend_on_the_quarter_the_object_faces(run
     centre = np.asarray(t.center)
     np.testing.assert_allclose(b_pred.origin - centre, (a_pred.origin - centre) @ r.T, atol=1e-4 * t.scale)
     np.testing.assert_allclose(np.linalg.norm(b_pred.direction, axis=1), 1.0, atol=1e-9)
+    assert b_prior.turned and not forward(run, [t])[1][0].turned  # the selector is told
     # the axis-candidate prior is a distribution over turn 0's candidates
     np.testing.assert_allclose(b_prior.axis_prob.sum(axis=1), 1.0, atol=1e-9)
     assert b_prior.axis_dirs is not None and b_prior.axis_prob.shape == b_prior.axis_dirs.shape[:2]

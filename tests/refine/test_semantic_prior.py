@@ -66,6 +66,45 @@ def test_prior_from_graphs_and_json_round_trip(tmp_path):
     assert load.semantic is not None and len(load.semantic) == len(p)
 
 
+def test_an_object_of_unknown_facing_gets_the_prior_averaged_over_quarter_turns():
+    """Issue 36: for an object whose GNN answer is the average of its four quarter turns (no
+    known part names), the prior no longer prefers PartNet's front (+z) over the side (+x),
+    and keeps the vertical apart."""
+    p = _prior()
+    d = np.stack([X, Z, Y, (X + Z) / np.sqrt(2)])
+    plain = p.probability("P", "Microwave", "door", "frame", d)
+    assert plain[1] > plain[0]  # the one slider slides along PartNet's front
+    turned = p.probability("P", "Microwave", "door", "frame", d, turns=True)
+    assert turned[0] == pytest.approx(turned[1]) and turned[1] < plain[1]
+    assert turned[2] == pytest.approx(plain[2])  # the vertical is the same at every turn
+    for q in range(4):  # the same answer for the object turned any quarter
+        c, s = (1.0, 0.0, -1.0, 0.0)[q], (0.0, 1.0, 0.0, -1.0)[q]
+        r = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        np.testing.assert_allclose(p.probability("P", "Microwave", "door", "frame", d @ r.T, turns=True),
+                                   turned)
+
+
+def test_candidate_features_average_the_prior_over_turns_for_turned_priors():
+    g = cabinet_graph(n_points=64)
+    k = int(np.flatnonzero((g.sibling_edges[:, 0] == 3) & (g.sibling_edges[:, 1] == 1))[0])
+    from kinmo.data.model import FINE_TYPES
+    from kinmo.refine.selector import GNNPriors
+
+    probs = np.full((len(g.sibling_edges), 10), 0.1)
+    cands, frames = edge_candidates(g, 3, 1, "P_H", Z, g.obb_center[3])
+    f = FEATURES.index("sem_prior")
+    other = SemanticPrior.from_graphs([cabinet_graph(n_points=32, shape_id="other")])
+    sem = dict(semantic=other)
+    x0, _ = candidate_features(g, 3, 1, k, cands, frames, GNNPriors(probs, FINE_TYPES), Z, g.obb_center[3], **sem)
+    x1, _ = candidate_features(g, 3, 1, k, cands, frames, GNNPriors(probs, FINE_TYPES, turned=True), Z,
+                               g.obb_center[3], **sem)
+    front = np.abs(cands.directions[:, 2]) > 0.99
+    side = np.abs(cands.directions[:, 0]) > 0.99
+    assert front.any() and side.any()
+    assert x0[front, f].min() > x0[side, f].max()  # the other cabinet's drawer slides out the front
+    np.testing.assert_allclose(x1[front, f].min(), x1[side, f].max())  # facing unknown: alike
+
+
 def test_candidate_features_take_the_semantic_prior_and_leave_out_the_shape():
     g = cabinet_graph(n_points=64)
     k = int(np.flatnonzero((g.sibling_edges[:, 0] == 2) & (g.sibling_edges[:, 1] == 1))[0])

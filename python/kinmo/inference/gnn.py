@@ -13,8 +13,10 @@ none of whose nodes has a name the vocabulary knows (``part_<k>``, the names of 
 about the vertical (:meth:`kinmo.features.GraphTensors.turned`) and averages the four answers
 once turned back (:func:`turn_averaged`): type probabilities and axis points are averaged,
 directions by their mean axis, and each axis candidate's probability summed over
-the turns' nearest candidates. The prediction then no longer depends on which quarter the
-object faces (up to its own point samples and OBB fits). A named object (PartNet format, URDF
+the turns' nearest candidates. The priors say so (``GNNPriors.turned``), and the learned
+selector then averages its semantic direction prior over the same turns
+(:meth:`kinmo.refine.semantic_prior.SemanticPrior.probability`). The prediction then no
+longer depends on which quarter the object faces (up to its own point samples and OBB fits). A named object (PartNet format, URDF
 links with known names) gets one pass, as before: there the names and PartNet's facing are
 the better cue (docs/results/foreign_assets.md, "Quarter turns for unnamed objects").
 
@@ -203,7 +205,7 @@ def turn_averaged(run: Run, tensors: GraphTensors, pred: EdgePrediction, prior: 
     if ap is not None:
         ap = ap / ap.sum(axis=1, keepdims=True)
     return (EdgePrediction(probs_avg, direction, o_sum / 4.0),
-            GNNPriors(probs_avg.copy(), prior.type_names, ap, prior.axis_dirs))
+            GNNPriors(probs_avg.copy(), prior.type_names, ap, prior.axis_dirs, turned=True))
 
 
 def predict_graphs(run: Run, graphs: Sequence[PartGraph], options: TreeOptions = TreeOptions(),

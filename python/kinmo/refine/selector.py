@@ -103,12 +103,18 @@ class GNNPriors:
         Softmax of the axis-candidate logits (:class:`kinmo.models.edge_gnn.EdgeHeads`).
     axis_dirs : (E, 10, 3) float64 or None
         The GNN's candidate directions (mesh frame = normalised frame orientation).
+    turned : bool
+        The outputs are the average of the object's four quarter turns about the vertical
+        (an object without known part names, :func:`kinmo.inference.gnn.turn_averaged`): its
+        facing is unknown, so the semantic direction prior is averaged over the same turns
+        (:meth:`kinmo.refine.semantic_prior.SemanticPrior.probability`).
     """
 
     probs: np.ndarray
     type_names: tuple[str, ...]
     axis_prob: np.ndarray | None = None
     axis_dirs: np.ndarray | None = None
+    turned: bool = False
 
     def orientation(self, k: int) -> tuple[float, float]:
         """``(P(H), P(V))`` of edge ``k`` among its moving fine types (0.5, 0.5 for coarse)."""
@@ -586,7 +592,8 @@ def candidate_features(
     x[:, _F["ref_aligned"]] = np.abs(d @ ra.T).max(axis=1) >= _PARALLEL_COS
     sp = (np.full(c, 1.0 / 3.0) if semantic is None else
           semantic.probability(motion_of(cands.motion), graph.category,
-                               graph.node_names[moving], graph.node_names[reference], d, exclude))
+                               graph.node_names[moving], graph.node_names[reference], d, exclude,
+                               turns=bool(getattr(priors, "turned", False))))
     x[:, _F["sem_prior"]] = sp
     x[:, _F["log_sem_prior"]] = np.log(sp + 0.01)
     _part_shape_features(x, centre, axes, half, np.asarray(graph.obb_center[reference], np.float64),

@@ -37,6 +37,9 @@ __all__ = ["SemanticPrior", "motion_of"]
 #: A training axis counts for a candidate line when they are within this angle.
 PARALLEL_DEG: float = 15.0
 _BASE = 1.0 / 3.0
+#: The four quarter turns about the vertical (+y), exact (as :func:`kinmo.features.quarter_turn`).
+_QUARTER_TURNS = tuple(np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+                       for c, s in ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)))
 
 
 def motion_of(type_name: str) -> str:
@@ -114,7 +117,7 @@ class SemanticPrior:
         return cls(joints, alpha, parallel_deg)
 
     def probability(self, motion: str, category: str, moving: str, reference: str,
-                    directions: np.ndarray, exclude: str | None = None) -> np.ndarray:
+                    directions: np.ndarray, exclude: str | None = None, turns: bool = False) -> np.ndarray:
         """Smoothed share of matching training joints parallel to each direction.
 
         Parameters
@@ -126,12 +129,20 @@ class SemanticPrior:
             Candidate directions (mesh frame; need not be unit).
         exclude : str, optional
             A shape id whose own joints are left out (out-of-fold fits).
+        turns : bool
+            The object's facing is unknown (an object without known part names, whose GNN
+            answer is the average of its four quarter turns, :mod:`kinmo.inference.gnn`):
+            the mean of the prior over the four quarter turns of each direction about the
+            vertical, since the training objects' shared front is part of what it learned.
 
         Returns
         -------
         (C,) float64 in (0, 1)
         """
         d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+        if turns:
+            return np.mean([self.probability(motion, category, moving, reference, d @ r.T, exclude)
+                            for r in _QUARTER_TURNS], axis=0)
         d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
         cos_t = float(np.cos(np.radians(self.parallel_deg)))
         p = np.full(d.shape[0], _BASE)
