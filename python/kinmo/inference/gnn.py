@@ -105,13 +105,22 @@ def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: i
     tensors = [graph_tensors(g, run.vocab) for g in graphs]
     for t in tensors:  # labels are not needed at inference
         t.edge_fine = t.axis_origin = t.axis_direction = t.has_axis = None
+    turned = [turns == "always" or (turns == "unnamed" and not bool((t.semantic != 0).any()))
+              for t in tensors]
     for start in range(0, len(tensors), max(1, batch_size)):
-        o, p = forward(run, tensors[start:start + batch_size])
-        out += o
-        priors += p
-    for n, t in enumerate(tensors):
-        if turns == "always" or (turns == "unnamed" and not bool((t.semantic != 0).any())):
-            out[n], priors[n] = turn_averaged(run, t, out[n], priors[n])
+        chunk = tensors[start:start + batch_size]
+        extra = [t.turned(q) for t, on in zip(chunk, turned[start:start + batch_size]) if on
+                 for q in (1, 2, 3)]
+        o, p = forward(run, chunk + extra)  # one pass: the graphs, then their turned copies
+        b = len(chunk)
+        for n, t in enumerate(chunk):
+            if turned[start + n]:
+                out_n, prior_n = _average_turns(t, o[n], p[n], o[b:b + 3], p[b:b + 3])
+                b += 3
+            else:
+                out_n, prior_n = o[n], p[n]
+            out.append(out_n)
+            priors.append(prior_n)
     return out, priors
 
 
@@ -177,10 +186,20 @@ def turn_averaged(run: Run, tensors: GraphTensors, pred: EdgePrediction, prior: 
         turn 0's candidate directions, each turn's mass added to the turn-0 candidate nearest
         (largest ``|cos|``), then normalised. Mesh frame, float64.
     """
+    if pred.probs.shape[0] == 0:
+        return pred, prior
+    preds, pris = forward(run, [tensors.turned(q) for q in (1, 2, 3)])
+    return _average_turns(tensors, pred, prior, preds, pris)
+
+
+def _average_turns(tensors: GraphTensors, pred: EdgePrediction, prior: GNNPriors,
+                   preds: Sequence[EdgePrediction], pris: Sequence[GNNPriors]
+                   ) -> tuple[EdgePrediction, GNNPriors]:
+    """:func:`turn_averaged`'s average, given the answers of the graph turned 1, 2 and 3
+    quarter turns (``preds``, ``pris``, in that order, as :func:`forward` gives them)."""
     e = pred.probs.shape[0]
     if e == 0:
         return pred, prior
-    preds, pris = forward(run, [tensors.turned(q) for q in (1, 2, 3)])
     p_sum = np.array(pred.probs, dtype=np.float64, copy=True)
     d0 = np.asarray(pred.direction, dtype=np.float64)
     scatter = np.einsum("ei,ej->eij", d0, d0)
