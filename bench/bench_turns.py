@@ -62,7 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     print("| turns | wall s (median) | ms per shape | runs |")
     print("|---|---:|---:|---|")
     for k, v in seconds.items():
-        print(f"| {k} | {med[k]:.2f} | {1000 * med[k] / max(n, 1):.1f} | {', '.join(f'{x:.2f}' for x in v)} |")
+        runs = ", ".join(f"{x:.2f}" for x in v)
+        print(f"| {k} | {med[k]:.2f} | {1000 * med[k] / max(n, 1):.1f} | {runs} |")
     print(f"ratio unnamed / never (medians): {med['unnamed'] / med['never']:.3f}")
     return 0
 

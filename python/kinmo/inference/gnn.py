@@ -13,12 +13,14 @@ none of whose nodes has a name the vocabulary knows (``part_<k>``, the names of 
 about the vertical (:meth:`kinmo.features.GraphTensors.turned`) and averages the four answers
 once turned back (:func:`turn_averaged`): type probabilities and axis points are averaged,
 directions by their mean axis, and each axis candidate's probability summed over
-the turns' nearest candidates. The priors say so (``GNNPriors.turned``), and the learned
-selector then averages its semantic direction prior over the same turns
+the turns' nearest candidates; the object and its turned copies go through the GNN in one
+forward pass. The priors say so (``GNNPriors.turned``), and the learned selector then
+averages its semantic direction prior over the same turns
 (:meth:`kinmo.refine.semantic_prior.SemanticPrior.probability`). The prediction then no
-longer depends on which quarter the object faces (up to its own point samples and OBB fits). A named object (PartNet format, URDF
-links with known names) gets one pass, as before: there the names and PartNet's facing are
-the better cue (docs/results/foreign_assets.md, "Quarter turns for unnamed objects").
+longer depends on which quarter the object faces (up to its own point samples and OBB fits).
+A named object (PartNet format, URDF links with known names) gets one pass, as before: there
+the names and PartNet's facing are the better cue (docs/results/foreign_assets.md, "Quarter
+turns for unnamed objects").
 
 Frames: axes in each graph's mesh frame (PartNet is y-up), mesh units.
 """
