@@ -41,6 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
+from kinmo.data.frames import quarter_turn
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_INDEX, FINE_TO_COARSE, FINE_TYPES
 from kinmo.errors import KinmoDataError
@@ -236,14 +237,6 @@ class GraphTensors:
             out.axis_origin = self.axis_origin @ rt
             out.axis_direction = self.axis_direction @ rt
         return out
-
-
-def quarter_turn(k: int) -> np.ndarray:
-    """Rotation by ``k`` quarter turns about the vertical (+y), exact: ``(3, 3) float64`` of
-    0 and +-1 (:func:`yaw_rotation` of ``k * pi / 2`` without its rounding)."""
-    k = int(k) % 4
-    c, s = (1.0, 0.0, -1.0, 0.0)[k], (0.0, 1.0, 0.0, -1.0)[k]
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def canonical_obb_axes(axes: torch.Tensor) -> torch.Tensor:

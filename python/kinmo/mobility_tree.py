@@ -326,14 +326,6 @@ def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.n
     return float(np.linalg.norm(gap)) <= MERGE_LINE_FRACTION * 2.0 * float(np.linalg.norm(half[big]))
 
 
-def _is_small_beside(i: int, j: int, volume: np.ndarray, contact: np.ndarray,
-                     edge_index: dict[tuple[int, int], int]) -> bool:
-    """Node ``i`` touches node ``j`` and its OBB volume is at most :data:`MERGE_VOLUME_RATIO`
-    of ``j``'s."""
-    return bool(volume[j] > 0.0 and volume[i] <= MERGE_VOLUME_RATIO * volume[j]) and \
-        _touch(i, j, contact, edge_index)
-
-
 def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, half: np.ndarray,
                    axes: np.ndarray, volume: np.ndarray, contact: np.ndarray,
                    edge_index: dict[tuple[int, int], int]) -> bool:
@@ -343,7 +335,8 @@ def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, ha
     largest share of ``i``'s offset from ``j``'s centre (offset over half extent), the slide at
     least :data:`ACROSS_FACE_DEG` from that face's normal. A button pressed into a door slides
     along the normal and keeps its motion."""
-    if not _is_small_beside(i, j, volume, contact, edge_index):
+    if not (volume[j] > 0.0 and volume[i] <= MERGE_VOLUME_RATIO * volume[j]) or \
+            not _touch(i, j, contact, edge_index):
         return False
     d = np.asarray(direction, dtype=np.float64)
     nd = float(np.linalg.norm(d))

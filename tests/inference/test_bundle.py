@@ -10,10 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import write_cabinet, write_untrained_models
+from conftest import write_untrained_models
 
-from kinmo.data.build import build_graph
-from kinmo.data.readers import read_shape
 from kinmo.errors import KinmoDataError
 from kinmo.inference.bundle import find_ranker, read_bundle, resolve_bundle, write_bundle
 from kinmo.inference.predictor import Predictor
@@ -32,13 +30,6 @@ def runs(tmp_path_factory) -> Path:
     (root / "ranker").mkdir()
     Ranker(FEATURES, np.linspace(-1, 1, n), np.zeros(n), np.ones(n)).save(root / "ranker" / "ranker.json")
     return root
-
-
-@pytest.fixture(scope="module")
-def graph(tmp_path_factory):
-    d = tmp_path_factory.mktemp("cab") / "s1"
-    write_cabinet(d)
-    return build_graph(read_shape(d), n_points=64)
 
 
 def test_a_bundle_is_read_back_whole(runs, tmp_path) -> None:

@@ -32,7 +32,17 @@ import numpy as np
 
 from kinmo.data.model import Joint, JointType, Link
 
-__all__ = ["UP_AXES", "AssetFrame", "default_up", "guess_up"]
+__all__ = ["UP_AXES", "AssetFrame", "default_up", "guess_up", "quarter_turn"]
+
+
+def quarter_turn(k: int) -> np.ndarray:
+    """Rotation by ``k`` quarter turns about the vertical (+y), exact: ``(3, 3) float64`` of
+    0 and +-1 (:func:`kinmo.features.yaw_rotation` of ``k * pi / 2`` without its rounding).
+    Re-exported by :mod:`kinmo.features`; here so that torch-free modules can use it."""
+    k = int(k) % 4
+    c, s = (1.0, 0.0, -1.0, 0.0)[k], (0.0, 1.0, 0.0, -1.0)[k]
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
 
 UpAxis = Literal["y", "z"]
 #: The up axes ``--up`` accepts.

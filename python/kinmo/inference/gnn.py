@@ -11,7 +11,7 @@ same cabinet facing ``+x`` (the ROS convention) lost a quarter of its right join
 none of whose nodes has a name the vocabulary knows (``part_<k>``, the names of a GLB exporter),
 :func:`infer_edges_with_priors` runs the GNN on the object turned 0, 1, 2 and 3 quarter turns
 about the vertical (:meth:`kinmo.features.GraphTensors.turned`) and averages the four answers
-once turned back (:func:`turn_averaged`): type probabilities and axis points are averaged,
+once turned back (:func:`average_turns`): type probabilities and axis points are averaged,
 directions by their mean axis, and each axis candidate's probability summed over
 the turns' nearest candidates; the object and its turned copies go through the GNN in one
 forward pass. The priors say so (``GNNPriors.turned``), and the learned selector then
@@ -45,8 +45,8 @@ from kinmo.mobility_tree import (
 from kinmo.refine.selector import GNNPriors
 from kinmo.train.gnn import Run
 
-__all__ = ["TURNS", "TurnPolicy", "forward", "infer_edges", "infer_edges_with_priors", "predict_graphs",
-           "turn_averaged"]
+__all__ = ["TURNS", "TurnPolicy", "average_turns", "forward", "infer_edges", "infer_edges_with_priors",
+           "predict_graphs"]
 
 #: When :func:`infer_edges_with_priors` averages over quarter turns (module docs): ``"unnamed"``
 #: (the default: graphs without a known node name), ``"always"`` or ``"never"``.
@@ -82,7 +82,7 @@ def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: i
         Graphs per forward pass.
     turns : {"unnamed", "always", "never"}
         Which graphs are predicted as the average over four quarter turns about the vertical
-        (:func:`turn_averaged`, module docs): those without a node name in the model's
+        (:func:`average_turns`, module docs): those without a node name in the model's
         vocabulary (default), every graph, or none.
 
     Returns
@@ -117,7 +117,7 @@ def infer_edges_with_priors(run: Run, graphs: Sequence[PartGraph], batch_size: i
         b = len(chunk)
         for n, t in enumerate(chunk):
             if turned[start + n]:
-                out_n, prior_n = _average_turns(t, o[n], p[n], o[b:b + 3], p[b:b + 3])
+                out_n, prior_n = average_turns(t, o[n], p[n], o[b:b + 3], p[b:b + 3])
                 b += 3
             else:
                 out_n, prior_n = o[n], p[n]
@@ -164,19 +164,21 @@ def forward(run: Run, tensors: Sequence[GraphTensors]) -> tuple[list[EdgePredict
     return out, priors
 
 
-@torch.no_grad()
-def turn_averaged(run: Run, tensors: GraphTensors, pred: EdgePrediction, prior: GNNPriors
+def average_turns(tensors: GraphTensors, pred: EdgePrediction, prior: GNNPriors,
+                  preds: Sequence[EdgePrediction], pris: Sequence[GNNPriors]
                   ) -> tuple[EdgePrediction, GNNPriors]:
     """One graph's GNN answer averaged over the four quarter turns about the vertical.
 
     Parameters
     ----------
-    run : Run
-        The loaded model (in eval mode).
     tensors : GraphTensors
-        The graph's tensors (labels unset), as given.
+        The graph's tensors, as given.
     pred, prior : EdgePrediction, GNNPriors
         The GNN's answer for the graph as given (turn 0, mesh frame).
+    preds, pris : sequence of EdgePrediction, sequence of GNNPriors
+        Its answers for ``tensors.turned(q)``, ``q`` = 1, 2, 3 in that order, as
+        :func:`forward` gives them (:func:`infer_edges_with_priors` runs them in the graph's
+        own forward pass).
 
     Returns
     -------
@@ -186,19 +188,8 @@ def turn_averaged(run: Run, tensors: GraphTensors, pred: EdgePrediction, prior: 
         principal eigenvector of the sum of ``d d^T``, so signs do not matter), signed to
         agree with turn 0's; the axis-candidate probabilities ``(E, 10)`` over
         turn 0's candidate directions, each turn's mass added to the turn-0 candidate nearest
-        (largest ``|cos|``), then normalised. Mesh frame, float64.
+        (largest ``|cos|``), then normalised; ``GNNPriors.turned`` set. Mesh frame, float64.
     """
-    if pred.probs.shape[0] == 0:
-        return pred, prior
-    preds, pris = forward(run, [tensors.turned(q) for q in (1, 2, 3)])
-    return _average_turns(tensors, pred, prior, preds, pris)
-
-
-def _average_turns(tensors: GraphTensors, pred: EdgePrediction, prior: GNNPriors,
-                   preds: Sequence[EdgePrediction], pris: Sequence[GNNPriors]
-                   ) -> tuple[EdgePrediction, GNNPriors]:
-    """:func:`turn_averaged`'s average, given the answers of the graph turned 1, 2 and 3
-    quarter turns (``preds``, ``pris``, in that order, as :func:`forward` gives them)."""
     e = pred.probs.shape[0]
     if e == 0:
         return pred, prior

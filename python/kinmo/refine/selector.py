@@ -105,7 +105,7 @@ class GNNPriors:
         The GNN's candidate directions (mesh frame = normalised frame orientation).
     turned : bool
         The outputs are the average of the object's four quarter turns about the vertical
-        (an object without known part names, :func:`kinmo.inference.gnn.turn_averaged`): its
+        (an object without known part names, :func:`kinmo.inference.gnn.average_turns`): its
         facing is unknown, so the semantic direction prior is averaged over the same turns
         (:meth:`kinmo.refine.semantic_prior.SemanticPrior.probability`).
     """
@@ -593,7 +593,7 @@ def candidate_features(
     sp = (np.full(c, 1.0 / 3.0) if semantic is None else
           semantic.probability(motion_of(cands.motion), graph.category,
                                graph.node_names[moving], graph.node_names[reference], d, exclude,
-                               turns=bool(getattr(priors, "turned", False))))
+                               turns=priors.turned))
     x[:, _F["sem_prior"]] = sp
     x[:, _F["log_sem_prior"]] = np.log(sp + 0.01)
     _part_shape_features(x, centre, axes, half, np.asarray(graph.obb_center[reference], np.float64),

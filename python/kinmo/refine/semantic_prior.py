@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from kinmo.data.frames import quarter_turn
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TYPES
 
@@ -37,9 +38,6 @@ __all__ = ["SemanticPrior", "motion_of"]
 #: A training axis counts for a candidate line when they are within this angle.
 PARALLEL_DEG: float = 15.0
 _BASE = 1.0 / 3.0
-#: The four quarter turns about the vertical (+y), exact (as :func:`kinmo.features.quarter_turn`).
-_QUARTER_TURNS = tuple(np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-                       for c, s in ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)))
 
 
 def motion_of(type_name: str) -> str:
@@ -141,8 +139,8 @@ class SemanticPrior:
         """
         d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
         if turns:
-            return np.mean([self.probability(motion, category, moving, reference, d @ r.T, exclude)
-                            for r in _QUARTER_TURNS], axis=0)
+            return np.mean([self.probability(motion, category, moving, reference, d @ quarter_turn(q).T,
+                                             exclude) for q in range(4)], axis=0)
         d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
         cos_t = float(np.cos(np.radians(self.parallel_deg)))
         p = np.full(d.shape[0], _BASE)
