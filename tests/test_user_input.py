@@ -314,3 +314,54 @@ def test_an_asset_that_stands_on_another_axis_is_warned_about(inputs, mobility_r
     with caplog.at_level("WARNING", logger="kinmo.user_input"):
         predict_user_input(turned, predictor, tmp_path / "o2", formats=["mobility_v2"], progress=False, up="z")
     assert not any("read as" in r.getMessage() for r in caplog.records)
+
+
+def _write_glb(path: Path, leaves) -> Path:
+    scene = trimesh.Scene()
+    for name, v, f in leaves:
+        scene.add_geometry(trimesh.Trimesh(v, f, process=False), node_name=name, geom_name=name)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(scene.export(file_type="glb"))
+    return path
+
+
+def test_names_known_needs_half_the_part_names_in_the_vocabulary():
+    from kinmo.features import SemanticVocab
+    from kinmo.user_input import names_known
+
+    vocab = SemanticVocab(["door", "handle", "cabinet"])
+    assert names_known(["door_1", "Handle", "x", "y"], vocab)  # 2 of 4, numbers dropped
+    assert not names_known(["cabinet5", "cabinet5_drawer_top", "handle_cab5_m", "x"], vocab)
+    assert not names_known(["part_0", "part_1"], vocab) and not names_known([], vocab)
+
+
+@pytest.mark.exactdata
+def test_names_the_model_does_not_know_are_read_as_unnamed_and_kept_in_the_outputs(inputs, tmp_path):
+    """Issue 36: an asset whose part names are mostly unknown to the model (one PartNet name of
+    four) is predicted exactly as the same asset with generic names, and its outputs still
+    carry the user's names; one whose names are known is not."""
+    from kinmo.inference.predictor import Predictor
+    from kinmo.user_input import predict_user_input
+
+    leaves = inputs["leaves"]
+    own = [(n if k == 0 else f"cab5_link_{'abc'[k - 1]}", v, f) for k, (n, v, f) in enumerate(leaves)]
+    generic = [(f"part_{k}", v, f) for k, (_, v, f) in enumerate(leaves)]
+    predictor = Predictor.from_parts(inputs["run"], device="cpu")
+
+    def predict(kind, parts):
+        out = tmp_path / kind
+        predict_user_input(_write_glb(tmp_path / f"in_{kind}" / "asset.glb", parts), predictor, out,
+                           formats=["mobility_v2"], progress=False)
+        final = out / "asset"
+        edges = json.loads((final / "edges.json").read_text())["edges"]
+        return [e["probs"] for e in edges], read_shape(final)
+
+    p_own, shape = predict("own", own)
+    p_generic, _ = predict("generic", generic)
+    p_known, _ = predict("known", leaves)
+    assert p_own == p_generic
+    assert p_known != p_generic
+    names = [shape.hierarchy.nodes[i].name for i in shape.hierarchy.leaves(shape.hierarchy.root)]
+    assert sorted(names) == sorted(n for n, _, _ in own)
+    link_names = {l.name for l in shape.links}
+    assert not any(n.startswith("part_") for n in link_names), link_names

@@ -33,7 +33,7 @@ def predict_cmd(
     package_path: Optional[list[Path]] = typer.Option(None, "--package-path", metavar="DIR", help="For a URDF FILE: a folder holding ROS packages by name, so that package://NAME/... meshes resolve to DIR/NAME/... when no package.xml named NAME lies above FILE (repeatable)."),  # noqa: UP007
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
     collision: str = typer.Option("parts", "--collision", callback=_values.collision, help=COLLISION_HELP),
-    turns: str = typer.Option("unnamed", "--turns", help="Predict an object as the average of its four quarter turns about the up axis, so that its facing does not matter: unnamed (an object none of whose part names the model knows, as a GLB's part_<k>), always, or never."),
+    turns: str = typer.Option("unnamed", "--turns", help="Predict an object as the average of its four quarter turns about the up axis, so that its facing does not matter: unnamed (an object none of whose part names the model knows, as a GLB's part_<k>; your own asset is read as unnamed when fewer than half are known), always, or never."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes for a DIR of shapes (0: one per CPU, 1: no pool); every count writes the same files."),
     executor: str = EXECUTOR,
 ) -> None:

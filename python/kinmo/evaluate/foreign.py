@@ -292,7 +292,8 @@ def evaluate_foreign(
                                       out / "glb" / f"{o.id}.glb", rot)
                 read, back = read_parts(src), rot @ _Z_TO_Y
             frame = asset_frame(src, read)
-            stage_partnet(src, stage / o.id, category="unknown", parts=read, frame=frame)
+            stage_partnet(src, stage / o.id, category="unknown", parts=read, frame=frame,
+                          vocab=predictor.run.vocab)
             backs[o.id] = links_back(frame, back)
             # staged leaf k + 1 is the k-th part read; a GLB's parts are named part_<input index>
             leaves: list[list[int]] = [[] for _ in ps]

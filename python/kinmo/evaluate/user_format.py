@@ -455,19 +455,21 @@ def evaluate_user_format(
                                      transform=rot if moved_input else None)
                 parts = read_parts(glb)
                 frames[sid] = asset_frame(glb, parts)
-                stage_partnet(glb, stage / sid, category="unknown", parts=parts, frame=frames[sid])
+                stage_partnet(glb, stage / sid, category="unknown", parts=parts, frame=frames[sid],
+                              vocab=r.run.vocab)
             predict_dataset(stage, r, pred_dir, **kw)
             for sid, o in sorted(objs.items()):
                 nodes = node_sets[sid]
                 staged = read_shape(stage / sid)
-                # staged leaf id -> input node index, by name (never by order)
+                # staged leaf id -> input node index, by the name as read (never by order; the
+                # staged name is part_<k> when the model does not know the names)
                 index = {n: k for k, n in enumerate(nodes.names)}
                 sh = staged.hierarchy
                 node_leaves = [[] for _ in nodes.names]
                 for nid in sh.order:
                     nd = sh.nodes[nid]
-                    if nd.is_leaf and nd.name in index:
-                        node_leaves[index[nd.name]].append(nid)
+                    if nd.is_leaf and nd.text in index:
+                        node_leaves[index[nd.text]].append(nid)
                 rows.append(score_prediction(sid, true_joints(o.shape, nodes), pred_dir / sid, sh, node_leaves,
                                  links_back(frames[sid], rot)))
         results[variant] = score(rows)
