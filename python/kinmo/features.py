@@ -208,7 +208,7 @@ class GraphTensors:
         signs them (:func:`canonical_obb_axes`): the tensors of the same object given turned
         (issue 36: the facing augmentation of :attr:`kinmo.train.config.TrainConfig.augment_turn`)."""
         out = self.rotated(quarter_turn(k))
-        out.obb_axes = canonical_obb_axes(out.obb_axes)
+        out.obb_axes = canonical_obb_axes(out.obb_axes, out.obb_size)
         return out
 
     def rotated(self, rotation: np.ndarray) -> GraphTensors:
@@ -239,19 +239,38 @@ class GraphTensors:
         return out
 
 
-def canonical_obb_axes(axes: torch.Tensor) -> torch.Tensor:
-    """OBB axis rows signed as :mod:`kinmo.geometry.obb` signs them (its step 6): rows 0 and 1
-    with their largest-magnitude component positive (exact ties: ``y``, then ``x``, then
-    ``z``), row 2 their cross product.
+#: :func:`canonical_obb_axes`: OBB sides whose lengths differ by at most this share of the
+#: longest are tied (the Rust fit's ``1e-6`` on float64 half-extents, loosened for the float32
+#: sizes of :class:`GraphTensors`).
+TIE_RELATIVE = 1e-5
+
+
+#: :func:`canonical_obb_axes` orders tied rows only when each is this close to a world axis
+#: (cosine): the section of a square part is axis-aligned in a turned shape as in the shape,
+#: while a cylinder's two equal axes lie at whatever angle the fit found.
+ALIGNED_COS = math.cos(math.radians(1.0))
+
+
+def canonical_obb_axes(axes: torch.Tensor, sizes: torch.Tensor | None = None) -> torch.Tensor:
+    """OBB axis rows ordered and signed as :mod:`kinmo.geometry.obb` orders and signs them
+    (its step 6): rows whose side lengths tie (within :data:`TIE_RELATIVE` of the longest)
+    ordered by the world axis each is closest to, ``y``, then ``x``, then ``z`` (then the
+    larger such component first); rows 0 and 1 with their largest-magnitude component positive
+    (exact ties: ``y``, then ``x``, then ``z``), row 2 their cross product.
 
     Turning a shape permutes and negates coordinates, so its rotated OBB axes are those the
-    Rust fit gives the turned shape up to these signs (and up to the order of rows whose
-    half-extents tie, which this keeps).
+    Rust fit gives the turned shape up to this order and these signs. Without the order, a
+    part with a square section (an oven in its cabinet, a block) got its two equal axes in
+    one order when the shape was turned here and in the other when a turned shape was fitted,
+    so the quarter-turn average of :mod:`kinmo.inference.gnn` differed with the facing the
+    object came in (issue 36's rotation check).
 
     Parameters
     ----------
     axes : (V, 3, 3) float tensor
-        Rows are the axes.
+        Rows are the axes, sorted by side length, longest first (as fitted).
+    sizes : (V, 3) float tensor, optional
+        The side lengths of those rows; without, the rows keep their order.
 
     Returns
     -------
@@ -260,6 +279,8 @@ def canonical_obb_axes(axes: torch.Tensor) -> torch.Tensor:
     a = axes.clone()
     if a.numel() == 0:
         return a
+    if sizes is not None:
+        a = _order_tied_rows(a, sizes)
     order = torch.tensor([1, 0, 2])  # tie order y, x, z
     for r in range(2):
         row = a[:, r, :]
@@ -270,6 +291,37 @@ def canonical_obb_axes(axes: torch.Tensor) -> torch.Tensor:
         a[:, r, :] = torch.where((lead < 0)[:, None], -row, row)
     a[:, 2, :] = torch.linalg.cross(a[:, 0, :], a[:, 1, :])
     return a
+
+
+def _order_tied_rows(axes: torch.Tensor, sizes: torch.Tensor) -> torch.Tensor:
+    """``axes`` with each run of tied rows (``sizes`` within :data:`TIE_RELATIVE` of the
+    longest of the row's first) sorted by closest world axis, y, x, z, then by the larger such
+    component (the Rust fit's ``direction_rank``)."""
+    s = sizes.detach().to(torch.float64).cpu().numpy()
+    if not s.size:
+        return axes
+    out = axes.clone()
+    rank_of = np.array([1, 0, 2])  # x -> 1, y -> 0, z -> 2
+    for v in np.flatnonzero(np.abs(np.diff(s, axis=1)).min(axis=1) <= TIE_RELATIVE * s.max(axis=1)):
+        a = axes[v].detach().to(torch.float64).cpu().numpy()
+        tie = TIE_RELATIVE * s[v].max()
+        idx, start = [0, 1, 2], 0
+        while start < 3:
+            end = start + 1
+            while end < 3 and s[v, start] - s[v, end] <= tie:
+                end += 1
+            mag = np.abs(a[idx[start:end]])
+            if end - start > 1 and mag.max(axis=1).min() < ALIGNED_COS:
+                start = end  # a tied pair at a slant (a cylinder's section): kept as turned
+                continue
+            # dominant component, exact ties resolved y, x, z
+            dom = [max((1, 0, 2), key=lambda k, m=m: (m[k], -rank_of[k])) for m in mag]
+            key = [(rank_of[k], -m[k]) for k, m in zip(dom, mag)]
+            idx[start:end] = [i for _, i in sorted(zip(key, idx[start:end]), key=lambda t: t[0])]
+            start = end
+        if idx != [0, 1, 2]:
+            out[v] = axes[v][idx]
+    return out
 
 
 def yaw_rotation(angle: float) -> np.ndarray:

@@ -139,6 +139,29 @@ def test_quarter_turns_are_exact_and_obb_signs_match_a_fit_of_the_turned_points(
     assert checked == 60
 
 
+def test_tied_obb_rows_are_ordered_as_a_fit_of_the_turned_points():
+    """Issue 36: a part with a square section (two equal sides) gets its tied axes in the order
+    the Rust fit gives the turned part, so the quarter-turn average does not depend on the
+    facing an object comes in; without ``sizes`` (the order before) they come out swapped."""
+    from kinmo.features import canonical_obb_axes, quarter_turn
+    from kinmo.geometry.obb import fit_obb
+
+    rng = np.random.default_rng(5)
+    swapped = 0
+    for half in ([1.0, 0.5, 0.5], [0.7, 0.7, 0.3], [0.4, 0.9, 0.4]):
+        pts = _box_surface(rng, np.array(half), n=2000)
+        fit = fit_obb(pts)
+        sizes = torch.from_numpy(2.0 * fit.half_extents[None])
+        for k in (1, 2, 3):
+            q = quarter_turn(k)
+            turned = fit_obb(pts @ q.T)
+            rotated = torch.from_numpy((fit.axes @ q.T)[None])
+            got = canonical_obb_axes(rotated, sizes)[0].numpy()
+            np.testing.assert_allclose(got, turned.axes, atol=1e-6)
+            swapped += not np.allclose(canonical_obb_axes(rotated)[0].numpy(), turned.axes, atol=1e-6)
+    assert swapped > 0
+
+
 def test_turned_tensors_turn_labels_with_the_shape_and_four_turns_give_it_back():
     t = graph_tensors(cabinet_graph(n_points=32))
     one = t.turned(1)
@@ -146,8 +169,13 @@ def test_turned_tensors_turn_labels_with_the_shape_and_four_turns_give_it_back()
     torch.testing.assert_close(one.points, t.points @ q.T)
     torch.testing.assert_close(one.axis_direction, t.axis_direction @ q.T)
     back = t.turned(1).turned(1).turned(1).turned(1)
-    for name in ("points", "obb_center", "obb_axes", "axis_direction", "axis_origin"):
+    for name in ("points", "obb_center", "axis_direction", "axis_origin"):
         torch.testing.assert_close(getattr(back, name), getattr(t, name))
+    # the boxes come back in the fit's canonical row order (this hand-made graph's tied rows
+    # are not in it)
+    from kinmo.features import canonical_obb_axes
+
+    torch.testing.assert_close(back.obb_axes, canonical_obb_axes(t.obb_axes, t.obb_size))
     # every row of the turned boxes keeps the sign rule: its largest component positive
     for r in range(2):
         row = one.obb_axes[:, r, :]
