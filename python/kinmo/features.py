@@ -244,7 +244,6 @@ class GraphTensors:
 #: sizes of :class:`GraphTensors`).
 TIE_RELATIVE = 1e-5
 
-
 #: :func:`canonical_obb_axes` orders tied rows only when each is this close to a world axis
 #: (cosine): the section of a square part is axis-aligned in a turned shape as in the shape,
 #: while a cylinder's two equal axes lie at whatever angle the fit found.
@@ -294,9 +293,10 @@ def canonical_obb_axes(axes: torch.Tensor, sizes: torch.Tensor | None = None) ->
 
 
 def _order_tied_rows(axes: torch.Tensor, sizes: torch.Tensor) -> torch.Tensor:
-    """``axes`` with each run of tied rows (``sizes`` within :data:`TIE_RELATIVE` of the
-    longest of the row's first) sorted by closest world axis, y, x, z, then by the larger such
-    component (the Rust fit's ``direction_rank``)."""
+    """``axes`` with each run of tied rows (sizes within :data:`TIE_RELATIVE` times the
+    longest side of the run's first row, all rows within 1° of a world axis) sorted by the
+    world axis each is closest to, y, x, z, then by the larger such component (the Rust fit's
+    ``direction_rank``)."""
     s = sizes.detach().to(torch.float64).cpu().numpy()
     if not s.size:
         return axes
