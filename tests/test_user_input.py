@@ -365,3 +365,24 @@ def test_names_the_model_does_not_know_are_read_as_unnamed_and_kept_in_the_outpu
     assert sorted(names) == sorted(n for n, _, _ in own)
     link_names = {l.name for l in shape.links}
     assert not any(n.startswith("part_") for n in link_names), link_names
+
+
+@pytest.mark.exactdata
+def test_predict_user_input_takes_a_run_folder_and_loads_it_once(inputs, tmp_path, monkeypatch):
+    """``run`` may be a run folder (as ``kinmo.predict.predict_dataset`` takes): the predictor
+    is loaded once, for the names rule and the prediction alike."""
+    from kinmo.inference.predictor import Predictor
+    from kinmo.user_input import predict_user_input
+
+    loads = []
+    real = Predictor.from_parts.__func__
+
+    def counting(cls, *a, **kw):
+        loads.append(a[0])
+        return real(cls, *a, **kw)
+
+    monkeypatch.setattr(Predictor, "from_parts", classmethod(counting))
+    rows = predict_user_input(inputs["glb"], inputs["run"], tmp_path / "o", formats=["mobility_v2"],
+                              progress=False, device="cpu")
+    assert [r.status for r in rows] == ["ok"] and len(loads) == 1
+    assert (tmp_path / "o" / "dishwasher" / "mobility_v2.json").is_file()
