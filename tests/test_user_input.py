@@ -296,7 +296,7 @@ def test_turns_reach_the_predictor_and_a_bad_one_is_refused(inputs, tmp_path):
     assert probs() == never
     r = CliRunner().invoke(app, ["predict", str(inputs["glb"]), "--model", str(inputs["run"]),
                                  "--out", str(tmp_path / "bad"), "--turns", "sometimes", "--quiet"])
-    assert r.exit_code == 2 and "--turns must be one of unnamed, always, never" in r.output
+    assert r.exit_code == 2 and "--turns sometimes: must be one of unnamed, always, never" in r.output
 
 
 @pytest.mark.exactdata

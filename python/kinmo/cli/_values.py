@@ -8,7 +8,8 @@ prints one line ``error: --option VALUE: problem`` on stderr and exits with code
 - :func:`learning_rate`: a finite number in (0, 1];
 - :func:`finite` / :func:`angle_deg`: finite numbers (``nan``, ``inf`` refused);
 - :func:`ranker_file`: a file :func:`kinmo.refine.ranker.load_ranker` reads;
-- :func:`collision`: a collision geometry method (:mod:`kinmo.export.collision`).
+- :func:`collision`: a collision geometry method (:mod:`kinmo.export.collision`);
+- :func:`turn_policy`: when the motion GNN averages quarter turns (:mod:`kinmo.inference.gnn`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from typing import Any
 
 import typer
 
-__all__ = ["angle_deg", "collision", "device", "finite", "learning_rate", "ranker_file", "up_axis"]
+__all__ = ["angle_deg", "collision", "device", "finite", "learning_rate", "ranker_file", "turn_policy",
+           "up_axis"]
 
 #: Largest learning rate accepted on the command line (every preset uses <= 1e-2).
 MAX_LR = 1.0
@@ -108,6 +110,17 @@ def collision(ctx: typer.Context, param: Any, value: str | None) -> str | None:
         check_collision_method(value)
     except KinmoUsageError as e:
         _fail(param, value, e.problem)
+    return value
+
+
+def turn_policy(ctx: typer.Context, param: Any, value: str | None) -> str | None:
+    """``--turns``: one of :data:`kinmo.inference.gnn.TURNS`."""
+    if value is None or ctx.resilient_parsing:
+        return value
+    from kinmo.inference.gnn import TURNS
+
+    if value not in TURNS:
+        _fail(param, value, f"must be one of {', '.join(TURNS)}")
     return value
 
 

@@ -33,7 +33,7 @@ def predict_cmd(
     package_path: Optional[list[Path]] = typer.Option(None, "--package-path", metavar="DIR", help="For a URDF FILE: a folder holding ROS packages by name, so that package://NAME/... meshes resolve to DIR/NAME/... when no package.xml named NAME lies above FILE (repeatable)."),  # noqa: UP007
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf."),  # noqa: UP007
     collision: str = typer.Option("parts", "--collision", callback=_values.collision, help=COLLISION_HELP),
-    turns: str = typer.Option("unnamed", "--turns", help="Predict an object as the average of its four quarter turns about the up axis, so that its facing does not matter: unnamed (an object none of whose part names the model knows, as a GLB's part_<k>; your own asset is read as unnamed when fewer than half are known), always, or never."),
+    turns: str = typer.Option("unnamed", "--turns", callback=_values.turn_policy, help="Predict an object as the average of its four quarter turns about the up axis, so that its facing does not matter: unnamed (an object none of whose part names the model knows, as a GLB's part_<k>; your own asset is read as unnamed when fewer than half are known), always, or never."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Worker processes for a DIR of shapes (0: one per CPU, 1: no pool); every count writes the same files."),
     executor: str = EXECUTOR,
 ) -> None:
@@ -70,16 +70,10 @@ def predict_cmd(
             fail("--up is for your own asset (FILE); PartNet and PartNet-Mobility folders are y-up"
                  if up is not None else "--package-path is for your own asset (FILE: a URDF with "
                  "package://NAME/... meshes)", 2)
-        from kinmo.inference.gnn import TURNS
-
-        if turns not in TURNS:  # refused before the models load
-            from kinmo.cli._errors import fail
-
-            fail(f"--turns must be one of {', '.join(TURNS)}, got {turns!r}", 2)
         model, axis_model, rc = refine.resolve(model_or_pretrained(model), axis_model)
         options = TreeOptions((0.0, hinge_max), slider_fraction)
         predictor = Predictor.from_parts(model, axis_model, rc, options, device)
-        predictor.turns = turns  # type: ignore[assignment]  # checked above
+        predictor.turns = turns  # type: ignore[assignment]  # checked by its callback
         err.print(predictor.describe(), markup=False, highlight=False, soft_wrap=True)
         kw = dict(device=device, options=options, progress=not quiet, render=render,
                   collision=collision)
