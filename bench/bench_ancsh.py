@@ -34,7 +34,10 @@ PyBullet and no dataset needed: ``DIR`` holds ``labeled/<key>/<frame>.npz`` (the
 the ANCSH stage, ``kinmo train ancsh --scans``) and ``ancsh_parts.json`` (the objects'
 ANCSH parts), written by ``--write-scans DIR`` (a few megabytes, to carry to a GPU machine).
 Without ``ancsh_parts.json`` (a training run's own scans folder), ``--data`` and
-``--category`` give the parts. JSON: ``bench/results/bench_ancsh_step.json``.
+``--category`` give the parts. JSON: ``bench/results/bench_ancsh_step.json``. It ends with
+issue 38's targets that the run measures, met or not (``targets`` in the JSON): the quick
+preset on a CPU at ≥ 1.4x the steps per second of "before", the paper preset on a GPU at
+≤ 0.03 s per overlapped step.
 
 Usage::
 
@@ -213,10 +216,36 @@ def bench_steps(args: argparse.Namespace) -> None:
               f"{plan_s['torch'] * 1000:.1f} ms, rust {plan_s['rust'] * 1000:.1f} ms ({threads} torch threads); "
               f"after with the next batch prepared in a thread {ov * 1000:.1f} ms/step: "
               f"{after / ov:.2f}x after, {before / ov:.2f}x before", flush=True)
+    results["targets"] = _step_targets(results)
+    for line in results["targets"]:
+        print(line["text"])
     out = args.out or REPO / "bench" / "results" / "bench_ancsh_step.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=2) + "\n")
     print(f"wrote {out}")
+
+
+#: Issue 38's step-time targets: the quick preset on the CPU at least this many times the
+#: steps per second before plans; the paper preset on a GPU at most this many seconds per step
+#: as ``fit`` runs it there (the next batch prepared in a thread).
+QUICK_CPU_SPEEDUP, PAPER_GPU_STEP_S = 1.4, 0.03
+
+
+def _step_targets(results: dict) -> list[dict]:
+    """Issue 38's targets that this run measures (quick on a CPU, paper on a GPU), each with
+    the figure and whether it is met."""
+    rows, presets = [], results["presets"]
+    if results["device"] == "cpu" and "quick" in presets:
+        v = presets["quick"]["speedup"]
+        rows.append({"target": f"quick, CPU: after / before steps per second >= {QUICK_CPU_SPEEDUP}",
+                     "value": v, "met": v >= QUICK_CPU_SPEEDUP})
+    if results["device"].startswith("cuda") and "paper" in presets:
+        v = presets["paper"]["overlap_step_s"]
+        rows.append({"target": f"paper, GPU: seconds per step (as fit runs it) <= {PAPER_GPU_STEP_S}",
+                     "value": v, "met": v <= PAPER_GPU_STEP_S})
+    for r in rows:
+        r["text"] = f"target {r['target']}: {r['value']:.3f}, {'met' if r['met'] else 'NOT met'}"
+    return rows
 
 
 def main() -> None:
