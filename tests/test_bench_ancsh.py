@@ -3,17 +3,11 @@ measures, met or not."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
-REPO = Path(__file__).resolve().parent.parent
+from repo_scripts import load_script
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("bench_ancsh", REPO / "bench" / "bench_ancsh.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("bench/bench_ancsh.py")
 
 
 def _results(device: str, quick_speedup: float, paper_overlap_s: float) -> dict:
@@ -25,7 +19,7 @@ def test_cpu_run_checks_the_quick_speedup_only():
     b = _script()
     rows = b._step_targets(_results("cpu", 1.51, 1.6))
     assert [r["met"] for r in rows] == [True]
-    assert "quick, CPU" in rows[0]["text"] and rows[0]["text"].endswith("met")
+    assert "quick, CPU" in rows[0]["text"] and rows[0]["text"].endswith(", met")
     rows = b._step_targets(_results("cpu", 1.3, 1.6))
     assert [r["met"] for r in rows] == [False] and rows[0]["text"].endswith("NOT met")
 

@@ -3,7 +3,6 @@ folders, one per jointed object, with their meshes copied and the sources record
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 from pathlib import Path
@@ -11,15 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from kinmo.assets import read_parts
-
-REPO = Path(__file__).resolve().parent.parent
+from repo_scripts import load_script
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("foreign_assets", REPO / "bench" / "foreign_assets.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("bench/foreign_assets.py")
 
 
 def _fake_furniture_repo(root: Path) -> str:

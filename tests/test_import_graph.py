@@ -8,6 +8,7 @@ import ast
 from pathlib import Path
 
 import kinmo
+from repo_scripts import load_script
 
 ROOT = Path(kinmo.__file__).resolve().parent
 
@@ -150,12 +151,7 @@ LOCAL_IMPORT_CEILING = 29
 
 
 def test_function_local_imports_stay_under_the_ceiling():
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(
-        "count_local_imports", ROOT.parents[1] / "scripts" / "count_local_imports.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = load_script("scripts/count_local_imports.py")
     found = mod.local_imports(ROOT)
     assert len(found) <= LOCAL_IMPORT_CEILING, "\n".join(f"{p}:{n}: {m}" for p, n, m in found)
     # the counter sees an import in a function, and leaves cli/ out
