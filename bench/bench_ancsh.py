@@ -29,7 +29,10 @@ alone (Rust and the PyTorch functions), and **overlap**: "after" as :func:`kinmo
 runs it by default on a GPU or with fewer torch threads than cores
 (:func:`kinmo.ancsh.fit.overlap_helps`; timed here for every preset), the next batch sampled and planned in a background thread while the current one
 trains (:func:`kinmo.ancsh.fit.batch_stream`; the median over rounds of a round's mean step,
-since overlapped steps cannot be timed one by one). It reads pre-rendered scans, no
+since overlapped steps cannot be timed one by one), and **fit**: :func:`kinmo.ancsh.fit.fit`
+itself, the loop ``kinmo train ancsh`` runs (its own batch order, every loss term and the
+segmentation accuracy read each step), one epoch of ``--steps`` steps per round, the median
+over rounds of the epoch's seconds per step. It reads pre-rendered scans, no
 PyBullet and no dataset needed: ``DIR`` holds ``labeled/<key>/<frame>.npz`` (the cache of
 the ANCSH stage, ``kinmo train ancsh --scans``) and ``ancsh_parts.json`` (the objects'
 ANCSH parts), written by ``--write-scans DIR`` (a few megabytes, to carry to a GPU machine).
@@ -37,7 +40,7 @@ Without ``ancsh_parts.json`` (a training run's own scans folder), ``--data`` and
 ``--category`` give the parts. JSON: ``bench/results/bench_ancsh_step.json``. It ends with
 issue 38's targets that the run measures, met or not (``targets`` in the JSON): the quick
 preset on a CPU at ≥ 1.4x the steps per second of "before", the paper preset on a GPU at
-≤ 0.03 s per step of the overlapped loop.
+≤ 0.03 s per step of ``fit``.
 
 Usage::
 
@@ -134,7 +137,7 @@ def bench_steps(args: argparse.Namespace) -> None:
 
     from kinmo.ancsh.config import preset
     from kinmo.ancsh.dataset import ANCSHFrames, load_samples
-    from kinmo.ancsh.fit import batch_stream, prepare_batch, train_step
+    from kinmo.ancsh.fit import batch_stream, fit, prepare_batch, train_step
     from kinmo.ancsh.inference import build_model
     from kinmo.parallel import torch_threads
 
@@ -184,22 +187,32 @@ def bench_steps(args: argparse.Namespace) -> None:
                 float(terms["total"].detach())
             return (time.perf_counter() - t0) / n
 
-        times: dict[str, list[float]] = {"before": [], "after": [], "overlap": []}
+        m_fit = copy.deepcopy(base)
+        cfg_fit = preset(name, steps_per_epoch=args.steps, threads=threads)
+
+        def fitted(r: int) -> float:
+            # fit itself, as kinmo train ancsh runs it: one epoch of --steps steps (a fresh Adam)
+            rows = fit(m_fit, ds, cfg_fit, 1, device, stage_index=r, progress=False)
+            return rows[0]["seconds"] / args.steps
+
+        times: dict[str, list[float]] = {"before": [], "after": [], "overlap": [], "fit": []}
         with torch_threads(threads):
             for mode in ("before", "after"):  # warm-up
                 for _ in range(3):
                     step(mode)
             overlapped(3)
+            fitted(args.rounds)
             for r in range(args.rounds):  # interleaved, alternating which goes first
                 for mode in (("before", "after") if r % 2 == 0 else ("after", "before")):
                     times[mode] += [step(mode) for _ in range(args.steps)]
                 times["overlap"].append(overlapped(args.steps))  # a round's mean step
+                times["fit"].append(fitted(r))
             xyz = torch.stack([ds.sample(i % len(ds), rng)["xyz"] for i in range(cfg.batch_size)]).to(device)
             bb = models["after"].backbone
             plan_s = {backend: _median_time(lambda: bb.plan(xyz, backend), 5 * args.rounds)
                       for backend in ("torch", "rust")}
         before, after = statistics.median(times["before"]), statistics.median(times["after"])
-        ov = statistics.median(times["overlap"])
+        ov, fit_s = statistics.median(times["overlap"]), statistics.median(times["fit"])
         results["presets"][name] = {
             "n_points": cfg.n_points, "width": cfg.width, "n_centers": list(cfg.n_centers),
             "batch_size": cfg.batch_size, "torch_threads": threads,
@@ -210,12 +223,15 @@ def bench_steps(args: argparse.Namespace) -> None:
             "plan_torch_s": plan_s["torch"], "plan_rust_s": plan_s["rust"],
             "overlap_step_s": ov, "overlap_steps_per_s": 1 / ov, "overlap_speedup_vs_after": after / ov,
             "overlap_step_s_rounds": times["overlap"],
+            "fit_step_s": fit_s, "fit_steps_per_s": 1 / fit_s, "fit_speedup_vs_before": before / fit_s,
+            "fit_step_s_rounds": times["fit"],
         }
         print(f"{name}: before {before * 1000:.1f} ms/step ({1 / before:.2f} steps/s), after {after * 1000:.1f} "
               f"ms/step ({1 / after:.2f} steps/s): {before / after:.2f}x; planning alone: torch "
               f"{plan_s['torch'] * 1000:.1f} ms, rust {plan_s['rust'] * 1000:.1f} ms ({threads} torch threads); "
               f"after with the next batch prepared in a thread {ov * 1000:.1f} ms/step: "
-              f"{after / ov:.2f}x after, {before / ov:.2f}x before", flush=True)
+              f"{after / ov:.2f}x after, {before / ov:.2f}x before; fit {fit_s * 1000:.1f} ms/step: "
+              f"{before / fit_s:.2f}x before", flush=True)
     results["targets"] = _step_targets(results)
     for line in results["targets"]:
         print(line["text"])
@@ -227,8 +243,7 @@ def bench_steps(args: argparse.Namespace) -> None:
 
 #: Issue 38's step-time targets: the quick preset on the CPU at least this many times the
 #: steps per second before plans; the paper preset on a GPU at most this many seconds per step
-#: in the overlapped loop (the next batch prepared in a thread, as ``fit`` does; ``fit``
-#: itself also reads every loss term each step, docs/results/benchmarks.md).
+#: of ``fit`` itself (what ``kinmo train ancsh`` runs).
 QUICK_CPU_SPEEDUP, PAPER_GPU_STEP_S = 1.4, 0.03
 
 
@@ -241,8 +256,8 @@ def _step_targets(results: dict) -> list[dict]:
         rows.append({"target": f"quick, CPU: after / before steps per second >= {QUICK_CPU_SPEEDUP}",
                      "value": v, "met": v >= QUICK_CPU_SPEEDUP})
     if results["device"].startswith("cuda") and "paper" in presets:
-        v = presets["paper"]["overlap_step_s"]
-        rows.append({"target": f"paper, GPU: seconds per step, overlapped loop <= {PAPER_GPU_STEP_S}",
+        v = presets["paper"]["fit_step_s"]
+        rows.append({"target": f"paper, GPU: seconds per step of fit <= {PAPER_GPU_STEP_S}",
                      "value": v, "met": v <= PAPER_GPU_STEP_S})
     for r in rows:
         r["text"] = f"target {r['target']}: {r['value']:.3f}, {'met' if r['met'] else 'NOT met'}"
