@@ -143,14 +143,16 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert "| Laptop |" in seeds_md.split("Semi-weakly against supervised")[0]  # the per-category rows
 
     # a stage read by others trained again makes them stale, though their keys name it by
-    # path: seed 1's supervised ANCSH run (a new marker) -> its semi run and its evaluation
+    # path: seed 1's supervised ANCSH run (a new marker) -> its semi and semi-weakly runs (semi
+    # starts from it; semi-weakly takes its weights when no pseudo-label fits) and its evaluation
     from kinmo.pipeline.stages import mark_done
 
     sup = s1 / "ancsh/Laptop/supervised"
     mark_done(sup, json.loads((sup / ".done").read_text()))
     res5 = run_pipeline(cfg.model_copy(update={"ancsh_seeds": 2}), progress=False)
     ran = {k for k, t in res5.timings.items() if t.ran and not k.startswith("train ancsh:")}
-    assert ran == {"train ancsh Laptop (semi, seed 1)", "eval Laptop (Table 2, seed 1)", "report"}
+    assert ran == {"train ancsh Laptop (semi, seed 1)", "train ancsh Laptop (semi-weakly, seed 1)",
+                   "eval Laptop (Table 2, seed 1)", "report"}
 
     # a second run resumes: every stage but the report is up to date
     res2 = runner.invoke(app, ["demo", "--out", str(out), "--n", "12", "--tiny"])

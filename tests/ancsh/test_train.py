@@ -174,6 +174,40 @@ def test_settings_use_only_training_objects(mobility_root, partnet_root, tmp_pat
     assert (tmp_path / "sw" / "model.pt").is_file() and (tmp_path / "sw" / "metrics.csv").is_file()
 
 
+@pytest.mark.exactdata
+def test_semi_weakly_without_pseudo_labels_is_the_supervised_training(mobility_root, tmp_path):
+    """With no pseudo-labelled scan, semi-weakly trains exactly the supervised model; given that
+    run (init, as `kinmo train all` does) it takes its weights and metrics instead of training
+    again, and an init trained otherwise is a clear error."""
+    data = tmp_path / "mobility"
+    data.mkdir()
+    for oid in ["10040", "10306", "9968", "11405"]:
+        (data / oid).symlink_to(mobility_root / oid, target_is_directory=True)
+    pseudo = tmp_path / "pseudo"  # no pseudo-labelled laptop
+    pseudo.mkdir()
+    cfg = preset("quick", epochs=2, steps_per_epoch=2, frames_per_object=1, **TINY)
+    kw = dict(data=data, scans=tmp_path / "scans", progress=False)
+    sup = train_ancsh("laptop", "supervised", tmp_path / "sup", cfg, **kw)
+    trained = train_ancsh("laptop", "semi-weakly", tmp_path / "sw", cfg, pseudo=pseudo, **kw)
+    reused = train_ancsh("laptop", "semi-weakly", tmp_path / "sw_init", cfg, pseudo=pseudo,
+                         init=tmp_path / "sup", **kw)
+    w_sup, w_trained, w_reused = (load_run(d, "cpu").model.state_dict() for d in
+                                  (tmp_path / "sup", tmp_path / "sw", tmp_path / "sw_init"))
+    assert all(torch.equal(w_sup[k], w_trained[k]) for k in w_sup)  # the same training
+    assert all(torch.equal(w_sup[k], w_reused[k]) for k in w_sup)
+    assert load_run(tmp_path / "sw_init", "cpu").setting == "semi-weakly"
+    assert reused.data["weights_of"] == str((tmp_path / "sup").resolve()) and "weights_of" not in trained.data
+    assert reused.history == sup.history
+    no_time = lambda rows: [{k: v for k, v in r.items() if k != "seconds"} for r in rows]  # noqa: E731
+    assert no_time(trained.history) == no_time(sup.history) and len(sup.history) == 2
+    assert (tmp_path / "sw_init" / "metrics.csv").read_text() == (tmp_path / "sup" / "metrics.csv").read_text()
+    with pytest.raises(KinmoError, match="epochs"):
+        train_ancsh("laptop", "semi-weakly", tmp_path / "sw_other", cfg.model_copy(update={"epochs": 1}),
+                    pseudo=pseudo, init=tmp_path / "sup", **kw)
+    with pytest.raises(KinmoError, match="semi and semi-weakly"):
+        train_ancsh("laptop", "supervised", tmp_path / "sup2", cfg, init=tmp_path / "sup", **kw)
+
+
 def test_labeled_fraction_picks_nested_seeded_subsets():
     ids = ["10306", "10697", "11405", "9968"]
     subsets = {f: _labeled_subset(ids, f, seed=0) for f in (0.3, 0.5, 0.8, 1.0)}

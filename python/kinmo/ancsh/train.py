@@ -191,8 +191,12 @@ def train_ancsh(
     scans : str or Path, optional
         Render cache, shareable by the runs of one experiment; default ``out/scans``.
     init : str or Path, optional
-        ``semi``: a finished ``supervised`` run of the same category, split and network size
-        whose weights replace the supervised stage (which it would reproduce).
+        A finished ``supervised`` run of the same category, split and network size.
+        ``semi``: its weights replace the supervised stage (which it would reproduce).
+        ``semi-weakly``: used only when no pseudo-labelled scan fits the structure; this run
+        then trains on exactly the supervised run's scans, so it must also have the same
+        training configuration, and its weights and ``metrics.csv`` are taken instead of
+        training them again (``data.json``: ``weights_of``).
     progress : bool
         Rich progress bars.
     console : rich.console.Console, optional
@@ -210,7 +214,8 @@ def train_ancsh(
     ------
     KinmoError
         Unknown category, no structure, no training object, missing ``pseudo`` / ``partnet``
-        folder, nothing rendered.
+        folder, nothing rendered, ``init`` with the ``supervised`` setting or not matching
+        this run.
     KinmoDataError
         Unreadable split or data.
     ValueError
@@ -233,8 +238,8 @@ def train_ancsh(
     structure = cat.structure
     cfg = (config or preset("quick")).model_copy(update={"category": cat.category, "setting": setting})
     cfg = ANCSHConfig.model_validate(cfg.model_dump())
-    if init is not None and setting != "semi":
-        raise KinmoError("--init only applies to the semi setting (its supervised stage)")
+    if init is not None and setting == "supervised":
+        raise KinmoError("--init only applies to the semi and semi-weakly settings (a supervised run)")
     if setting == "semi-weakly" and pseudo is None:
         raise KinmoError("the semi-weakly setting needs the pseudo-labelled shapes of `kinmo pseudo-label` (--pseudo)")
     if setting == "semi":
@@ -335,6 +340,12 @@ def train_ancsh(
                       f"scans ({cfg.synth_as})" if generated.samples
                       else f"{cat.category}: no generated objects: {generated.skipped}")
     info.update(generated.info())
+    # semi-weakly without a pseudo-labelled scan trains on exactly the supervised run's scans
+    # (labelled and generated), with the same seeds: given that run (init), its weights are
+    # this run's; with pseudo-labelled scans init is not used
+    reuse = setting == "semi-weakly" and init is not None and not info["pseudo_labeled_scans"]
+    if setting == "semi-weakly" and not reuse:
+        init = None
     pre = pretrain_epochs(cfg) if generated.samples and cfg.synth_as == "pretrain" else 0
     mixing = bool(generated.samples) and cfg.synth_as == "mix"
     real = samples
@@ -353,7 +364,16 @@ def train_ancsh(
                 save_checkpoint(out / "model.pt", model, cfg, structure, len(history))
 
         ds = ANCSHFrames(samples, cfg.n_points, cfg.seed, cfg.jitter)
-        if init is not None:
+        if reuse:
+            model.load_state_dict(_init_weights(init, cfg, structure, labeled_ids, same_training=True))
+            history.extend(_metric_rows(Path(init) / "metrics.csv"))
+            if main:
+                write_text(out / "metrics.csv", metrics_csv(history))
+                save_checkpoint(out / "model.pt", model, cfg, structure, len(history))
+            info["weights_of"] = str(Path(init).resolve())
+            _say(console, f"semi-weakly: no pseudo-labelled scan fits {structure.signature()}, so the "
+                          f"supervised run's training: its weights ({init})")
+        elif init is not None:
             model.load_state_dict(_init_weights(init, cfg, structure, labeled_ids))
             info["init"] = str(Path(init).resolve())
             _say(console, f"supervised stage: weights of {init}")
@@ -385,13 +405,36 @@ def train_ancsh(
     return TrainResult(out, cfg, structure, history, info, info["seconds"])
 
 
+#: Configuration fields that do not change what a run trains (a reused run may differ in them).
+_NOT_TRAINING = frozenset({"setting", "render_workers", "device"})
+
+
+def _metric_rows(path: Path) -> list[dict[str, Any]]:
+    """The rows of a run's ``metrics.csv`` with numbers as numbers (``nan`` as NaN)."""
+    import csv
+
+    def value(k: str, v: str) -> Any:
+        if k == "stage":
+            return v
+        return int(v) if k in ("epoch", "scans") else float(v)
+
+    try:
+        with open(path, newline="") as f:
+            return [{k: value(k, v) for k, v in row.items()} for row in csv.DictReader(f)]
+    except (OSError, ValueError) as e:
+        raise KinmoDataError(f"{path}: unreadable metrics ({e})") from e
+
+
 def _init_weights(init: str | Path, cfg: ANCSHConfig, structure: KinematicStructure,
-                  labeled_ids: list[str]) -> dict[str, torch.Tensor]:
-    """The state dict of a supervised run that matches this run (else a clear error)."""
+                  labeled_ids: list[str], same_training: bool = False) -> dict[str, torch.Tensor]:
+    """The state dict of a supervised run that matches this run (else a clear error); with
+    ``same_training`` its whole training configuration must be this run's (fields outside
+    :data:`_NOT_TRAINING`)."""
     import json
 
     run = load_run(init, device="cpu")
-    same = ("category", "width", "n_centers", "radii", "n_points", "theta")
+    same = (tuple(k for k in type(cfg).model_fields if k not in _NOT_TRAINING) if same_training
+            else ("category", "width", "n_centers", "radii", "n_points", "theta"))
     bad = [k for k in same if getattr(run.config, k) != getattr(cfg, k)]
     if run.setting != "supervised" or run.structure != structure or bad:
         raise KinmoError(f"{init}: not a supervised run of {cfg.category} with this network "

@@ -47,7 +47,7 @@ def train_ancsh_cmd(
     pseudo: Optional[Path] = typer.Option(None, "--pseudo", help="semi-weakly: output folder of `kinmo pseudo-label`."),  # noqa: UP007
     split: Optional[Path] = typer.Option(None, "--split", help="A split.json (e.g. the GNN run's) instead of making one."),  # noqa: UP007
     scans: Optional[Path] = typer.Option(None, "--scans", help="Render cache, shareable by the runs of an experiment (default: OUT/scans)."),  # noqa: UP007
-    init: Optional[Path] = typer.Option(None, "--init", help="semi: start from this supervised run instead of retraining it."),  # noqa: UP007
+    init: Optional[Path] = typer.Option(None, "--init", help="A supervised run. semi: start from it instead of retraining it; semi-weakly: its weights when no pseudo-labelled shape fits (the same training)."),  # noqa: UP007
     epochs: Optional[int] = typer.Option(None, "--epochs", min=1, help="Override the preset's epochs."),  # noqa: UP007
     steps_per_epoch: Optional[int] = typer.Option(None, "--steps-per-epoch", min=1, help="Override the preset's batches per epoch."),  # noqa: UP007
     semi_epochs: Optional[int] = typer.Option(None, "--semi-epochs", min=1, help="semi: epochs on labelled + pseudo-targeted scans."),  # noqa: UP007

@@ -571,15 +571,16 @@ class _Context:
                             continue
                         run_dir = root / "ancsh" / cat / sub / setting
                         # semi starts from the supervised run's weights: its supervised stage would
-                        # reproduce them
-                        init = (group_runs[0] if setting == "semi" and group_runs and settings[0] == "supervised"
+                        # reproduce them; semi-weakly takes them when no pseudo-labelled scan fits
+                        # (it would train the same model again)
+                        init = (group_runs[0] if setting != "supervised" and group_runs and settings[0] == "supervised"
                                 else None)
+                        after = ([init] if init is not None else []) + ([pseudo] if setting == "semi-weakly" else [])
                         chain.append(_AncshStage(
                             f"{v.prefix}train ancsh {label} ({setting}{tag})", run_dir,
                             {**base, "ancsh": acg.key(), "cat": cat, "setting": setting,
                              **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
-                            cat, setting, g.structure, init, shared_g,
-                            [init] if init is not None else [pseudo] if setting == "semi-weakly" else []))
+                            cat, setting, g.structure, init, shared_g, after))
                         group_runs.append(run_dir)
                     runs += group_runs
                 runs_of[(seed, cat)] = runs
@@ -779,7 +780,8 @@ class _AncshShared:
 @dataclasses.dataclass(frozen=True)
 class _AncshStage:
     """One ANCSH training stage: name, run folder, stage key, category, setting, structure, the
-    supervised run it starts from (semi) and what the variant's trainings share."""
+    supervised run it starts from (semi) or may reuse (semi-weakly, :func:`train_ancsh`'s
+    ``init``) and what the variant's trainings share."""
 
     name: str
     folder: Path
@@ -803,7 +805,8 @@ class _AncshStage:
 
 def _pending(chain: list[_AncshStage]) -> list[_AncshStage]:
     """The stages of a chain to run, in order: those not up to date (:func:`stage_done`, with
-    the stages they read from), and a semi stage whose supervised run is among them."""
+    the stages they read from), and a semi or semi-weakly stage whose supervised run is among
+    them."""
     out: list[_AncshStage] = []
     for a in chain:
         if not stage_done(a.folder, a.key, after=a.after) or any(b.folder == a.init for b in out):
