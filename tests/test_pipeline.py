@@ -70,6 +70,7 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert kept and all(json.loads(p.read_text())["options"]["refine"]["ranker"] == ranker_file for p in kept)
     # ... and the coarse GNN had to agree on each kept joint (issue 34)
     assert all(j["check_agrees"] is True for p in kept for j in json.loads(p.read_text())["joints"])
+    assert all(json.loads(p.read_text())["models"]["check"] == str(run / "gnn_coarse") for p in kept)
     assert result["stages"]["table1"] == [str(run / "eval/pre-segmented"), str(run / "eval/pre-segmented-paper")]
     # the gallery shows the Table 1 renders of the test shapes, one per shape and model
     test = split["test"]

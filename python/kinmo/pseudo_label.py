@@ -374,7 +374,8 @@ def _write_folder(
         "threshold": config.threshold,
         "min_score": min(r["score"] for r in records),
         "joints": records,
-        "models": {"gnn": models.gnn_path, "axis": models.axis_path},
+        "models": {"gnn": models.gnn_path, "axis": models.axis_path,
+                   **({"check": models.check_path} if models.check_path else {})},
         "options": config.model_dump(mode="json"),
         "frame": "mesh (y-up)",
     })
