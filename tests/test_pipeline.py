@@ -68,6 +68,9 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     assert result["stages"]["pseudo_rule"] == [str(run / "eval/pseudo-label-rule")]
     kept = list((run / "pseudo").glob("*/scores.json"))
     assert kept and all(json.loads(p.read_text())["options"]["refine"]["ranker"] == ranker_file for p in kept)
+    # ... and the coarse GNN had to agree on each kept joint (issue 34)
+    assert all(j["check_agrees"] is True for p in kept for j in json.loads(p.read_text())["joints"])
+    assert all(json.loads(p.read_text())["models"]["check"] == str(run / "gnn_coarse") for p in kept)
     assert result["stages"]["table1"] == [str(run / "eval/pre-segmented"), str(run / "eval/pre-segmented-paper")]
     # the gallery shows the Table 1 renders of the test shapes, one per shape and model
     test = split["test"]
@@ -79,6 +82,8 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium):
     # the model bundle: one folder that --model accepts whole, the learned selector by default
     bundle = json.loads((run / "model/bundle.json").read_text())
     assert (bundle["selector"], bundle["ranker"], bundle["axis"]) == ("ranker", "ranker.json", "axis")
+    assert bundle["check"] == "check" and (run / "model/check/model.pt").read_bytes() == (
+        run / "gnn_coarse/model.pt").read_bytes()
     assert bundle["trained_on"] == sorted(split["train"])
     assert result["stages"]["model"] == [str(run / "model")]
     obj = out / "data" / "partnet-mobility" / test[0]

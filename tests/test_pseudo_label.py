@@ -42,8 +42,10 @@ def data(partnet_root: Path, tmp_path_factory) -> Path:
     return d
 
 
-def _hinge_on_largest_leaf(monkeypatch):
-    """Make the GNN predict: the first sibling edge of the deepest-first order is a hinge."""
+def _hinge_on_largest_leaf(monkeypatch, second: str = "R_V_S"):
+    """Make the GNN predict: the first sibling edge of the deepest-first order is a hinge.
+    A run saved in a folder named ``check`` (the second model) predicts type ``second``
+    there instead, with the same axis."""
     import kinmo.inference.gnn
     from kinmo.mobility_tree import EdgePrediction
     from kinmo.refine.selector import GNNPriors
@@ -59,7 +61,7 @@ def _hinge_on_largest_leaf(monkeypatch):
             if e:
                 i = int(g.sibling_edges[0, 0])
                 p[0] = 0.0
-                p[0, FINE_INDEX["R_V_S"]] = 1.0
+                p[0, FINE_INDEX[second if "check" in Path(run.path).parts else "R_V_S"]] = 1.0
                 o[0] = g.obb_center[i] + g.obb_half_extents[i] @ np.abs(g.obb_axes[i])
             out.append(EdgePrediction(p, d, o))
         return out
@@ -132,6 +134,64 @@ def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path,
     # resume: every record is current, nothing is recomputed
     res2 = pseudo_label_dataset(data, *runs, out, cfg, progress=False)
     assert res2.n_skipped == len(SHAPES) and res2.count("kept") == len(SHAPES)
+
+
+@pytest.mark.exactdata
+def test_a_second_model_must_agree_on_every_joint(data, runs, tmp_path, monkeypatch):
+    """Issue 34: with a second GNN (``check_run``), a shape is kept only when that model gives
+    each joint's motion at least ``agree_prob`` and an axis within ``agree_deg``."""
+    check, _ = write_untrained_models(tmp_path / "models", gnn="check")
+    cfg = PseudoLabelConfig(threshold=0.0)
+    # the second model predicts the same hinge: kept, and the record says why
+    _hinge_on_largest_leaf(monkeypatch)
+    res = pseudo_label_dataset(data, *runs, tmp_path / "same", cfg, progress=False, check_run=check)
+    assert [r.status for r in res.records] == ["kept"] * len(SHAPES), res.records
+    for r in res.records:
+        (j,) = r.joints
+        assert j["check_agrees"] is True and j["check_prob"] == pytest.approx(1.0)
+        assert j["check_axis_deg"] == pytest.approx(0.0, abs=1e-6)
+    # ... a slider there: no shape is kept, each with one line naming the joint
+    out = tmp_path / "slider"
+    _hinge_on_largest_leaf(monkeypatch, second="P_V")
+    res = pseudo_label_dataset(data, *runs, out, cfg, progress=False, check_run=check)
+    assert [r.status for r in res.records] == ["disagreement"] * len(SHAPES), res.records
+    for r in res.records:
+        assert "not confirmed by the second model" in r.reason and "probability 0.00" in r.reason
+        assert r.joints[0]["check_agrees"] is False and not (out / r.id).exists()
+    with open(out / "summary.csv") as fh:
+        assert int(list(csv.DictReader(fh))[-1]["disagreement"]) == len(SHAPES)
+    # the bound is the caller's: at agree_prob 0 any motion passes (the axes still agree)
+    loose = cfg.model_copy(update={"agree_prob": 0.0})
+    res = pseudo_label_dataset(data, *runs, out, loose, progress=False, check_run=check)
+    assert res.count("kept") == len(SHAPES) and res.n_skipped == 0
+    # without a second model the same shapes are kept, and the record has no check fields
+    res = pseudo_label_dataset(data, *runs, tmp_path / "alone", cfg, progress=False)
+    assert res.count("kept") == len(SHAPES)
+    assert all("check_agrees" not in r.joints[0] for r in res.records)
+
+
+@pytest.mark.exactdata
+def test_cli_takes_the_second_model_from_the_bundle(data, runs, tmp_path, monkeypatch):
+    """``kinmo train all``'s bundle carries its coarse GNN as ``check/``; ``kinmo
+    pseudo-label --model BUNDLE`` then requires it to agree, ``--no-check`` does not."""
+    from typer.testing import CliRunner
+
+    from kinmo.cli import app
+    from kinmo.inference.bundle import read_bundle, write_bundle
+
+    check, _ = write_untrained_models(tmp_path / "models", gnn="check")
+    bundle = tmp_path / "bundle"
+    write_bundle(bundle, runs[0], runs[1], check=check)
+    assert read_bundle(bundle).check == bundle / "check"
+    _hinge_on_largest_leaf(monkeypatch, second="P_V")
+    # the bundle's check/ folder is named "check": the fake predicts a slider for it
+    for extra, status in (([], "disagreement"), (["--no-check"], "kept")):
+        out = tmp_path / f"out{len(extra)}"
+        res = CliRunner().invoke(app, ["pseudo-label", str(data), "--model", str(bundle), "--out", str(out),
+                                       "--threshold", "0", "--quiet", *extra])
+        assert res.exit_code == 0, res.output
+        with open(out / "shapes.csv") as fh:
+            assert {r["status"] for r in csv.DictReader(fh)} == {status}
 
 
 @pytest.mark.exactdata

@@ -111,6 +111,12 @@ class RefineOptions:
         KinmoDataError
             ``model`` is missing or a malformed bundle.
         """
+        b, axis, rc = self.resolve_bundle(model, axis_model)
+        return b.gnn, axis, rc
+
+    def resolve_bundle(self, model: Any, axis_model: Any = None) -> tuple[Any, Any, Any]:
+        """:meth:`resolve` with the whole :class:`~kinmo.inference.bundle.ModelBundle` in
+        place of its GNN run (``kinmo pseudo-label`` also takes its ``check`` model)."""
         from dataclasses import replace
 
         from kinmo.inference.bundle import resolve_bundle
@@ -122,7 +128,7 @@ class RefineOptions:
         # the learned selector needs no network (then the folder of its ranker.json stands for
         # it); the paper's does (the Predictor names a folder without one)
         axis = b.axis if b.has_axis_network or rc.selector != "ranker" else Path(rc.ranker).parent
-        return b.gnn, axis, rc
+        return b, axis, rc
 
     def config(self, axis_model: Any = None) -> Any:
         """:func:`refine_config` of these options (``axis_model`` may hold a ranker.json)."""

@@ -37,12 +37,18 @@ def pseudo_label_cmd(
     fmt: Optional[list[str]] = typer.Option(None, "--format", "-f", help=FORMAT_HELP + " Default: mobility_v2, semantics, urdf (mobility_v2 is always written)."),  # noqa: UP007
     collision: str = typer.Option("parts", "--collision", callback=_values.collision, help=COLLISION_HELP),
     executor: str = EXECUTOR,
+    check_model: Optional[Path] = typer.Option(None, "--check-model", help="Run folder of a second `kinmo train gnn` (e.g. the coarse-type GNN) that must agree on every joint of a kept shape: its probability of the joint's motion at least --agree-prob, its refined axis within --agree-deg [default: the bundle's check/ model; none for bundles without one]."),  # noqa: UP007
+    agree_prob: float = typer.Option(0.5, "--agree-prob", min=0.0, max=1.0, callback=_values.finite, help="With a second model: the least probability it gives each kept joint's motion (R, P, PR)."),
+    agree_deg: float = typer.Option(20.0, "--agree-deg", min=0.0, max=90.0, callback=_values.finite, help="With a second model: the largest angle (degrees) between its refined axis and the kept joint's."),
+    no_check: bool = typer.Option(False, "--no-check", help="Judge with the first model alone, even when the bundle has a check/ model."),
 ) -> None:
     """Predict and refine the motions of every shape under DIR; keep the confident ones.
 
     A shape is kept when every predicted moving joint scores at least --threshold after
     refinement (Liu et al. 2023, Sec. 3.3): its refined line's confidence times its type's
-    probability (--score joint) or the line's confidence alone (--score line). Kept shapes become OUT/<id>/ in the
+    probability (--score joint) or the line's confidence alone (--score line); with a second
+    model (--check-model, or a bundle's check/ model as `kinmo train all` writes it), that model
+    must agree on each joint (issue 34). Kept shapes become OUT/<id>/ in the
     PartNet-Mobility format (mobility_v2.json, semantics.txt, mobility.urdf, textured_objs/,
     scores.json). OUT/summary.csv counts kept and rejected shapes per category,
     OUT/shapes.csv gives every shape's status and reason. Re-running resumes.
@@ -63,7 +69,9 @@ def pseudo_label_cmd(
     console = new_console()
     check_formats(fmt)
     with cli_errors(2):
-        model, axis_model, rc = refine.resolve(model_or_pretrained(model), axis_model)
+        bundle, axis_model, rc = refine.resolve_bundle(model_or_pretrained(model), axis_model)
+    model = bundle.gnn
+    check = None if no_check else (check_model if check_model is not None else bundle.check)
     if axis_model is None:
         fail("no axis network and no ranker: give a model bundle with them, or --axis-model", 2)
     with cli_errors(2, also=(ValueError,)):
@@ -71,13 +79,13 @@ def pseudo_label_cmd(
             threshold=threshold, score=score,
             refine=rc,
             sign=sign, consistent=consistent, link="copy" if copy else link, device=device,
-            collision=collision,
+            collision=collision, agree_prob=agree_prob, agree_deg=agree_deg,
             **({"formats": tuple(fmt)} if fmt else {}),
         )
     with cli_errors(2):
         res = pseudo_label_dataset(data_dir, model, axis_model, out, config, workers=workers,
                                    cache=cache, force=force, progress=not quiet,
-                                   executor=executor)
+                                   executor=executor, check_run=check)
 
     table = Table(title=f"Pseudo-labels (threshold {threshold:g})")
     table.add_column("category")

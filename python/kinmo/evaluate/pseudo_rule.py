@@ -159,7 +159,7 @@ class PseudoRuleReport:
 
 
 def grade_pseudo_rule(predictor: Any, graphs: Sequence[PartGraph], config: PseudoLabelConfig,
-                      meshes: Any = None) -> PseudoRuleReport:
+                      meshes: Any = None, check: Any = None) -> PseudoRuleReport:
     """Put labelled graphs through the pseudo-label rule and grade it (module docstring).
 
     Parameters
@@ -171,12 +171,15 @@ def grade_pseudo_rule(predictor: Any, graphs: Sequence[PartGraph], config: Pseud
     graphs : sequence of PartGraph
         Labelled graphs the models did not train on; unlabelled ones are skipped.
     config : PseudoLabelConfig
-        ``threshold``, ``score``, ``sign``, ``consistent``, ``hinge_limit`` and
-        ``slider_fraction`` are used, as in :func:`kinmo.pseudo_label.pseudo_label_shape`.
+        ``threshold``, ``score``, ``sign``, ``consistent``, ``hinge_limit``,
+        ``slider_fraction``, ``agree_prob`` and ``agree_deg`` are used, as in
+        :func:`kinmo.pseudo_label.pseudo_label_shape`.
     meshes : callable or None
         Per graph, its leaf meshes for the refinement's sweep
         (:meth:`~kinmo.inference.predictor.Predictor.refine_with_details`); None: read from
         each graph's source folder.
+    check : kinmo.inference.predictor.Predictor or None
+        The second model that must agree (``kinmo pseudo-label``'s ``check_run``), or None.
 
     Returns
     -------
@@ -187,7 +190,7 @@ def grade_pseudo_rule(predictor: Any, graphs: Sequence[PartGraph], config: Pseud
         if not g.has_labels or not len(g.sibling_edges):
             continue
         rep.n_objects += 1
-        links, joints = score_graph(predictor, g, config, meshes=meshes)
+        links, joints = score_graph(predictor, g, config, meshes=meshes, check=check)
         kept = judge(joints, config.threshold)[0] == "kept"
         if kept:
             rep.kept.append(g.shape_id)

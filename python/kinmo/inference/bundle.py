@@ -11,6 +11,9 @@ Layout of a bundle folder (written by :func:`write_bundle`, e.g. ``runs/all/mode
     ranker.json      optional: the learned selector, with its semantic direction prior
     ranges.json      optional: the range-of-motion prior (issue 35; key "ranges" in
                      bundle.json, absent in older bundles)
+    check/           optional: a second motion-GNN run (``kinmo train all``: the coarse-type
+                     GNN) that ``kinmo pseudo-label`` requires to agree on every kept joint
+                     (issue 34; key "check", absent in older bundles)
 
 :func:`resolve_bundle` also accepts what users passed before bundles existed: a GNN run
 folder (or ``model.pt``) with ``--axis-model`` / ``--ranker``. A ranker is then looked for
@@ -57,6 +60,9 @@ class ModelBundle:
         The bundle folder (None for a GNN run given alone).
     ranges : Path or None
         ``ranges.json``, the range-of-motion prior (:class:`kinmo.ranges.RangePrior`), if any.
+    check : Path or None
+        A second motion-GNN run folder that pseudo-labelling requires to agree
+        (:func:`kinmo.pseudo_label.pseudo_label_dataset` ``check_run``), if any.
     """
 
     gnn: Path
@@ -65,6 +71,7 @@ class ModelBundle:
     trained_on: tuple[str, ...] = field(default=())
     root: Path | None = None
     ranges: Path | None = None
+    check: Path | None = None
 
     @property
     def has_axis_network(self) -> bool:
@@ -116,7 +123,7 @@ def read_bundle(path: str | Path) -> ModelBundle:
     if not isinstance(ids, list) or not all(isinstance(i, str) for i in ids):
         raise KinmoDataError(f, "malformed model bundle: 'trained_on' must be a list of ids")
     return ModelBundle(part("gnn", True), part("axis", False), part("ranker", False),  # type: ignore[arg-type]
-                       tuple(ids), root, part("ranges", False))
+                       tuple(ids), root, part("ranges", False), part("check", False))
 
 
 def resolve_bundle(model: str | Path, axis_model: str | Path | None = None,
@@ -152,12 +159,12 @@ def resolve_bundle(model: str | Path, axis_model: str | Path | None = None,
     axis = Path(axis_model) if axis_model is not None else b.axis
     rk = Path(ranker) if ranker is not None else (
         b.ranker if b.ranker is not None and axis_model is None else find_ranker(axis) or b.ranker)
-    return ModelBundle(b.gnn, axis, rk, b.trained_on, b.root, b.ranges)
+    return ModelBundle(b.gnn, axis, rk, b.trained_on, b.root, b.ranges, b.check)
 
 
 def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = None,
                  ranker: str | Path | None = None, trained_on: Sequence[str] = (),
-                 ranges: str | Path | None = None) -> ModelBundle:
+                 ranges: str | Path | None = None, check: str | Path | None = None) -> ModelBundle:
     """Write a bundle folder (module docstring) by copying the trained parts into ``out``.
 
     Parameters
@@ -175,6 +182,9 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
         Shape ids the models were trained on (the training split).
     ranges : str or Path, optional
         ``ranges.json``, the range-of-motion prior (:meth:`kinmo.ranges.RangePrior.save`).
+    check : str or Path, optional
+        Run folder of a second ``kinmo train gnn`` (its ``model.pt`` and ``config.json`` are
+        copied into ``check/``): the model pseudo-labelling requires to agree.
 
     Returns
     -------
@@ -195,6 +205,9 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
         raise KinmoDataError(Path(ranker), "ranker file missing (run `kinmo train ranker`)")
     if ranges is not None and not Path(ranges).is_file():
         raise KinmoDataError(Path(ranges), "range prior missing (run `kinmo train all`)")
+    check_pt = None if check is None else (Path(check) if Path(check).is_file() else Path(check) / "model.pt")
+    if check_pt is not None and not check_pt.is_file():
+        raise KinmoDataError(check_pt, "second motion-GNN weights missing (run `kinmo train gnn`)")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.{os.getpid()}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
@@ -227,12 +240,18 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
             shutil.copy2(ranker, tmp / "ranker.json")
         if ranges is not None:
             shutil.copy2(ranges, tmp / "ranges.json")
+        if check_pt is not None:
+            (tmp / "check").mkdir()
+            shutil.copy2(check_pt, tmp / "check" / "model.pt")
+            if (check_pt.parent / "config.json").is_file():
+                shutil.copy2(check_pt.parent / "config.json", tmp / "check" / "config.json")
         selector = "ranker" if ranker is not None else ("paper" if axis is not None else "none")
         write_json(tmp / BUNDLE_FILE, {
             "format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "gnn": "gnn",
             "axis": "axis" if axis is not None else None,
             "ranker": "ranker.json" if ranker is not None else None,
             "ranges": "ranges.json" if ranges is not None else None,
+            "check": "check" if check_pt is not None else None,
             "selector": selector, "trained_on": sorted(str(i) for i in trained_on),
         })
         if out.exists():

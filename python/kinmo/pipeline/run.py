@@ -222,10 +222,12 @@ class _Context:
         return split_file, hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]
 
     def pseudo_rule(self, v: _Variant, base: dict[str, Any], gnn_run: Path, axis_dir: Path,
-                    pcfg: PseudoLabelConfig, eval_cache: Path, split_file: Path, after: list[Path]) -> Path:
+                    pcfg: PseudoLabelConfig, eval_cache: Path, split_file: Path, after: list[Path],
+                    check_run: Path | None = None) -> Path:
         """The ``eval pseudo-label rule`` stage (issue 34): :func:`kinmo.evaluate.pseudo_rule.grade_pseudo_rule`
-        of the pseudo-labelling models on the split's labelled test objects, into
-        ``out/eval/pseudo-label-rule/`` (``summary.json``, ``summary.md``), and one line.
+        of the pseudo-labelling models (``check_run``: the second GNN that must agree) on the
+        split's labelled test objects, into ``out/eval/pseudo-label-rule/`` (``summary.json``,
+        ``summary.md``), and one line.
 
         Returns
         -------
@@ -238,10 +240,13 @@ class _Context:
             test = set(Split.load(split_file).test)
             graphs = [g for g in load_cache(eval_cache) if g.shape_id in test]
             predictor = Predictor.from_parts(gnn_run, axis_dir, pcfg.refine, device=pcfg.device)
-            write_pseudo_rule(grade_pseudo_rule(predictor, graphs, pcfg), folder)
+            check = (None if check_run is None else
+                     Predictor.from_parts(check_run, axis_dir, pcfg.refine, device=pcfg.device))
+            write_pseudo_rule(grade_pseudo_rule(predictor, graphs, pcfg, check=check), folder)
 
         self.stage(folder, {**base, "pseudo": pcfg.model_dump(), "data": str(eval_cache),
-                            "split": file_fingerprint(split_file)}, run,
+                            "split": file_fingerprint(split_file),
+                            "check": None if check_run is None else str(check_run)}, run,
                    f"{v.prefix}eval pseudo-label rule", after=after)
         f = folder / "summary.json"
         if f.is_file():
@@ -285,9 +290,11 @@ class _Context:
         return out
 
     def bundle(self, v: _Variant, base: dict[str, Any], gnn: Path, axis: Path | None,
-               ranker: Path | None, split_file: Path, ranges: Path | None = None) -> Path:
+               ranker: Path | None, split_file: Path, ranges: Path | None = None,
+               check: Path | None = None) -> Path:
         """The ``model bundle`` stage: ``out/model/`` (:func:`kinmo.inference.bundle.write_bundle`)
-        with ``trained_on`` the split's training ids; rewritten when a part changed.
+        with ``trained_on`` the split's training ids and ``check`` the coarse GNN that
+        pseudo-labelling requires to agree; rewritten when a part changed.
 
         Returns
         -------
@@ -297,10 +304,11 @@ class _Context:
 
         folder = v.out / "model"
         parts = [gnn / "model.pt", *([axis / "model.pt"] if axis is not None else []),
-                 *([ranker] if ranker is not None else []), *([ranges] if ranges is not None else [])]
+                 *([ranker] if ranker is not None else []), *([ranges] if ranges is not None else []),
+                 *([check / "model.pt"] if check is not None else [])]
         key = {**base, "bundle": {str(p): file_fingerprint(p) for p in parts if p.is_file()}}
         self.stage(folder, key, lambda: write_bundle(
-            folder, gnn, axis, ranker, Split.load(split_file).train, ranges), f"{v.prefix}model bundle")
+            folder, gnn, axis, ranker, Split.load(split_file).train, ranges, check), f"{v.prefix}model bundle")
         self.res.stages[f"{v.prefix}model"] = [str(folder)]
         return folder
 
@@ -452,7 +460,8 @@ class _Context:
 
         # 5b. the model bundle (issue 22): GNN (fine), axis network, ranker, range prior and the
         # training ids in one folder that `--model` accepts whole (learned selector by default)
-        self.bundle(v, base, gnn_runs["fine"], axis_dir if cfg.refine else None, ranker, split_file, ranges)
+        self.bundle(v, base, gnn_runs["fine"], axis_dir if cfg.refine else None, ranker, split_file, ranges,
+                    gnn_runs["coarse"])
 
         # 6. Table 1 on the held-out pre-segmented shapes (always the real labelled ones),
         # with renders of the predictions for the report's gallery; with the learned
@@ -483,19 +492,22 @@ class _Context:
         pseudo = out / "pseudo"
         if v.unlabeled is not None:
 
+            # a shape is kept when the coarse GNN agrees on each joint too (issue 34: the
+            # fine GNN's confident 90-degree flips and false movers)
             pcfg = PseudoLabelConfig(threshold=cfg.threshold, refine=refine)
-            self.stage(pseudo, {**base, "pseudo": pcfg.model_dump()},
+            self.stage(pseudo, {**base, "pseudo": pcfg.model_dump(), "check": str(gnn_runs["coarse"])},
                        lambda: pseudo_label_dataset(
                            v.unlabeled, gnn_runs["fine"], axis_dir, pseudo, pcfg, workers=cfg.workers,
-                           cache=v.unlabeled_cache, progress=progress), f"{v.prefix}pseudo-label",
-                       after=[gnn_runs["fine"], *refiners])
+                           cache=v.unlabeled_cache, progress=progress, check_run=gnn_runs["coarse"]),
+                       f"{v.prefix}pseudo-label", after=[gnn_runs["fine"], gnn_runs["coarse"], *refiners])
             res.stages[f"{v.prefix}pseudo"] = [str(pseudo)]
             # 7a. the same rule graded on the labelled test objects (issue 34: a looser rule
             # is invisible on the unlabelled shapes); models reused from the baseline were
             # graded there
             if not ("gnn_fine" in v.reuse and "axis" in v.reuse):
                 self.pseudo_rule(v, base, gnn_runs["fine"], axis_dir, pcfg, eval_cache, split_file,
-                                 after=[gnn_runs["fine"], *refiners])
+                                 after=[gnn_runs["fine"], gnn_runs["coarse"], *refiners],
+                                 check_run=gnn_runs["coarse"])
 
         # 8. ANCSH on partial scans, three settings, per category (Sec. 3.4, Table 2)
         if cfg.skip_ancsh:

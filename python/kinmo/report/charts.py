@@ -206,6 +206,7 @@ def stacked_chart(groups: Sequence[str], stacks: dict[str, list[float]], title: 
     fig, ax = plt.subplots(figsize=(7.5, 0.45 * len(groups) + 1.6), layout="constrained")
     left = [0.0] * len(groups)
     colours = {"kept": "#2e8b57", "no_moving_joint": "#9aa5b1", "below_threshold": "#e0a030",
+               "disagreement": "#8e6cc0",
                "failed": "#c0392b"}
     for i, (name, vals) in enumerate(stacks.items()):
         ax.barh(range(len(groups)), vals, left=left, label=name,
