@@ -320,9 +320,10 @@ def _load_models(gnn_run: Path, axis_run: Path, device: str, refine: Any = None,
     from kinmo.inference.predictor import Predictor  # torch: in the processes that run models
 
     fp = _models_fingerprint(gnn_run, axis_run, check_run)
-    check = None if check_run is None else Predictor.from_parts(check_run, axis_run, refine, device=device)
-    return _Models(Predictor.from_parts(gnn_run, axis_run, refine, device=device), fp,
-                   str(gnn_run), str(axis_run), check, "" if check_run is None else str(check_run))
+    predictor = Predictor.from_parts(gnn_run, axis_run, refine, device=device)
+    check = None if check_run is None else predictor.with_gnn(check_run, device)
+    return _Models(predictor, fp, str(gnn_run), str(axis_run), check,
+                   "" if check_run is None else str(check_run))
 
 
 def _link_or_copy(src: Path, dst: Path, mode: str) -> None:

@@ -27,7 +27,7 @@ from __future__ import annotations
 import os
 import shutil
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from kinmo.errors import KinmoDataError
@@ -159,7 +159,7 @@ def resolve_bundle(model: str | Path, axis_model: str | Path | None = None,
     axis = Path(axis_model) if axis_model is not None else b.axis
     rk = Path(ranker) if ranker is not None else (
         b.ranker if b.ranker is not None and axis_model is None else find_ranker(axis) or b.ranker)
-    return ModelBundle(b.gnn, axis, rk, b.trained_on, b.root, b.ranges, b.check)
+    return replace(b, axis=axis, ranker=rk)
 
 
 def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = None,

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -127,6 +127,19 @@ class Predictor:
                                  "a run of `kinmo train axis` or a ranker")
         net = load_axis_model(axis, _axis_device(r)) if has_net else None
         return cls(r, net, cfg, options, ranges=ranges)
+
+    def with_gnn(self, run: str | Path | Run, device: str = "auto") -> Predictor:
+        """This predictor's refinement (axis network, selector, range prior, options) with
+        another motion-GNN run (folder or loaded): a second model judged like the first
+        (:func:`kinmo.pseudo_label.score_graph`'s ``check``), its shared parts not loaded
+        again.
+
+        Raises
+        ------
+        KinmoDataError
+            The run cannot be loaded.
+        """
+        return replace(self, run=run if isinstance(run, Run) else load_run(run, device), bundle=None)
 
     @classmethod
     def from_bundle(cls, model: str | Path, device: str = "auto", selector: SelectorName = "auto",

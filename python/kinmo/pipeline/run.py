@@ -240,8 +240,7 @@ class _Context:
             test = set(Split.load(split_file).test)
             graphs = [g for g in load_cache(eval_cache) if g.shape_id in test]
             predictor = Predictor.from_parts(gnn_run, axis_dir, pcfg.refine, device=pcfg.device)
-            check = (None if check_run is None else
-                     Predictor.from_parts(check_run, axis_dir, pcfg.refine, device=pcfg.device))
+            check = None if check_run is None else predictor.with_gnn(check_run, pcfg.device)
             write_pseudo_rule(grade_pseudo_rule(predictor, graphs, pcfg, check=check), folder)
 
         self.stage(folder, {**base, "pseudo": pcfg.model_dump(), "data": str(eval_cache),
