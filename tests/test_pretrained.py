@@ -18,6 +18,8 @@ def test_the_default_bundle_is_installed_with_its_license_and_training_ids():
     assert path == PRETRAINED_DIR / DEFAULT_MODEL and is_pretrained(path / "gnn")
     b = read_bundle(path)
     assert b.has_axis_network and b.ranker is not None  # the learned selector by default
+    # the coarse GNN that pseudo-labelling requires to agree (issue 34)
+    assert b.check is not None and json.loads((b.check / "config.json").read_text())["model"]["types"] == "coarse"
     assert len(b.trained_on) >= 200  # every labelled shared object plus kept pseudo-labels
     lic = (path / "LICENSE").read_text()
     assert "non-commercial" in lic.splitlines()[0]
@@ -66,6 +68,9 @@ def test_pseudo_label_needs_no_model_and_writes_convex_collision(tmp_path):
     assert f"pretrained model {DEFAULT_MODEL}" in " ".join(r.output.split())
     kept = [p for p in (tmp_path / "out").iterdir() if (p / "mobility.urdf").is_file()]
     assert kept, r.output
+    for obj in kept:  # the bundle's check/ model agreed on every kept joint
+        scores = json.loads((obj / "scores.json").read_text())
+        assert scores["models"]["check"] and all(j["check_agrees"] is True for j in scores["joints"])
     for obj in kept:  # the default collision: at least one convex piece per leaf mesh
         shape = read_shape(obj)
         n_leaves = sum(len(shape.hierarchy.mesh_names(pid)) for l in shape.links for pid in l.parts)

@@ -192,6 +192,12 @@ def test_cli_takes_the_second_model_from_the_bundle(data, runs, tmp_path, monkey
         assert res.exit_code == 0, res.output
         with open(out / "shapes.csv") as fh:
             assert {r["status"] for r in csv.DictReader(fh)} == {status}
+    # a second model given and turned off at once is a contradiction, said before any work
+    out = tmp_path / "both"
+    res = CliRunner().invoke(app, ["pseudo-label", str(data), "--model", str(bundle), "--out", str(out),
+                                   "--no-check", "--check-model", str(check), "--quiet"])
+    assert res.exit_code == 2 and "--no-check and --check-model" in res.output
+    assert not out.exists()
 
 
 @pytest.mark.exactdata

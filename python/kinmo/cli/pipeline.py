@@ -42,7 +42,7 @@ def train_all(
     selector: str = typer.Option("learned", "--selector",
                                  help="learned (a ranker fit on out-of-fold GNNs; Table 1 adds the paper's rows) "
                                       "or paper (0.5/0.3/0.2): how refinement picks an axis."),
-    release: bool = typer.Option(False, "--release", help="Also train the release bundle OUT/release/model: the fine GNN and the axis network again on every labelled object and the kept pseudo-labels (the pretrained model's recipe)."),
+    release: bool = typer.Option(False, "--release", help="Also train the release bundle OUT/release/model: the fine GNN, the coarse GNN (its check/ for pseudo-labelling) and the axis network again on every labelled object and the kept pseudo-labels (the pretrained model's recipe)."),
 ) -> None:
     """Prepare, train the motion GNN, the axis network and the ranker, pseudo-label, render and train
     ANCSH in three settings, evaluate (Tables 1 and 2) and write the report.

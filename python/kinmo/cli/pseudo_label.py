@@ -68,6 +68,8 @@ def pseudo_label_cmd(
 
     console = new_console()
     check_formats(fmt)
+    if no_check and check_model is not None:
+        fail("--no-check and --check-model contradict each other: give one of them", 2)
     with cli_errors(2):
         bundle, axis_model, rc = refine.resolve_bundle(model_or_pretrained(model), axis_model)
     model = bundle.gnn

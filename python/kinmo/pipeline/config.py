@@ -98,9 +98,9 @@ class PipelineConfig(BaseModel):
         ``False`` sets all three to 0 (the demo and ``tiny``, to stay fast). The coarse GNN
         never gets them (Table 1's coarse column stays the paper's).
     release : bool
-        After the baseline, train the release bundle (``out/release/model/``): the fine GNN
-        and the axis network again on every labelled object and the kept pseudo-labels,
-        with the baseline's ranker (:meth:`kinmo.pipeline.run._Context.release`; the
+        After the baseline, train the release bundle (``out/release/model/``): the fine GNN,
+        the coarse GNN (the bundle's ``check/``) and the axis network again on every
+        labelled object and the kept pseudo-labels, with the baseline's ranker (:meth:`kinmo.pipeline.run._Context.release`; the
         pretrained model of ``kinmo.pretrained`` is made so, issue 22).
     """
 

@@ -625,9 +625,10 @@ class _Context:
     def release(self, cache_l: Path, prep: Any) -> Path:
         """The release bundle (``kinmo train all --release``, issue 22) in ``out/release/model/``.
 
-        The fine motion GNN (with the preset's augmentations) and the axis network are
-        trained again, by the baseline's recipe, on every labelled object plus the
-        pseudo-labels the baseline kept (``out/pseudo/``, prepared into
+        The fine motion GNN (with the preset's augmentations), the coarse motion GNN (the
+        bundle's ``check/``, which pseudo-labelling with the bundle requires to agree, issue
+        34) and the axis network are trained again, by the baseline's recipe and ``-j`` at
+        a time, on every labelled object plus the pseudo-labels the baseline kept (``out/pseudo/``, prepared into
         ``out/release/cache/pseudo``); nothing is held out. The learned selector is the
         baseline's ranker (fit on out-of-fold predictions of the training split). The
         bundle's ``trained_on`` lists every id used, so ``kinmo eval`` leaves them out.
@@ -663,24 +664,37 @@ class _Context:
         Split(sorted(cats), [], cats, cfg.seed, 0.0).save(split_file)
         base = {"seed": cfg.seed, "preset": cfg.preset,
                 "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]}
-        gcfg = gnn_preset(cfg.preset, types="fine", seed=cfg.seed, epochs=cfg.gnn_epochs,
-                          **({} if cfg.augment_gnn else NO_AUGMENTATIONS))
-        gnn_dir = vout / "gnn_fine"
-        self.stage(gnn_dir, {**base, "gnn": gcfg.model_dump()}, lambda: train_gnn(
-            graphs(), gnn_dir, gcfg, split=split_file, progress=progress), "release: train gnn (fine)")
+        # the fine GNN (the bundle's), the coarse GNN (its check/: pseudo-labelling with the
+        # bundle requires it to agree, issue 34) and the axis network: independent trainings,
+        # -j N at a time (run_in_parallel), each as the baseline trains it
+        trainings: list[_Training] = []
+        for types in ("fine", "coarse"):
+            gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
+                              **({} if cfg.augment_gnn and types == "fine" else NO_AUGMENTATIONS))
+            trainings.append(_Training(f"release: train gnn ({types})", "gnn", vout / f"gnn_{types}", gcfg,
+                                       split_file, {**base, "gnn": gcfg.model_dump()}, caches))
+        gnn_dir, check_dir = trainings[0].folder, trainings[1].folder
         axis_dir = None
         if cfg.refine:
             axis_dir = vout / "axis"
             acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
                                seed=cfg.seed)
-            self.stage(axis_dir, {**base, "axis": acfg.model_dump()}, lambda: train_axis_model(
-                graphs(), axis_dir, acfg, split=split_file, progress=progress), "release: train axis")
+            trainings.insert(0, _Training("release: train axis", "axis", axis_dir, acfg, split_file,
+                                          {**base, "axis": acfg.model_dump()}, caches))
+        chains = [[t] for t in trainings if not stage_done(t.folder, t.key)]
+        if len(chains) > 1 and resolve_workers(cfg.workers, len(chains)) > 1:
+            chains = [[dataclasses.replace(t, graphs=graphs())] for [t] in chains]  # loaded once, sent
+        self.run_in_parallel(chains, lambda n, w: f"release: train {n} models, {w} at a time",
+                             "release: train", "models")
+        for t in trainings:
+            self.stage(t.folder, t.key, lambda t=t: dataclasses.replace(t, graphs=graphs()).run(
+                progress, self.console, False), t.name)
         ranker = cfg.out / "ranker" / "ranker.json"
         v = _Variant(out=vout, graphs=caches, split=split_file, labeled=cfg.labeled, unlabeled=None,
                      unlabeled_cache=None, key={}, prefix="release: ")
         ranges = self.range_prior(v, base, lambda: cache_l, split_file)  # labelled objects only
         return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, split_file,
-                           ranges)
+                           ranges, check_dir)
 
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
