@@ -140,3 +140,61 @@ def test_a_copy_that_deferred_to_a_sure_gnn_neither_votes_nor_follows():
     # the same without the flags: the copies vote, and sideways wins
     plain = {k: replace(r, deferred=False) for k, r in details.items()}
     assert sorted(vote_repeated(graph, edges, types, plain, _conf)) == [0, 1]
+
+
+def _three_lines(p_side: float, p_up: tuple[float, float]) -> EdgeRefinement:
+    """A member offered the side by one line and up by two lines (an OBB edge and the centre),
+    which share the up direction's probability; it chose as a ranker choosing by direction
+    does (:func:`kinmo.refine.ranker.direction_choice`)."""
+    from kinmo.refine.ranker import direction_choice
+
+    dirs = np.stack([SIDE, UP, UP])
+    cands = Candidates(np.zeros((3, 3)), dirs, ("edge", "edge", "centre"), "P_V")
+    total = np.array([p_side, *p_up])
+    b = direction_choice(total, dirs)
+    scores = CandidateScores(np.ones(3), np.ones(3), np.ones(3), total, np.ones(3, np.int64), b)
+    return EdgeRefinement(cands, scores, np.zeros(3), dirs[b].copy(), calibrated=float(total[b]),
+                          dir_prior=np.array([0.2, 0.8, 0.8]))
+
+
+def test_a_ranker_choosing_by_direction_votes_with_its_direction_mass():
+    """The phone of session 24: three buttons, each with the side on one line (0.39) and up,
+    the right direction, on two lines (0.33 + 0.24 = 0.57). Each chose up; voting with each
+    member's best line (0.39 against 0.33) turned all three to the side."""
+    graph, edges = _keyboard(3)
+    details = {k: _three_lines(0.39, (0.33, 0.28)) for k in range(3)}
+    assert all(np.allclose(r.direction, UP) for r in details.values())
+    # the mass the members' own choices compared: up wins, nothing changes
+    assert vote_repeated(graph, edges, ["P_V"] * 3, details, _conf, mass=5.0) == {}
+    # the best line per member (rankers choosing the arg-max line): the side wins
+    changed = vote_repeated(graph, edges, ["P_V"] * 3, details, _conf)
+    assert sorted(changed) == [0, 1, 2] and all(np.allclose(r.direction, SIDE) for r in changed.values())
+    # mass still follows the evidence: members sure of the side turn the group
+    details = {k: _three_lines(0.8, (0.1, 0.1)) for k in range(2)} | {2: _three_lines(0.39, (0.33, 0.28))}
+    changed = vote_repeated(graph, edges, ["P_V"] * 3, details, _conf, mass=5.0)
+    assert sorted(changed) == [2] and np.allclose(changed[2].direction, SIDE)
+
+
+def test_the_vote_keeps_what_the_slide_veto_decided():
+    """The table of session 24: six drawers, each with its front line (z) free and two
+    sideways lines (x) blocked, chosen front by the slide veto although the sideways mass is
+    larger. Voting with the mass alone turned them all sideways; with the veto's lines left
+    out nothing changes. Without the sweep (no free fractions) the veto has nothing to say."""
+    front, side = np.array([0.0, 0.0, 1.0]), SIDE
+
+    def drawer(free):
+        dirs = np.stack([front, side, side])
+        cands = Candidates(np.zeros((3, 3)), dirs, ("edge", "edge", "centre"), "P_H")
+        total = np.array([0.45, 0.17, 0.38])
+        scores = CandidateScores(np.ones(3), np.ones(3), np.ones(3), total, np.ones(3, np.int64), 0)
+        return EdgeRefinement(cands, scores, np.zeros(3), front.copy(), calibrated=0.45,
+                              dir_prior=np.array([0.02, 0.97, 0.97]), free=free)
+
+    graph, edges = _keyboard(6)
+    details = {k: drawer(np.array([1.0, 0.05, 0.05])) for k in range(6)}
+    turned = vote_repeated(graph, edges, ["P_H"] * 6, details, _conf, mass=5.0)
+    assert sorted(turned) == list(range(6)) and all(np.allclose(r.direction, side) for r in turned.values())
+    assert vote_repeated(graph, edges, ["P_H"] * 6, details, _conf, mass=5.0, slide_veto=True) == {}
+    # no horizontal line free: the veto rules nothing out, and the mass decides again
+    details = {k: drawer(np.array([0.05, 0.05, 0.05])) for k in range(6)}
+    assert len(vote_repeated(graph, edges, ["P_H"] * 6, details, _conf, mass=5.0, slide_veto=True)) == 6

@@ -78,7 +78,8 @@ from kinmo.refine.scoring import (
 from kinmo.refine.selector import candidate_features, edge_candidates
 
 __all__ = ["BLOCKED_FREE", "OPEN_FREE", "PRIOR_AGAINST", "PRIOR_SURE", "UNSURE_CONFIDENCE", "EdgeRefinement",
-           "blocked_slide_veto", "chosen_line", "hinge_blocked", "refine_edge", "select_edge", "sure_prior"]
+           "blocked_slide_veto", "chosen_line", "hinge_blocked", "refine_edge", "select_edge", "sure_prior",
+           "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -309,6 +310,33 @@ def hinge_blocked(refinement: EdgeRefinement) -> bool:
     return f is not None and f.size > 0 and float(np.max(f)) < BLOCKED_FREE
 
 
+def vetoed_slides(cands: Candidates, free: np.ndarray | None) -> np.ndarray:
+    """The lines the slide veto rules out (module docs): for a prismatic edge (``"P"``) with
+    some horizontal line free one way (``>=`` :data:`OPEN_FREE`), its blocked lines
+    (``<`` :data:`BLOCKED_FREE`).
+
+    Parameters
+    ----------
+    cands : Candidates
+        The edge's candidates (mesh frame, y-up).
+    free : (C,) float64 or None
+        Each line's ``sweep_free_max``; None (no meshes): nothing is ruled out.
+
+    Returns
+    -------
+    (C,) bool
+        True for a line the veto rules out; all False for other edges.
+    """
+    n = len(cands.directions)
+    if cands.motion != "P" or free is None or not n:
+        return np.zeros(n, dtype=bool)
+    free = np.asarray(free, dtype=np.float64)
+    horizontal = np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y
+    if not (horizontal & (free >= OPEN_FREE)).any():
+        return np.zeros(n, dtype=bool)
+    return free < BLOCKED_FREE
+
+
 def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray, best: int) -> int:
     """The learned selector's choice for a slider, with a blocked slide replaced (module docs).
 
@@ -330,16 +358,16 @@ def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray
         ``best``, unless the edge is prismatic (``"P"``; cylindrical and revolute edges are
         left alone), ``best`` is blocked (``sweep_free_max <`` :data:`BLOCKED_FREE`; horizontal
         or vertical) and some horizontal line is free one way (``>=`` :data:`OPEN_FREE`):
-        then the most probable of those.
+        then the most probable of those (:func:`vetoed_slides`).
     """
     if cands.motion != "P" or best < 0:
         return best
     free = np.asarray(features[:, FEATURES.index("sweep_free_max")], dtype=np.float64)
-    horizontal = np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y
-    if free[best] >= BLOCKED_FREE:
+    if not vetoed_slides(cands, free)[best]:
         return best
+    horizontal = np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y
     ok = np.flatnonzero(horizontal & (free >= OPEN_FREE))
-    return best if ok.size == 0 else int(ok[np.argmax(np.asarray(prob)[ok])])
+    return int(ok[np.argmax(np.asarray(prob)[ok])])
 
 
 def select_edge(

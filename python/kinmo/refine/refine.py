@@ -57,6 +57,7 @@ from kinmo.mobility_tree import (
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import OPEN_FREE, EdgeRefinement, hinge_blocked, refine_edge, select_edge
 from kinmo.refine.repeated import vote_repeated
+from kinmo.refine.ranker import DIRECTION_TOL_DEG
 
 logger = logging.getLogger(__name__)
 
@@ -380,7 +381,9 @@ def refine_predictions(
                 types[k] = "P_H"
         details[int(k)] = r
     if ranker is not None and cfg.vote_repeated and details:
-        details.update(vote_repeated(graph, pred.edges, types, details, ranker.confidence))
+        details.update(vote_repeated(graph, pred.edges, types, details, ranker.confidence,
+                                     mass=DIRECTION_TOL_DEG if ranker.choice == "direction" else None,
+                                     slide_veto=cfg.sweep_vetoes))
     for k, r in details.items():
         origin[k], direction[k] = r.origin, r.direction
         conf[k] = r.confidence

@@ -18,13 +18,26 @@ The rule, after every edge has been selected:
 2. **Vote.** Directions are compared in each member's own OBB frame (axes ordered by half
    extent, signs dropped), so copies turned about the shape, like a box's four flaps, vote
    alike. Every direction among the members' candidates (within ``angle_deg``) gets the
-   sum over members of each member's highest ranker probability for a candidate in that
-   direction. The direction with the largest sum wins: the selector's evidence pooled over
-   the copies, where each copy alone may be unsure (a key's 19 candidates share the
-   probability, 0.15 at most).
+   sum over members of each member's support for it: the member's highest ranker
+   probability for a candidate in that direction, or, for a ranker that chooses by
+   direction (:func:`kinmo.refine.ranker.direction_choice`, ``mass``), the sum of its
+   probabilities over its candidates in that direction, within the same angle as that
+   choice (``mass`` degrees): the quantity the member's own choice compares. The direction with the largest sum wins: the selector's evidence
+   pooled over the copies, where each copy alone may be unsure (a key's 19 candidates
+   share the probability, 0.15 at most). With the highest probability instead of the mass,
+   a wrong direction offered by one line outvoted the right one offered by several lines
+   that each member's own choice had picked (session 24: out of fold, a phone's three
+   buttons turned off their right direction).
 3. **Follow.** A member off the winning direction takes its own most probable candidate
    within ``angle_deg`` of it (its line's position stays its own), with that candidate's
    calibrated confidence; a member without such a candidate keeps its choice.
+
+With the selector's sweep vetoes on (``slide_veto``), a slider's lines that the slide veto
+rules out (:func:`kinmo.refine.edge.vetoed_slides`: blocked, while one of its horizontal
+lines is free) neither support a direction nor are followed: the vote pools the selector's
+evidence, it does not undo what the sweep decided (session 24: a table's six drawers, each
+turned by the veto from a blocked sideways line to its free front one, were turned back by
+the mass of their two sideways lines).
 
 Frames: mesh frame, like the predictions. Directions are unit (3,) float64 vectors.
 Cost: edges are bucketed by (reference part, type) first, so grouping is linear in the
@@ -39,7 +52,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from kinmo.data.graph import PartGraph
-from kinmo.refine.edge import EdgeRefinement, chosen_line
+from kinmo.refine.edge import EdgeRefinement, chosen_line, vetoed_slides
 
 __all__ = ["repeated_groups", "vote_repeated"]
 
@@ -104,7 +117,8 @@ def _local(graph: PartGraph, node: int, directions: np.ndarray) -> np.ndarray:
 def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
                   details: dict[int, EdgeRefinement],
                   confidence: Callable[[float, float], float], *, extent_tol: float = 0.25,
-                  min_group: int = 3, angle_deg: float = 10.0) -> dict[int, EdgeRefinement]:
+                  min_group: int = 3, angle_deg: float = 10.0,
+                  mass: float | None = None, slide_veto: bool = False) -> dict[int, EdgeRefinement]:
     """Apply the module's rule to the learned selector's choices.
 
     Parameters
@@ -121,6 +135,14 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
     extent_tol, min_group : see :func:`repeated_groups`
     angle_deg : float
         Directions within this angle (up to sign) are the same.
+    mass : float, optional
+        Degrees: a member supports a direction with its probability mass there (the sum
+        over its candidates within ``mass`` degrees of it), as a ranker choosing by
+        direction compares them (:data:`kinmo.refine.ranker.DIRECTION_TOL_DEG`); the
+        voting directions are then also told apart at ``mass`` degrees. None: a member
+        supports a direction with its most probable candidate within ``angle_deg``.
+    slide_veto : bool
+        Leave out the lines the selector's slide veto rules out (module docs).
 
     Returns
     -------
@@ -128,8 +150,11 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
         The edges whose choice changed, with their new refinement (``voted`` True).
     """
     cos = float(np.cos(np.radians(angle_deg)))
+    same = cos if mass is None else float(np.cos(np.radians(mass)))  # one voting direction
     valid = [k for k, r in details.items() if r.scores.best >= 0 and not r.abstained and not r.deferred]
     changed: dict[int, EdgeRefinement] = {}
+    allowed = {k: ~vetoed_slides(details[k].candidates, details[k].free) if slide_veto
+               else np.ones(len(details[k].candidates.directions), dtype=bool) for k in valid}
     for group in repeated_groups(graph, edges, types, valid, extent_tol=extent_tol,
                                  min_group=min_group):
         local = {k: _local(graph, int(edges[k, 0]), details[k].candidates.directions)
@@ -137,18 +162,19 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
         reps = np.zeros((0, 3))
         for k in group:
             for d in local[k]:
-                if not (reps @ d >= cos).any():
+                if not (reps @ d >= same).any():
                     reps = np.vstack([reps, d])
         support = np.zeros(len(reps))
         for k in group:
-            near = local[k] @ reps.T >= cos  # (C, U)
-            support += np.where(near, details[k].scores.total[:, None], 0.0).max(0)
+            near = (local[k] @ reps.T >= same) & allowed[k][:, None]  # (C, U)
+            p = np.where(near, details[k].scores.total[:, None], 0.0)
+            support += p.max(0) if mass is None else p.sum(0)
         win = reps[int(np.argmax(support))]
         for k in group:
             r = details[k]
             if float(local[k][r.scores.best] @ win) >= cos:  # its chosen line is a candidate
                 continue
-            ok = local[k] @ win >= cos
+            ok = (local[k] @ win >= cos) & allowed[k]
             if not ok.any():
                 continue
             p = np.where(ok, r.scores.total, -np.inf)
