@@ -311,6 +311,16 @@ class _Context:
         self.res.stages[f"{v.prefix}model"] = [str(folder)]
         return folder
 
+    def train_models(self, v: _Variant, base: dict[str, Any], trainings: list[_Training],
+                     graphs: Callable[[], Any]) -> None:
+        """The stages of ``trainings``: those not up to date trained ``cfg.workers`` at a time
+        (:meth:`train_in_parallel`), then each stage in turn (trained here when the pool did
+        not run, e.g. with one worker)."""
+        self.train_in_parallel(v, base, trainings, graphs)
+        for t in trainings:
+            self.stage(t.folder, t.key, lambda t=t: dataclasses.replace(t, graphs=graphs()).run(
+                self.progress, self.console, False), t.name)
+
     def train_in_parallel(self, v: _Variant, base: dict[str, Any], trainings: list[_Training],
                           graphs: Callable[[], Any]) -> None:
         """Train ``trainings`` (stages not up to date) and the ranker stage's fold GNNs
@@ -440,10 +450,7 @@ class _Context:
                                seed=cfg.seed)
             trainings.append(_Training(f"{v.prefix}train axis", "axis", axis_dir, acfg, split_file,
                                        {**base, "axis": acfg.model_dump()}, v.graphs))
-        self.train_in_parallel(v, base, trainings, graphs)
-        for t in trainings:
-            self.stage(t.folder, t.key, lambda t=t: dataclasses.replace(t, graphs=graphs()).run(progress, console, False),
-                       t.name)
+        self.train_models(v, base, trainings, graphs)
         res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
         if cfg.refine:
             res.stages[f"{v.prefix}axis"] = [str(axis_dir)]
@@ -645,7 +652,7 @@ class _Context:
         """
         import hashlib
 
-        cfg, progress = self.cfg, self.progress
+        cfg = self.cfg
         vout = cfg.out / "release"
         caches = [cache_l]
         pseudo = cfg.out / "pseudo"
@@ -666,7 +673,7 @@ class _Context:
                 "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]}
         # the fine GNN (the bundle's), the coarse GNN (its check/: pseudo-labelling with the
         # bundle requires it to agree, issue 34) and the axis network: independent trainings,
-        # -j N at a time (run_in_parallel), each as the baseline trains it
+        # -j N at a time (train_models), each as the baseline trains it
         trainings: list[_Training] = []
         for types in ("fine", "coarse"):
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
@@ -679,19 +686,13 @@ class _Context:
             axis_dir = vout / "axis"
             acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
                                seed=cfg.seed)
-            trainings.insert(0, _Training("release: train axis", "axis", axis_dir, acfg, split_file,
-                                          {**base, "axis": acfg.model_dump()}, caches))
-        chains = [[t] for t in trainings if not stage_done(t.folder, t.key)]
-        if len(chains) > 1 and resolve_workers(cfg.workers, len(chains)) > 1:
-            chains = [[dataclasses.replace(t, graphs=graphs())] for [t] in chains]  # loaded once, sent
-        self.run_in_parallel(chains, lambda n, w: f"release: train {n} models, {w} at a time",
-                             "release: train", "models")
-        for t in trainings:
-            self.stage(t.folder, t.key, lambda t=t: dataclasses.replace(t, graphs=graphs()).run(
-                progress, self.console, False), t.name)
-        ranker = cfg.out / "ranker" / "ranker.json"
+            trainings.append(_Training("release: train axis", "axis", axis_dir, acfg, split_file,
+                                       {**base, "axis": acfg.model_dump()}, caches))
+        # the baseline's ranker selects: no ranker stage (nor its fold GNNs) of its own
         v = _Variant(out=vout, graphs=caches, split=split_file, labeled=cfg.labeled, unlabeled=None,
-                     unlabeled_cache=None, key={}, prefix="release: ")
+                     unlabeled_cache=None, key={}, prefix="release: ", reuse={"ranker": cfg.out / "ranker"})
+        self.train_models(v, base, trainings, graphs)
+        ranker = cfg.out / "ranker" / "ranker.json"
         ranges = self.range_prior(v, base, lambda: cache_l, split_file)  # labelled objects only
         return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, split_file,
                            ranges, check_dir)

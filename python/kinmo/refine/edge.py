@@ -331,10 +331,15 @@ def vetoed_slides(cands: Candidates, free: np.ndarray | None) -> np.ndarray:
     if cands.motion != "P" or free is None or not n:
         return np.zeros(n, dtype=bool)
     free = np.asarray(free, dtype=np.float64)
-    horizontal = np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y
-    if not (horizontal & (free >= OPEN_FREE)).any():
+    if not _free_horizontal(cands, free).any():
         return np.zeros(n, dtype=bool)
     return free < BLOCKED_FREE
+
+
+def _free_horizontal(cands: Candidates, free: np.ndarray) -> np.ndarray:
+    """``(C,) bool``: horizontal lines (``|d_y| <`` ``_HORIZONTAL_Y``) free one way for at
+    least :data:`OPEN_FREE`, the lines a vetoed slide may take instead."""
+    return (np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y) & (free >= OPEN_FREE)
 
 
 def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray, best: int) -> int:
@@ -365,8 +370,7 @@ def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray
     free = np.asarray(features[:, FEATURES.index("sweep_free_max")], dtype=np.float64)
     if not vetoed_slides(cands, free)[best]:
         return best
-    horizontal = np.abs(np.asarray(cands.directions)[:, 1]) < _HORIZONTAL_Y
-    ok = np.flatnonzero(horizontal & (free >= OPEN_FREE))
+    ok = np.flatnonzero(_free_horizontal(cands, free))
     return int(ok[np.argmax(np.asarray(prob)[ok])])
 
 

@@ -153,12 +153,12 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
     same = cos if mass is None else float(np.cos(np.radians(mass)))  # one voting direction
     valid = [k for k, r in details.items() if r.scores.best >= 0 and not r.abstained and not r.deferred]
     changed: dict[int, EdgeRefinement] = {}
-    allowed = {k: ~vetoed_slides(details[k].candidates, details[k].free) if slide_veto
-               else np.ones(len(details[k].candidates.directions), dtype=bool) for k in valid}
     for group in repeated_groups(graph, edges, types, valid, extent_tol=extent_tol,
                                  min_group=min_group):
         local = {k: _local(graph, int(edges[k, 0]), details[k].candidates.directions)
                  for k in group}
+        allowed = {k: ~vetoed_slides(details[k].candidates, details[k].free) if slide_veto
+                   else np.ones(len(local[k]), dtype=bool) for k in group}
         reps = np.zeros((0, 3))
         for k in group:
             for d in local[k]:
