@@ -97,6 +97,36 @@ def test_urdf_true_joints_turn_their_axes_by_the_child_pose_and_move_fixed_child
     assert (door.type, drawer.type) == ("hinge", "slider")
     assert door.moved == {index["door"], index["handle"]} and drawer.moved == {index["drawer"]}
     assert np.allclose(door.direction, [0, 0, 1]) and np.allclose(drawer.direction, [0, 1, 0])
+    # their ranges: the revolute limit in degrees, the prismatic one in the file's units,
+    # along the same world axes, so that kinmo.metrics.motion_range scores them
+    assert door.joint.limit == pytest.approx((0.0, 89.954), abs=1e-3) and drawer.joint.limit == (0.0, 0.3)
+    assert np.allclose(door.joint.direction, door.direction) and drawer.joint.type.value == "slider"
+    # a continuous joint, or limits missing or not ordered: no range
+    for joint, limit in (('type="continuous"', '<limit effort="1" velocity="1"/>'),
+                         ('type="revolute"', '<limit lower="1" upper="0" effort="1" velocity="1"/>'),
+                         ('type="revolute"', '')):
+        model.write_text(CABINET_URDF.replace('type="revolute"', joint).replace(
+            '<limit lower="0" upper="1.57" effort="1" velocity="1"/>', limit))
+        assert urdf_true_joints(model, parts)[0].joint.limit is None
+
+
+def test_urdf_ranges_are_scored_and_reported(tmp_path):
+    """URDF assets carry their ranges into the scores (an oracle prediction: IoU 1)."""
+    from kinmo.data.model import Joint, JointType
+    from kinmo.evaluate.foreign import foreign_markdown
+    from kinmo.evaluate.user_format import PredJoint, _score_one, score
+
+    (tmp_path / "cab").mkdir()
+    model = tmp_path / "cab" / "model.urdf"
+    model.write_text(CABINET_URDF)
+    door, drawer = urdf_true_joints(model, read_parts(model))
+    pred = [PredJoint(1, "hinge", door.direction, door.moved, Joint(JointType.HINGE, None, door.direction, (0.0, 90.0))),
+            PredJoint(2, "slider", -drawer.direction, drawer.moved,
+                      Joint(JointType.SLIDER, None, -drawer.direction, (-0.3, 0.0)))]
+    s = score([_score_one("cab", [door, drawer], pred)])
+    assert s["range_iou_hinge"] == pytest.approx(89.954 / 90.0, abs=1e-4) and s["range_iou_slider"] == pytest.approx(1.0)
+    md = foreign_markdown({"file": {**s, "failed": 0}})
+    assert "slider range IoU" in md and "| 1.00 | 1.00 |" in md
 
 
 def test_both_variants_are_scored_and_an_unreadable_asset_counts_as_missed(assets, tmp_path):

@@ -230,6 +230,35 @@ def test_a_slider_blocked_on_its_opening_side_and_free_the_other_way_is_turned_r
     assert drawer.limit[0] <= 0.0 and drawer.limit[1] == pytest.approx(ext, rel=0.05)
 
 
+def test_a_slider_learned_to_open_along_minus_its_axis_and_blocked_there_is_turned_round():
+    """The mirror case: a prior that opens along -direction (the kind-level medoid of many
+    buttons, which press inwards, ``[-1, 0]`` extents) on a drawer whose axis points out of
+    the body. Pressed in it is blocked at once, pulled out it is free over the whole learned
+    end: its direction is negated, and its learned lower end pulls it out. The one-sided rule
+    left it at the contact skin, a drawer that does not open (foreign cabinets, issue 35)."""
+    p = _prediction()
+    before = next(lk.joint for lk in p.tree.moving_links if lk.name == "drawer")
+    assert np.allclose(before.direction, [0.0, 0.0, 1.0])
+    out = predict_ranges(p, _prior(("slider", None, None, 5, 0.0, -1.0, 0.0)), _meshes(p.graph))
+    drawer = next(lk.joint for lk in out.tree.moving_links if lk.name == "drawer")
+    assert np.allclose(drawer.direction, [0.0, 0.0, -1.0])
+    ext = np.ptp(p.graph.points[[4, 5]].reshape(-1, 3)[:, 2])
+    # along -direction = +z: out of the body by one depth; the other way, into it, barely
+    assert drawer.limit[0] == pytest.approx(-ext, rel=0.05) and 0.0 <= drawer.limit[1] <= 0.01 * p.graph.scale
+
+
+def test_opens_other_way_is_symmetric_in_the_sign_of_the_learned_range():
+    from kinmo.ranges.predict import SLIDER_FLIP_SHARE, _opens_other_way
+
+    for lo, hi, e_pos, e_neg in ((0.0, 1.0, 0.1, 2.0), (0.0, 1.0, 0.5, 2.0), (0.0, 1.0, 0.1, 0.9),
+                                 (-0.2, 1.0, 0.1, 2.0), (0.0, 0.0, 0.0, 2.0)):
+        assert _opens_other_way(lo, hi, e_pos, e_neg) == _opens_other_way(-hi, -lo, e_neg, e_pos)
+    assert _opens_other_way(-1.0, 0.0, 2.0, 0.5 * SLIDER_FLIP_SHARE)
+    assert not _opens_other_way(-1.0, 0.0, 2.0, 2.0 * SLIDER_FLIP_SHARE)  # not blocked early enough
+    assert not _opens_other_way(-1.0, 0.0, 0.9, 0.0)  # not free over the whole learned end
+    assert not _opens_other_way(-1.0, 1.0, 2.0, 0.0)  # no opening side
+
+
 def test_hinge_hardware_at_the_axis_does_not_stop_the_sweep(monkeypatch):
     """A lug fixed to the body just in front of the door's hinge line, as PartNet models the
     pins and hooks of hinges: the door's points next to the axis meet it in the first

@@ -23,8 +23,11 @@ and every body below it; a predicted moving link matches a true joint when their
 sets have IoU ``>= 0.5`` (greedy, one to one); **fully right** = matched, right type and
 axis within 10 degrees, over all true joints; **false movers** = predicted moving links
 matched to no true joint, per object (:func:`~kinmo.evaluate.user_format.score`). Joint
-ranges are not scored here (the models' limits are control ranges, often not the physical
-travel). An object kinmo cannot read counts its joints as missed, with its error.
+ranges are scored for URDF assets only, against each joint's ``<limit>`` (degrees; the file's
+units for prismatic joints; continuous joints by continuous-or-not), with
+:func:`kinmo.metrics.motion_range.score_range`, as ``kinmo eval user-format`` scores them.
+MJCF ``range`` attributes are often control ranges rather than the physical travel, so MJCF
+joints carry no range. An object kinmo cannot read counts its joints as missed, with its error.
 
 Truth: MJCF (:func:`mjcf_true_joints`) in MuJoCo's world frame at ``qpos0``
 (``mj_kinematics``: ``xaxis`` of each hinge / slide joint); URDF (:func:`urdf_true_joints`)
@@ -34,6 +37,7 @@ link's pose. Both are the frames the readers give the parts in.
 
 from __future__ import annotations
 
+import math
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -43,7 +47,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from kinmo.assets import Part, read_parts
-from kinmo.data.model import JointType, Link
+from kinmo.data.model import Joint, JointType, Link
 from kinmo.data.readers import read_shape
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.evaluate.user_format import (TrueJoint, input_rotation, links_back, score, score_prediction,
@@ -152,7 +156,8 @@ def urdf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[Tr
     (revolute, continuous) / ``"slider"``, ``direction`` the unit ``<axis>`` (default
     ``1 0 0``, in the joint frame, which is the child link's) turned into the URDF's world frame
     at the rest pose, ``moved`` the indices into ``parts`` (named after their links) of the
-    child link and every link below it.
+    child link and every link below it, ``joint`` its range (``<limit>``: degrees for
+    revolute joints, the file's units for prismatic ones; none for continuous joints).
 
     Raises
     ------
@@ -192,8 +197,26 @@ def urdf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[Tr
         axis = np.array([1.0, 0.0, 0.0]) if ax is None else numbers(ax, "xyz", 3, "1 0 0", model,
                                                                      f"joint {j.get('name', '')!r}")
         world = poses.get(child, np.eye(4))[:3, :3] @ axis
-        out.append(TrueJoint(k, kind, world / np.linalg.norm(world), moved))
+        world = world / np.linalg.norm(world)
+        out.append(TrueJoint(k, kind, world, moved, _urdf_joint(j, kind, world)))
     return out
+
+
+def _urdf_joint(joint: Any, kind: str, direction: np.ndarray) -> Joint:
+    """The range of a URDF ``<joint>`` as a :class:`~kinmo.data.model.Joint` along
+    ``direction`` (its world axis): ``<limit lower upper>`` in degrees (revolute) or the file's
+    units (prismatic); ``None`` for a continuous joint, or one whose limits are missing,
+    non-finite or not ordered."""
+    limit = None
+    lim = joint.find("limit")
+    if joint.get("type") != "continuous" and lim is not None:
+        try:
+            lo, hi = float(lim.get("lower", "0")), float(lim.get("upper", "0"))
+        except ValueError:
+            lo, hi = math.nan, math.nan
+        if math.isfinite(lo) and math.isfinite(hi) and lo < hi:
+            limit = (math.degrees(lo), math.degrees(hi)) if kind == JointType.HINGE.value else (lo, hi)
+    return Joint(JointType(kind), None, direction, limit)
 
 
 def true_joints_of(model: str | Path, parts: Sequence[Part] | None) -> list[TrueJoint]:
@@ -325,11 +348,14 @@ def foreign_markdown(results: dict[str, dict[str, Any]]) -> str:
     """A Markdown table of :func:`evaluate_foreign`'s scores, one row per variant (``file``:
     the MJCF or URDF as given)."""
     head = ("| input | objects | true joints | found | right type (of found) | axis, mean | "
-            "fully right | false movers / object | unreadable |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n")
+            "fully right | false movers / object | unreadable | hinge range IoU | IoU >= 0.5 "
+            "| slider range IoU | IoU >= 0.5 |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n")
     rows = []
     for v, s in results.items():
+        ranges = " | ".join(f"{s.get(k, float('nan')):.2f}" for k in ("range_iou_hinge", "range_ok_hinge",
+                                                                        "range_iou_slider", "range_ok_slider"))
         rows.append(f"| {v} | {s['objects']} | {s['true_joints']} | {s['recall']:.2f} | {s['type_accuracy']:.2f} | "
                     f"{s['mean_angle']:.1f}° | **{s['fully_right']:.2f}** | {s['false_movers_per_object']:.2f} | "
-                    f"{s['failed']} |")
+                    f"{s['failed']} | {ranges} |")
     return head + "\n".join(rows) + "\n"
 

@@ -27,10 +27,15 @@ oriented so that a positive value opens the part):
      rest of the object over it: a predicted axis slightly off makes a door graze its frame
      at once, while a real stop (a wall, a bucket's body under its handle) meets most of the
      part.
-   - **A slider that opens the other way.** Stopped on its opening side before
-     :data:`SLIDER_FLIP_SHARE` of its learned end and free over the whole end the other way,
-     its direction is negated: the sweep decides the sign where the tree's centre rule
-     (:func:`kinmo.mobility_tree.opening_direction`) picked the wrong one.
+   - **A slider that opens the other way.** Stopped on its opening side (the side of its
+     learned range's larger end) before :data:`SLIDER_FLIP_SHARE` of that end and free over
+     the whole end the other way, its direction is negated: the sweep decides the sign where
+     the tree's centre rule (:func:`kinmo.mobility_tree.opening_direction`) or the prior
+     picked the wrong one. The rule holds for either sign of the learned end (since session
+     25): a group learned from buttons pressed inwards (the slider kind alone, which unnamed
+     parts get, is ``[-0.66, 0]`` extents) no longer leaves a foreign cabinet's drawer at its
+     contact skin, pushed into the body (on the foreign URDF drawers, slider range IoU 0.05 ->
+     0.74; out of fold on the 235 shared objects 0.740 -> 0.742; docs/results/ranges.md).
    - **A hinge open at rest.** PartNet-Mobility meshes often show a door half open: a safe
      door annotated -76 to 91 degrees, a fridge door -110 to 60, a washing machine door -45
      to 53. When the learned range starts near closed (``lo > -``:data:`OPEN_AT_REST_MIN_DEG`),
@@ -192,6 +197,18 @@ def _closed_at_rest(points: np.ndarray, others: np.ndarray, origin: np.ndarray, 
     return r > 0.0 and protrusion(points, others) <= CLOSED_AT_REST_PROTRUSION * r
 
 
+def _opens_other_way(lo: float, hi: float, e_pos: float, e_neg: float) -> bool:
+    """Whether a slider with learned range ``[lo, hi]`` and free extents ``e_pos`` /
+    ``e_neg`` (mesh units, :func:`free_extents`) opens the other way (module docstring):
+    stopped on its learned opening side (the side of the larger end) before
+    :data:`SLIDER_FLIP_SHARE` of that end, and free the other way over the whole of it."""
+    if hi > abs(lo):  # learned to open along +direction
+        return e_pos < SLIDER_FLIP_SHARE * hi and e_neg >= hi
+    if -lo > abs(hi):  # learned to open along -direction
+        return e_neg < SLIDER_FLIP_SHARE * -lo and e_pos >= -lo
+    return False
+
+
 def _sweep_line(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray, direction: np.ndarray,
                 revolute: bool, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`SweepObstacle.sweep` of one axis over ``reach`` (radians or mesh units) per sign,
@@ -303,7 +320,7 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
                 lo, hi = 0.0, hi - lo  # closed at rest: the learned span opens from here
             elif hinge and hi > 0 and _open_at_rest(pts, g.points[rest], j.origin, direction, lo, e_neg):
                 lo, hi = min(lo, 0.0) - e_neg, hi - e_neg  # open at rest: the stop is the closed end
-            if not hinge and abs(lo) < hi and e_pos < SLIDER_FLIP_SHARE * hi and e_neg >= hi:
+            if not hinge and _opens_other_way(lo, hi, e_pos, e_neg):
                 direction, e_pos, e_neg = -direction, e_neg, e_pos  # it opens the other way
             c_lo, c_hi = max(lo, -e_neg), min(hi, e_pos)
             if hi > 0 and e_pos < OPEN_SIDE_TRUST * hi and _grazes(obstacle, pts, j.origin, direction, hinge, hi,
