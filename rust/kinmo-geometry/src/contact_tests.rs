@@ -2,31 +2,9 @@
 
 use super::*;
 
-/// Axis-aligned box mesh (12 triangles, outward normals).
+/// Axis-aligned box mesh from its lowest corner and size (12 triangles, outward normals).
 fn cube(min: [f64; 3], size: [f64; 3]) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
-    let mut v = Vec::new();
-    for i in 0..8u32 {
-        v.push(Point3::new(
-            min[0] + size[0] * f64::from(i & 1),
-            min[1] + size[1] * f64::from((i >> 1) & 1),
-            min[2] + size[2] * f64::from((i >> 2) & 1),
-        ));
-    }
-    let f = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    (v, f)
+    crate::test_meshes::box_mesh(min, [min[0] + size[0], min[1] + size[1], min[2] + size[2]])
 }
 
 fn bvh(m: &(Vec<Point3<f64>>, Vec<[u32; 3]>)) -> MeshBvh {

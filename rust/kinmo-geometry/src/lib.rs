@@ -16,5 +16,7 @@ pub mod obb;
 pub mod pointnet;
 pub mod sampling;
 pub mod sweep;
+#[cfg(test)]
+mod test_meshes;
 
 pub use error::{GeometryError, Result};
