@@ -77,6 +77,28 @@ def test_continuous_groups_stay_continuous_and_unknown_joints_keep_the_default()
     assert lim["drawer"] == _limits(p)["drawer"]  # no slider group: the tree's default
 
 
+def test_an_unnamed_hinge_is_continuous_as_its_predicted_fine_type_s_group_says():
+    from kinmo.ranges.predict import _predicted_fine
+
+    from kinmo.data.model import FINE_TYPES
+
+    p = _prediction()
+    door = next(lk for lk in p.tree.moving_links if lk.name == "door")
+    assert _predicted_fine(p, door.id) is None  # no type names: no fine type
+    p = dataclasses.replace(p, type_names=FINE_TYPES)
+    fine = _predicted_fine(p, door.id)
+    assert fine is not None and fine.startswith("R_")
+    kind = ("hinge", None, None, 5, 0.0, 0.0, 120.0)
+    free = _prior(kind, ("hinge", None, None, 5, 1.0, None, None, fine))
+    unnamed = dataclasses.replace(p, graph=dataclasses.replace(p.graph, category=""), tree=dataclasses.replace(
+        p.tree, links=[dataclasses.replace(lk, name=f"part_{lk.id}") for lk in p.tree.links]))
+    assert _limits(predict_ranges(unnamed, free, _meshes(p.graph)))[f"part_{door.id}"] is None
+    assert _limits(predict_ranges(unnamed, _prior(kind), _meshes(p.graph)))[f"part_{door.id}"] is not None
+    # a named part keeps its name's group, whatever its fine type
+    named = _prior(kind, ("hinge", None, "door", 5, 0.0, 0.0, 120.0), ("hinge", None, None, 5, 1.0, None, None, fine))
+    assert _limits(predict_ranges(p, named, _meshes(p.graph)))["door"] is not None
+
+
 def test_without_meshes_the_learned_range_is_kept_with_one_warning(caplog):
     p = _prediction()
     with caplog.at_level(logging.WARNING):

@@ -71,11 +71,40 @@ def test_a_training_range_without_the_rest_state_is_widened_to_it():
     assert drawer.lo == 0.0 and drawer.hi > 0.0
 
 
+def test_hinges_are_also_grouped_by_fine_type_for_continuity():
+    """The kind-alone group takes its continuity from the fine type's group (module
+    docstring); more specific groups ignore the fine type."""
+    from kinmo.data.model import FINE_TYPES
+
+    g = _with_limits(cabinet_graph(seed=0), None, [0.0, 0.4])  # the door turns freely
+    fine = true_ranges(g)[0].fine
+    assert fine in FINE_TYPES and fine.startswith("R_")
+    prior = fit_range_prior([g, _with_limits(cabinet_graph(seed=1, jitter=0.1), [-90.0, 0.0], [0.0, 0.4])])
+    group = [e for e in prior.entries if e.fine]
+    assert [(e.kind, e.category, e.name, e.fine, e.n, e.continuous) for e in group] == \
+           [("hinge", None, None, fine, 2, 0.5)]
+    prior = RangePrior([RangeEntry("hinge", None, None, 10, 0.2, 0.0, 100.0),
+                        RangeEntry("hinge", "Oven", None, 4, 0.0, 0.0, 90.0),
+                        RangeEntry("hinge", None, None, 6, 0.9, -30.0, 30.0, "R_H_C")])
+    knob = prior.lookup("hinge", "Mixer", "part_3", "R_H_C")
+    assert (knob.continuous, knob.lo, knob.hi, knob.fine) == (0.9, 0.0, 100.0, None) and knob.is_continuous
+    assert prior.lookup("hinge", None, None, "R_V_S").continuous == 0.2  # no group of that type
+    assert prior.lookup("hinge", None, None).continuous == 0.2
+    assert prior.lookup("hinge", "Oven", "knob", "R_H_C").continuous == 0.0  # the category's group
+    assert prior.lookup("slider", None, None, "R_H_C") is None
+
+
 def test_save_load_round_trip(tmp_path):
     prior = fit_range_prior([cabinet_graph(seed=0)])
+    assert any(e.fine for e in prior.entries)
     prior.save(tmp_path / "ranges.json")
     again = RangePrior.load(tmp_path / "ranges.json")
     assert again.entries == prior.entries and again.min_extent == prior.min_extent
+    # a version 1 file (no fine-type groups) still loads
+    doc = json.loads((tmp_path / "ranges.json").read_text())
+    doc = {**doc, "version": 1, "entries": [e for e in doc["entries"] if "fine" not in e]}
+    (tmp_path / "ranges.json").write_text(json.dumps(doc))
+    assert RangePrior.load(tmp_path / "ranges.json").entries == [e for e in prior.entries if not e.fine]
 
 
 def test_the_slider_unit_floor_is_stored_with_the_prior(tmp_path):
@@ -112,6 +141,9 @@ def test_the_slider_unit_floor_is_stored_with_the_prior(tmp_path):
     ({"kind": "hinge", "n": 1, "continuous": 2.0, "lo": 0.0, "hi": 1.0}, "share"),
     ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": None}, "both"),
     ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": 1.0, "name": ["a"]}, "string"),
+    ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": 1.0, "fine": "R_X"}, "fine motion type"),
+    ({"kind": "hinge", "n": 1, "continuous": 0.0, "lo": 0.0, "hi": 1.0, "fine": "R_H_C", "name": "knob"},
+     "without category and name"),
 ])
 def test_malformed_files_get_one_clear_line(tmp_path, entry, why):
     f = tmp_path / "ranges.json"

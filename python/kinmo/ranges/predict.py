@@ -4,7 +4,9 @@ For each hinge or slider of a predicted mobility tree (:mod:`kinmo.mobility_tree
 oriented so that a positive value opens the part):
 
 1. **Learned range.** The :class:`~kinmo.ranges.prior.RangePrior` group of the joint's kind,
-   the shape's category and the link's name (most specific first). Hinges of a group whose
+   the shape's category and the link's name (most specific first); a hinge that only the
+   kind's group covers is continuous or not as its predicted fine type's group says
+   (:meth:`~kinmo.ranges.prior.RangePrior.lookup`). Hinges of a group whose
    joints mostly turn freely stay continuous (``limit=None``). Slider ranges are scaled by
    the moving part's extent along the axis (:func:`~kinmo.ranges.prior.axial_extent`).
 2. **Closed ends from geometry.** The moving link (with every link hanging from it) is swept
@@ -81,7 +83,7 @@ import math
 import numpy as np
 
 from kinmo.data.labels import link_subtree
-from kinmo.data.model import JointType, Link
+from kinmo.data.model import FINE_TYPES, JointType, Link
 from kinmo.geometry.sweep import PRISMATIC, REVOLUTE, SweepObstacle
 from kinmo.mobility_tree import ShapePrediction
 from kinmo.ranges.prior import RangePrior, axial_extent
@@ -258,6 +260,15 @@ def _grazes(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray, dir
     return float(colliding[0]) * len(points) <= GRAZE_SHARE * (n_points or len(points))
 
 
+def _predicted_fine(pred: ShapePrediction, link: int) -> str | None:
+    """The likeliest fine motion type of link ``link``'s sibling edge, when the prediction
+    has fine types (:class:`~kinmo.ranges.prior.RangePrior` uses it for unnamed hinges)."""
+    k = pred.tree.link_edge.get(link)
+    if k is None or len(pred.type_names) != len(FINE_TYPES) or not 0 <= k < len(pred.edges.probs):
+        return None
+    return str(pred.type_names[int(np.argmax(pred.edges.probs[k]))])
+
+
 def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: int = 0) -> ShapePrediction:
     """The prediction with a range on every moving joint the prior covers (module docstring).
 
@@ -290,7 +301,8 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
             out.append(lk)
             continue
         hinge = j.type is JointType.HINGE
-        entry = prior.lookup("hinge" if hinge else "slider", g.category, lk.name)
+        entry = prior.lookup("hinge" if hinge else "slider", g.category, lk.name,
+                             _predicted_fine(pred, lk.id) if hinge else None)
         if entry is None:
             out.append(lk)
             continue

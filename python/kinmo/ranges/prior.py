@@ -21,6 +21,15 @@ as predicted joints are, so a positive value opens the part), in **prior units**
 
 Entries are grouped by ``(kind, category, name)``, ``(kind, category)``, ``(kind, name)`` and
 ``(kind,)``; a query takes the most specific group that exists (:meth:`RangePrior.lookup`).
+Hinges are also grouped by their fine motion type (``(kind, fine)``: ``R_H_C``, ``R_V_S`` ...,
+:data:`kinmo.data.model.FINE_TYPES`; since file version 2). A hinge that only the kind alone
+covers (a part of unknown category and name: a user's ``part_<k>``) takes its range from the
+kind's group and whether it turns freely from its predicted fine type's group: rotations about
+a central axis (knobs, wheels, caps) mostly turn without limit, about a side axis (doors, lids)
+never. Cross-validated on the 235 shared objects (5 folds, true types and axes), continuous-or-
+not accuracy of such hinges rises from 0.635 to 0.927, while their range IoU goes from 0.485 to
+0.476 (the range itself from the fine group instead: 0.516, but fewer at IoU >= 0.5, 0.55
+against 0.63; docs/results/ranges.md).
 Each group keeps the number of joints, the share of continuous ones and its **medoid
 range**: the training range with the largest summed IoU to the group's others, a range that
 actually occurs, which on 5-fold cross-validation of the shared data's 235 objects (true
@@ -39,7 +48,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +56,7 @@ import numpy as np
 from kinmo import limits
 from kinmo.data.graph import PartGraph
 from kinmo.data.labels import link_subtree
+from kinmo.data.model import FINE_TYPES
 from kinmo.errors import KinmoDataError
 from kinmo.io import read_json_document, write_json
 from kinmo.metrics.motion_range import hinge_interval, range_iou
@@ -56,7 +66,8 @@ __all__ = ["LEGACY_MIN_EXTENT_FRACTION", "MIN_EXTENT_FRACTION", "PRIOR_FORMAT", 
            "RangePrior", "TrueRange", "axial_extent", "fit_range_prior", "true_ranges"]
 
 PRIOR_FORMAT = "kinmo-range-prior"
-PRIOR_VERSION = 1
+#: Version 2 adds the hinge groups by fine type (``"fine"``); version 1 files still load.
+PRIOR_VERSION = 2
 #: Floor of a slider's axial extent, as a fraction of the shape's diagonal (a flat part
 #: moving along its normal still gets a usable unit), for priors fitted now ...
 MIN_EXTENT_FRACTION = 0.002
@@ -105,6 +116,9 @@ class TrueRange:
         A hinge turning without limit (``lo``/``hi`` are then 0).
     lo, hi : float
         Degrees (hinges) or axial extents (sliders), ``lo <= hi``.
+    fine : str
+        The joint's fine motion type (:data:`kinmo.data.model.FINE_TYPES`, that of a sibling
+        edge of its link); empty when the graph has none.
     """
 
     kind: str
@@ -113,6 +127,7 @@ class TrueRange:
     continuous: bool
     lo: float
     hi: float
+    fine: str = ""
 
 
 def _centres(g: PartGraph, lk: dict, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,6 +147,14 @@ def _centres(g: PartGraph, lk: dict, moving: np.ndarray) -> tuple[np.ndarray, np
     cm = np.asarray(g.points[moving], float).reshape(-1, 3).mean(0)
     cr = np.asarray(g.points[rest], float).reshape(-1, 3).mean(0) if rest else cm
     return cm, cr
+
+
+def _fine_type(g: PartGraph, link: int) -> str:
+    """The fine motion type of a sibling edge of true link ``link`` (empty: none)."""
+    if g.edge_link is None or g.edge_fine is None or not len(g.sibling_edges):
+        return ""
+    ks = np.flatnonzero(np.asarray(g.edge_link) == link)
+    return FINE_TYPES[int(g.edge_fine[ks[0]])] if len(ks) else ""
 
 
 def true_ranges(g: PartGraph, min_extent: float = MIN_EXTENT_FRACTION) -> list[TrueRange]:
@@ -174,10 +197,11 @@ def true_ranges(g: PartGraph, min_extent: float = MIN_EXTENT_FRACTION) -> list[T
             if lim is not None and flip:
                 lim = (-float(lim[1]), -float(lim[0]))
             iv = None if lim is None else hinge_interval(*lim)
+            fine = _fine_type(g, lk["id"])
             if iv is None:
-                out.append(TrueRange("hinge", cat, name, True, 0.0, 0.0))
+                out.append(TrueRange("hinge", cat, name, True, 0.0, 0.0, fine))
             else:
-                out.append(TrueRange("hinge", cat, name, False, *iv))
+                out.append(TrueRange("hinge", cat, name, False, *iv, fine))
             continue
         if lim is None:  # a slider without limits: nothing to learn from
             continue
@@ -204,6 +228,9 @@ class RangeEntry:
         Share of them that turn without limit (hinges), in ``[0, 1]``.
     lo, hi : float or None
         The medoid range in prior units (None when every joint of the group is continuous).
+    fine : str or None
+        A fine motion type: the hinge group of that type (``category`` and ``name`` None);
+        None for the other groups.
     """
 
     kind: str
@@ -213,6 +240,7 @@ class RangeEntry:
     continuous: float
     lo: float | None
     hi: float | None
+    fine: str | None = None
 
     @property
     def is_continuous(self) -> bool:
@@ -220,8 +248,8 @@ class RangeEntry:
         return self.continuous >= 0.5 or self.lo is None
 
 
-def _key(kind: str, category: str | None, name: str | None) -> tuple:
-    return (kind, category.lower() if category else None, name.lower() if name else None)
+def _key(kind: str, category: str | None, name: str | None, fine: str | None = None) -> tuple:
+    return (kind, category.lower() if category else None, name.lower() if name else None, fine or None)
 
 
 @dataclass
@@ -240,17 +268,23 @@ class RangePrior:
     min_extent: float = MIN_EXTENT_FRACTION
 
     def __post_init__(self) -> None:
-        self._by = {_key(e.kind, e.category, e.name): e for e in self.entries}
+        self._by = {_key(e.kind, e.category, e.name, e.fine): e for e in self.entries}
 
-    def lookup(self, kind: str, category: str | None, name: str | None) -> RangeEntry | None:
+    def lookup(self, kind: str, category: str | None, name: str | None,
+               fine: str | None = None) -> RangeEntry | None:
         """The most specific group of ``kind`` for a joint: ``(category, name)``, then
         ``category``, then ``name``, then the kind alone; None when the prior has none.
-        Matching is case-insensitive; an empty category or name counts as unknown."""
+        Matching is case-insensitive; an empty category or name counts as unknown.
+
+        When only the kind alone covers a hinge and ``fine`` (its predicted fine type) has a
+        group, the kind's entry is returned with that group's share of continuous joints
+        (module docstring)."""
         cat, nm = category or None, name or None
         for c, n in ((cat, nm), (cat, None), (None, nm), (None, None)):
             e = self._by.get(_key(kind, c, n))
             if e is not None:
-                return e
+                f = self._by.get(_key(kind, None, None, fine)) if fine and c is None and n is None else None
+                return e if f is None else replace(e, continuous=f.continuous)
         return None
 
     def save(self, path: str | Path) -> None:
@@ -261,7 +295,8 @@ class RangePrior:
                       "slider": "fractions of the moving part's extent along the axis"},
             "min_extent": self.min_extent,
             "entries": [{"kind": e.kind, "category": e.category, "name": e.name, "n": e.n,
-                         "continuous": e.continuous, "lo": e.lo, "hi": e.hi}
+                         "continuous": e.continuous, "lo": e.lo, "hi": e.hi,
+                         **({"fine": e.fine} if e.fine else {})}
                         for e in self.entries]})
 
     @classmethod
@@ -307,7 +342,10 @@ def _entry(e: object, p: Path) -> RangeEntry:
                 or lo > hi:
             raise bad(f"lo <= hi must be finite numbers within ±{_MAX_END:g}")
         lo, hi = float(lo), float(hi)
-    return RangeEntry(e["kind"], e.get("category"), e.get("name"), n, float(c), lo, hi)
+    fine = e.get("fine")
+    if fine is not None and (fine not in FINE_TYPES or e.get("category") is not None or e.get("name") is not None):
+        raise bad("fine must be a fine motion type, on an entry without category and name")
+    return RangeEntry(e["kind"], e.get("category"), e.get("name"), n, float(c), lo, hi, fine)
 
 
 def _medoid(ranges: list[tuple[float, float]]) -> tuple[float, float]:
@@ -336,13 +374,17 @@ def fit_range_prior(graphs: Iterable[PartGraph], min_extent: float = MIN_EXTENT_
     for g in graphs:
         for t in true_ranges(g, min_extent):
             cat, nm = t.category or None, t.name or None
-            for key in {(t.kind, cat, nm), (t.kind, cat, None), (t.kind, None, nm), (t.kind, None, None)}:
+            keys = {(t.kind, cat, nm, None), (t.kind, cat, None, None), (t.kind, None, nm, None),
+                    (t.kind, None, None, None)}
+            if t.kind == "hinge" and t.fine:
+                keys.add((t.kind, None, None, t.fine))
+            for key in keys:
                 groups[key].append(t)
     entries = []
-    for (kind, cat, name), ts in sorted(groups.items(), key=lambda kv: tuple(str(x) for x in kv[0])):
+    for (kind, cat, name, fine), ts in sorted(groups.items(), key=lambda kv: tuple(str(x) for x in kv[0])):
         # a range always holds the rest state (a few annotations leave it out)
         limited = [(min(t.lo, 0.0), max(t.hi, 0.0)) for t in ts if not t.continuous]
         lo, hi = _medoid(limited) if limited else (None, None)
         entries.append(RangeEntry(kind, cat, name, len(ts), float(np.mean([t.continuous for t in ts])),
-                                  lo, hi))
+                                  lo, hi, fine))
     return RangePrior(entries, min_extent)
