@@ -134,6 +134,14 @@ def test_kept_shapes_read_back_as_partnet_mobility_objects(data, runs, tmp_path,
     # resume: every record is current, nothing is recomputed
     res2 = pseudo_label_dataset(data, *runs, out, cfg, progress=False)
     assert res2.n_skipped == len(SHAPES) and res2.count("kept") == len(SHAPES)
+    # a range prior fitted again at the same path makes every record stale: the ranges it
+    # wrote change (0-135 -> 0-60 degrees)
+    RangePrior([RangeEntry("hinge", None, None, 10, 0.0, 0.0, 60.0)]).save(tmp_path / "ranges.json")
+    res3 = pseudo_label_dataset(data, *runs, out, cfg, progress=False)
+    assert res3.n_skipped == 0 and res3.count("kept") == len(SHAPES)
+    for rec in res3.records:
+        (link,) = [lk for lk in read_shape(out / rec.id).links if lk.joint.type is JointType.HINGE]
+        assert link.joint.limit[1] <= 60.0 + 1e-6
 
 
 @pytest.mark.exactdata

@@ -44,8 +44,10 @@ PartNet-Mobility tools) exactly like a real object:
 
 Every shape's folder is assembled in ``OUT/.staging/`` and renamed into place, so ``OUT/<id>/``
 is complete or absent. Each processed shape leaves a record ``OUT/.records/<id>.json``
-(status, reason, scores, fingerprint of the source folder, models and options): a re-run skips
-shapes whose record is current, so an interrupted run resumes. ``OUT/shapes.csv`` lists every
+(status, reason, scores, fingerprint of the source folder, models, the refinement's ranker and
+range prior files, and options): a re-run skips shapes whose record is current, so an
+interrupted run resumes, and a model or prior trained again at the same path makes every record
+stale. ``OUT/shapes.csv`` lists every
 shape (status ``kept``, ``no_moving_joint``, ``below_threshold``, ``disagreement`` or ``failed``
 with the reason)
 and ``OUT/summary.csv`` counts them per category. Shapes run in parallel worker processes
@@ -277,7 +279,12 @@ class PseudoLabelResult:
 # ----------------------------------------------------------------------------- fingerprints
 
 
-def _models_fingerprint(gnn_run: Path, axis_run: Path, check_run: Path | None = None) -> str:
+def _models_fingerprint(gnn_run: Path, axis_run: Path, check_run: Path | None = None,
+                        refine: Any = None) -> str:
+    """Digest of the files that decide a shape's pseudo-label: the GNN, the axis network (or
+    the ranker standing for it), the check model, and the refinement's ranker and range prior
+    files (``refine.ranker`` / ``refine.ranges``), so that a record goes stale when any of them
+    is trained again, even at the same path."""
     gnn = gnn_run / "model.pt" if gnn_run.is_dir() else gnn_run
     axis = axis_run / "model.pt" if axis_run.is_dir() else axis_run
     if axis_run.is_dir() and not axis.is_file() and (axis_run / "ranker.json").is_file():
@@ -286,8 +293,10 @@ def _models_fingerprint(gnn_run: Path, axis_run: Path, check_run: Path | None = 
     for p in (gnn, axis, *check):
         if not p.is_file():
             raise KinmoDataError(p, "checkpoint is missing")
+    files = [Path(f) for f in (getattr(refine, "ranker", None), getattr(refine, "ranges", None)) if f]
     return stages.digest(stages.file_fingerprint(gnn), stages.file_fingerprint(axis),
-                         *(stages.file_fingerprint(p) for p in check))
+                         *(stages.file_fingerprint(p) for p in check),
+                         *(stages.file_fingerprint(f) if f.is_file() else str(f) for f in files))
 
 
 def _fingerprint(source_fp: str, models_fp: str, config: PseudoLabelConfig) -> str:
@@ -319,7 +328,7 @@ def _load_models(gnn_run: Path, axis_run: Path, device: str, refine: Any = None,
     model (``check_run``) refines with the same axis network, selector and range prior."""
     from kinmo.inference.predictor import Predictor  # torch: in the processes that run models
 
-    fp = _models_fingerprint(gnn_run, axis_run, check_run)
+    fp = _models_fingerprint(gnn_run, axis_run, check_run, refine)
     predictor = Predictor.from_parts(gnn_run, axis_run, refine, device=device)
     check = None if check_run is None else predictor.with_gnn(check_run, device)
     return _Models(predictor, fp, str(gnn_run), str(axis_run), check,
@@ -769,7 +778,7 @@ def pseudo_label_dataset(
     folders = [f for f, _ in stages.shape_jobs(data)]
     check_outputs_apart(out, [data, gnn_run, axis_run, *([cache] if cache is not None else []),
                               *([check] if check is not None else [])])
-    models_fp = _models_fingerprint(gnn_run, axis_run, check)  # raises for a missing checkpoint
+    models_fp = _models_fingerprint(gnn_run, axis_run, check, config.refine)  # raises for a missing checkpoint
     out.mkdir(parents=True, exist_ok=True)
     stage: ShapeStage[ShapeRecord] = ShapeStage(
         out, "kinmo pseudo-label", len(folders), save=lambda recs, _: _write_tables(out, recs),
