@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from kinmo.assets import read_parts
+from kinmo.errors import KinmoDataError
 from kinmo.evaluate.foreign import FOREIGN_VARIANTS, evaluate_foreign, find_foreign, mjcf_true_joints, urdf_true_joints
 
 # A cabinet (z-up): a door on a vertical hinge with a knob turning about the door's normal,
@@ -108,6 +109,11 @@ def test_urdf_true_joints_turn_their_axes_by_the_child_pose_and_move_fixed_child
         model.write_text(CABINET_URDF.replace('type="revolute"', joint).replace(
             '<limit lower="0" upper="1.57" effort="1" velocity="1"/>', limit))
         assert urdf_true_joints(model, parts)[0].joint.limit is None
+    # a limit that is not a number: one line naming the file and the joint
+    model.write_text(CABINET_URDF.replace('lower="0" upper="1.57"', 'lower="0" upper="wide"'))
+    with pytest.raises(KinmoDataError, match="door_hinge") as e:
+        urdf_true_joints(model, parts)
+    assert "model.urdf" in str(e.value) and "\n" not in str(e.value)
 
 
 def test_urdf_ranges_are_scored_and_reported(tmp_path):

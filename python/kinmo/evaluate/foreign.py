@@ -163,7 +163,7 @@ def urdf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[Tr
     ------
     KinmoDataError
         The file is not a readable URDF (:func:`kinmo.assets.read_xml`), or a bad ``<origin>``
-        / ``<axis>``.
+        / ``<axis>`` / ``<limit>``.
     """
     from kinmo.assets import read_xml
     from kinmo.assets.urdf import link_poses, numbers
@@ -198,23 +198,29 @@ def urdf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[Tr
                                                                      f"joint {j.get('name', '')!r}")
         world = poses.get(child, np.eye(4))[:3, :3] @ axis
         world = world / np.linalg.norm(world)
-        out.append(TrueJoint(k, kind, world, moved, _urdf_joint(j, kind, world)))
+        out.append(TrueJoint(k, kind, world, moved, _urdf_joint(j, kind, world, model)))
     return out
 
 
-def _urdf_joint(joint: Any, kind: str, direction: np.ndarray) -> Joint:
+def _urdf_joint(joint: Any, kind: str, direction: np.ndarray, model: Path) -> Joint:
     """The range of a URDF ``<joint>`` as a :class:`~kinmo.data.model.Joint` along
-    ``direction`` (its world axis): ``<limit lower upper>`` in degrees (revolute) or the file's
-    units (prismatic); ``None`` for a continuous joint, or one whose limits are missing,
-    non-finite or not ordered."""
+    ``direction`` (its world axis): ``<limit lower upper>`` (default 0, as URDF's) in degrees
+    (revolute) or the file's units (prismatic); ``None`` for a continuous joint, or one
+    without ``<limit>`` or whose limits are not ordered.
+
+    Raises
+    ------
+    KinmoDataError
+        ``lower`` or ``upper`` is not a finite number (:func:`kinmo.assets.urdf.numbers`).
+    """
+    from kinmo.assets.urdf import numbers
+
     limit = None
     lim = joint.find("limit")
     if joint.get("type") != "continuous" and lim is not None:
-        try:
-            lo, hi = float(lim.get("lower", "0")), float(lim.get("upper", "0"))
-        except ValueError:
-            lo, hi = math.nan, math.nan
-        if math.isfinite(lo) and math.isfinite(hi) and lo < hi:
+        where = f"joint {joint.get('name', '')!r}"
+        lo, hi = (float(numbers(lim, a, 1, "0", model, where)[0]) for a in ("lower", "upper"))
+        if lo < hi:
             limit = (math.degrees(lo), math.degrees(hi)) if kind == JointType.HINGE.value else (lo, hi)
     return Joint(JointType(kind), None, direction, limit)
 

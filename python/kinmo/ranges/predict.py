@@ -204,11 +204,9 @@ def _opens_other_way(lo: float, hi: float, e_pos: float, e_neg: float) -> bool:
     ``e_neg`` (mesh units, :func:`free_extents`) opens the other way (module docstring):
     stopped on its learned opening side (the side of the larger end) before
     :data:`SLIDER_FLIP_SHARE` of that end, and free the other way over the whole of it."""
-    if hi > abs(lo):  # learned to open along +direction
-        return e_pos < SLIDER_FLIP_SHARE * hi and e_neg >= hi
-    if -lo > abs(hi):  # learned to open along -direction
-        return e_neg < SLIDER_FLIP_SHARE * -lo and e_pos >= -lo
-    return False
+    if -lo > abs(hi):  # learned to open along -direction: the same test, mirrored
+        return _opens_other_way(-hi, -lo, e_neg, e_pos)
+    return hi > abs(lo) and e_pos < SLIDER_FLIP_SHARE * hi and e_neg >= hi
 
 
 def _sweep_line(obstacle: SweepObstacle, points: np.ndarray, origin: np.ndarray, direction: np.ndarray,
