@@ -39,6 +39,13 @@ direction wins. An oven's knobs typed ``R_H_S`` by the type head, whose axis hea
 the vertical, had been turned horizontal by the type's orientation prior. Only rankers that
 weigh that prior (``orient_prior``: the fine one) defer; out of fold, the coarse ranker's
 deferrals turned one right dishwasher joint 90° off (docs/results/table1_four_settings.md).
+A ranker without that prior (the coarse one) defers instead where **two priors agree**
+(:func:`agreeing_priors`): the GNN puts at least :data:`PRIORS_AGREE_GNN` of its mass on one
+direction, the part-name prior (``sem_prior``, :mod:`kinmo.refine.semantic_prior`) at least
+:data:`PRIORS_AGREE_NAMES` on it, and the choice lies on a direction the GNN gives at most
+``1 - PRIORS_AGREE_GNN``. The coarse types carry no orientation, so its ranker told a cabinet
+door's vertical hinge from a flap's horizontal one by the OBB alone, and turned sure, named
+doors horizontal (out of fold, both fold seeds: docs/results/table1_four_settings.md).
 
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
@@ -77,7 +84,8 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates
 
-__all__ = ["BLOCKED_FREE", "OPEN_FREE", "PRIOR_AGAINST", "PRIOR_SURE", "UNSURE_CONFIDENCE", "EdgeRefinement",
+__all__ = ["BLOCKED_FREE", "OPEN_FREE", "PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN",
+           "PRIORS_AGREE_NAMES", "UNSURE_CONFIDENCE", "EdgeRefinement", "agreeing_priors",
            "blocked_slide_veto", "chosen_line", "hinge_blocked", "refine_edge", "select_edge", "sure_prior",
            "vetoed_slides"]
 
@@ -94,6 +102,10 @@ PRIOR_SURE = 0.95
 PRIOR_AGAINST = 0.05
 #: ... and the selector's calibrated confidence in its choice is below this.
 UNSURE_CONFIDENCE = 0.1
+#: :func:`agreeing_priors`: the GNN's axis head holds at least this mass on one direction ...
+PRIORS_AGREE_GNN = 0.9
+#: ... and the part-name prior (``sem_prior``) at least this share on it.
+PRIORS_AGREE_NAMES = 0.5
 
 
 @dataclass(frozen=True)
@@ -303,6 +315,43 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
     return int(ok[np.argmax(np.asarray(prob)[ok])])
 
 
+def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
+    """The learned selector's choice, or the direction the GNN and the part-name prior agree
+    on, for a ranker without the fine type's orientation prior (module docstring).
+
+    Parameters
+    ----------
+    ranker : kinmo.refine.ranker.Ranker
+        Its ``features``: a ranker that weighs ``orient_prior`` (the fine one) is left alone
+        (:func:`sure_prior` serves it).
+    features : (C, len(FEATURES)) float64
+        The candidates' features: ``dir_prior``, the GNN's axis-candidate mass on each
+        candidate's direction, and ``sem_prior``, the part-name prior's share.
+    prob : (C,) float64
+        The ranker's probabilities.
+    best : int
+        The selector's choice.
+
+    Returns
+    -------
+    int
+        ``best``, unless some candidates hold at least :data:`PRIORS_AGREE_GNN` of the GNN's
+        mass and :data:`PRIORS_AGREE_NAMES` of the part-name prior while ``best`` holds at
+        most ``1 - PRIORS_AGREE_GNN`` of the GNN's: then the most probable of those
+        candidates. kinmo extension of Liu et al. 2023, Sec. 3.3 (issue 34).
+    """
+    if best < 0 or "orient_prior" in ranker.features:
+        return best
+    prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
+    names = np.asarray(features[:, FEATURES.index("sem_prior")], dtype=np.float64)
+    if prior[best] > 1.0 - PRIORS_AGREE_GNN:
+        return best
+    ok = np.flatnonzero((prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES))
+    if not ok.size:
+        return best
+    return int(ok[np.argmax(np.asarray(prob)[ok])])
+
+
 def hinge_blocked(refinement: EdgeRefinement) -> bool:
     """True when no candidate line of a revolute edge lets the part turn: every line's swept
     test frees less than :data:`BLOCKED_FREE` either way (False without the sweep)."""
@@ -433,7 +482,7 @@ def select_edge(
                                  proxy=proxy)
     p = ranker.probabilities(x)
     chosen = ranker.choose(p, cands.directions)
-    b = b0 = sure_prior(ranker, x, p, chosen)
+    b = b0 = agreeing_priors(ranker, x, p, sure_prior(ranker, x, p, chosen))
     deferred = b != chosen
     if cfg.sweep_vetoes:
         b = b0 = blocked_slide_veto(cands, x, p, b)
