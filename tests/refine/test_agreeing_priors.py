@@ -1,5 +1,5 @@
-"""A ranker without the fine type's orientation prior follows the direction that the GNN and
-the part-name prior agree on (kinmo.refine.edge.agreeing_priors)."""
+"""The learned selector follows the direction that the GNN, the part-name prior and (for the
+fine ranker) the fine type's orientation prior agree on (kinmo.refine.edge.agreeing_priors)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from kinmo.refine.features import FEATURES
 
 _PRIOR = FEATURES.index("dir_prior")
 _NAMES = FEATURES.index("sem_prior")
+_ORIENT = FEATURES.index("orient_prior")
 
 
 class _Coarse:
@@ -22,10 +23,11 @@ class _Fine:
     features = ("dir_prior", "sem_prior", "orient_prior")
 
 
-def _x(prior, names):
+def _x(prior, names, orient=None):
     x = np.zeros((len(prior), len(FEATURES)))
     x[:, _PRIOR] = prior
     x[:, _NAMES] = names
+    x[:, _ORIENT] = prior if orient is None else orient
     return x
 
 
@@ -37,11 +39,15 @@ _P = np.array([0.32, 0.24, 0.15, 0.05, 0.13])
 
 def test_a_choice_against_both_priors_gives_way_to_their_likeliest_line():
     assert agreeing_priors(_Coarse(), _DOOR, _P, 0) == 2
+    # the fine ranker too, where the fine type's orientation agrees (a vertical hinge type)
+    assert agreeing_priors(_Fine(), _DOOR, _P, 0) == 2
 
 
 def test_otherwise_the_choice_stands():
-    # the fine ranker weighs the type's orientation: sure_prior serves it
-    assert agreeing_priors(_Fine(), _DOOR, _P, 0) == 0
+    # the fine type's orientation disagrees (a flap's horizontal hinge type)
+    flap = _x([0.06] * 2 + [0.94] * 3, [0.17] * 2 + [0.83] * 3, [1.0] * 2 + [0.0] * 3)
+    assert agreeing_priors(_Fine(), flap, _P, 0) == 0
+    assert agreeing_priors(_Coarse(), flap, _P, 0) == 2  # the coarse ranker does not weigh it
     # the GNN is not sure enough
     g = PRIORS_AGREE_GNN - 0.02
     assert agreeing_priors(_Coarse(), _x([1 - g] * 2 + [g] * 3, [0.17] * 2 + [0.83] * 3), _P, 0) == 0

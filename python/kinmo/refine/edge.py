@@ -39,13 +39,14 @@ direction wins. An oven's knobs typed ``R_H_S`` by the type head, whose axis hea
 the vertical, had been turned horizontal by the type's orientation prior. Only rankers that
 weigh that prior (``orient_prior``: the fine one) defer; out of fold, the coarse ranker's
 deferrals turned one right dishwasher joint 90° off (docs/results/table1_four_settings.md).
-A ranker without that prior (the coarse one) defers instead where **two priors agree**
-(:func:`agreeing_priors`): the GNN puts at least :data:`PRIORS_AGREE_GNN` of its mass on one
-direction, the part-name prior (``sem_prior``, :mod:`kinmo.refine.semantic_prior`) at least
-:data:`PRIORS_AGREE_NAMES` on it, and the choice lies on a direction the GNN gives at most
-``1 - PRIORS_AGREE_GNN``. The coarse types carry no orientation, so its ranker told a cabinet
-door's vertical hinge from a flap's horizontal one by the OBB alone, and turned sure, named
-doors horizontal (out of fold, both fold seeds: docs/results/table1_four_settings.md).
+Every ranker also defers where **the priors agree** (:func:`agreeing_priors`): the GNN puts at
+least :data:`PRIORS_AGREE_GNN` of its mass on one direction, the part-name prior
+(``sem_prior``, :mod:`kinmo.refine.semantic_prior`) at least :data:`PRIORS_AGREE_NAMES` on it,
+for a ranker that weighs it the fine type's orientation prior (``orient_prior``) at least
+:data:`PRIORS_AGREE_GNN` too, and the choice lies on a direction the GNN gives at most
+``1 - PRIORS_AGREE_GNN``. The selector's geometric terms (a line on the OBB edge across a door,
+the handle's side) had turned sure, named cabinet and room doors horizontal; the coarse types
+carry no orientation at all (out of fold, both fold seeds: docs/results/table1_four_settings.md).
 
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
@@ -104,7 +105,8 @@ PRIOR_AGAINST = 0.05
 UNSURE_CONFIDENCE = 0.1
 #: :func:`agreeing_priors`: the GNN's axis head holds at least this mass on one direction ...
 PRIORS_AGREE_GNN = 0.9
-#: ... and the part-name prior (``sem_prior``) at least this share on it.
+#: ... and the part-name prior (``sem_prior``) at least this share on it (the orientation
+#: prior, for a ranker that weighs it, at least ``PRIORS_AGREE_GNN``).
 PRIORS_AGREE_NAMES = 0.5
 
 
@@ -316,17 +318,19 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
 
 
 def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
-    """The learned selector's choice, or the direction the GNN and the part-name prior agree
-    on, for a ranker without the fine type's orientation prior (module docstring).
+    """The learned selector's choice, or the direction that the GNN, the part-name prior and
+    (for a ranker that weighs it) the fine type's orientation prior agree on (module
+    docstring).
 
     Parameters
     ----------
     ranker : kinmo.refine.ranker.Ranker
-        Its ``features``: a ranker that weighs ``orient_prior`` (the fine one) is left alone
-        (:func:`sure_prior` serves it).
+        Its ``features``: a ranker that weighs ``orient_prior`` (the fine one) needs that
+        prior to agree as well.
     features : (C, len(FEATURES)) float64
         The candidates' features: ``dir_prior``, the GNN's axis-candidate mass on each
-        candidate's direction, and ``sem_prior``, the part-name prior's share.
+        candidate's direction, ``sem_prior``, the part-name prior's share, and
+        ``orient_prior``, the fine type's orientation prior.
     prob : (C,) float64
         The ranker's probabilities.
     best : int
@@ -336,17 +340,21 @@ def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -
     -------
     int
         ``best``, unless some candidates hold at least :data:`PRIORS_AGREE_GNN` of the GNN's
-        mass and :data:`PRIORS_AGREE_NAMES` of the part-name prior while ``best`` holds at
-        most ``1 - PRIORS_AGREE_GNN`` of the GNN's: then the most probable of those
-        candidates. kinmo extension of Liu et al. 2023, Sec. 3.3 (issue 34).
+        mass, :data:`PRIORS_AGREE_NAMES` of the part-name prior and (``orient_prior`` rankers)
+        :data:`PRIORS_AGREE_GNN` of the orientation prior, while ``best`` holds at most
+        ``1 - PRIORS_AGREE_GNN`` of the GNN's: then the most probable of those candidates.
+        kinmo extension of Liu et al. 2023, Sec. 3.3 (issue 34).
     """
-    if best < 0 or "orient_prior" in ranker.features:
+    if best < 0:
         return best
     prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
     names = np.asarray(features[:, FEATURES.index("sem_prior")], dtype=np.float64)
     if prior[best] > 1.0 - PRIORS_AGREE_GNN:
         return best
-    ok = np.flatnonzero((prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES))
+    agree = (prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES)
+    if "orient_prior" in ranker.features:
+        agree &= np.asarray(features[:, FEATURES.index("orient_prior")]) >= PRIORS_AGREE_GNN
+    ok = np.flatnonzero(agree)
     if not ok.size:
         return best
     return int(ok[np.argmax(np.asarray(prob)[ok])])
