@@ -51,7 +51,7 @@ def test_otherwise_the_choice_stands():
     # the GNN is not sure enough
     g = PRIORS_AGREE_GNN - 0.02
     assert agreeing_priors(_Coarse(), _x([1 - g] * 2 + [g] * 3, [0.17] * 2 + [0.83] * 3), _P, 0) == 0
-    # the names do not agree with the GNN (an unnamed part: the prior's base share)
+    # the names do not agree with the GNN
     n = PRIORS_AGREE_NAMES - 0.01
     assert agreeing_priors(_Coarse(), _x([0.06] * 2 + [0.94] * 3, [1 - n] * 2 + [n] * 3), _P, 0) == 0
     # the choice holds more than the GNN's remainder
