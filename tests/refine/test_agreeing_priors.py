@@ -1,11 +1,11 @@
 """The learned selector follows the direction that the GNN, the part-name prior and (for the
-fine ranker) the fine type's orientation prior agree on (kinmo.refine.edge.agreeing_priors)."""
+fine ranker) the fine type's orientation prior agree on (kinmo.refine.defer.agreeing_priors)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from kinmo.refine.edge import PRIORS_AGREE_GNN, PRIORS_AGREE_NAMES, agreeing_priors
+from kinmo.refine.defer import PRIORS_AGREE_GNN, PRIORS_AGREE_NAMES, agreeing_priors
 from kinmo.refine.features import FEATURES
 
 _PRIOR = FEATURES.index("dir_prior")

@@ -128,7 +128,7 @@ def test_copies_turned_about_the_shape_vote_in_their_own_frames():
 
 def test_a_copy_that_deferred_to_a_sure_gnn_neither_votes_nor_follows():
     # four knobs: the pooled ranker leans sideways, but two copies deferred to the GNN's
-    # sure vertical (kinmo.refine.edge.sure_prior); they keep it, and the sideways majority
+    # sure vertical (kinmo.refine.defer.sure_prior); they keep it, and the sideways majority
     # of the other two does not count them
     graph, edges = _keyboard(4)
     types = ["T_V"] * 4

@@ -1,10 +1,10 @@
-"""The learned selector defers to a sure GNN (kinmo.refine.edge.sure_prior)."""
+"""The learned selector defers to a sure GNN (kinmo.refine.defer.sure_prior)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from kinmo.refine.edge import PRIOR_AGAINST, PRIOR_SURE, UNSURE_CONFIDENCE, sure_prior
+from kinmo.refine.defer import PRIOR_AGAINST, PRIOR_SURE, UNSURE_CONFIDENCE, sure_prior
 from kinmo.refine.features import FEATURES
 
 _PRIOR = FEATURES.index("dir_prior")

@@ -31,22 +31,9 @@ features (the part against the rest of the object, contact at rest not counted):
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
   or shaped like a flap).
 
-Before the vetoes, the selector defers to a **sure GNN** (:func:`sure_prior`): when its choice
-gets almost none of the GNN's axis-candidate mass (below :data:`PRIOR_AGAINST`), the GNN puts
-nearly all of it on another direction (at least :data:`PRIOR_SURE`), and the selector's own
-calibrated confidence is below :data:`UNSURE_CONFIDENCE`, the likeliest line of the GNN's
-direction wins. An oven's knobs typed ``R_H_S`` by the type head, whose axis head was sure of
-the vertical, had been turned horizontal by the type's orientation prior. Only rankers that
-weigh that prior (``orient_prior``: the fine one) defer; out of fold, the coarse ranker's
-deferrals turned one right dishwasher joint 90° off (docs/results/table1_four_settings.md).
-Every ranker also defers where **the priors agree** (:func:`agreeing_priors`): the GNN puts at
-least :data:`PRIORS_AGREE_GNN` of its mass on one direction, the part-name prior
-(``sem_prior``, :mod:`kinmo.refine.semantic_prior`) at least :data:`PRIORS_AGREE_NAMES` on it,
-for a ranker that weighs it the fine type's orientation prior (``orient_prior``) at least
-:data:`PRIORS_AGREE_GNN` too, and the choice lies on a direction the GNN gives at most
-``1 - PRIORS_AGREE_GNN``. The selector's geometric terms (a line on the OBB edge across a door,
-the handle's side) had turned sure, named cabinet and room doors horizontal; the coarse types
-carry no orientation at all (out of fold, both fold seeds: docs/results/table1_four_settings.md).
+Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: a sure
+GNN, :func:`~kinmo.refine.defer.sure_prior`; priors that all agree,
+:func:`~kinmo.refine.defer.agreeing_priors`).
 
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
@@ -70,6 +57,7 @@ from kinmo.refine.candidates import (
     merge_candidates,
 )
 from kinmo.refine.config import RefineConfig
+from kinmo.refine.defer import agreeing_priors, sure_prior
 from kinmo.refine.features import FEATURE_GROUPS, FEATURES
 from kinmo.refine.position import reposition
 from kinmo.refine.motions import (
@@ -85,10 +73,8 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates
 
-__all__ = ["BLOCKED_FREE", "OPEN_FREE", "PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN",
-           "PRIORS_AGREE_NAMES", "UNSURE_CONFIDENCE", "EdgeRefinement", "agreeing_priors",
-           "blocked_slide_veto", "chosen_line", "hinge_blocked", "refine_edge", "select_edge", "sure_prior",
-           "vetoed_slides"]
+__all__ = ["BLOCKED_FREE", "OPEN_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line",
+           "hinge_blocked", "refine_edge", "select_edge", "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -97,17 +83,6 @@ BLOCKED_FREE = 0.1
 OPEN_FREE = 0.9
 #: Largest ``|y|`` of a unit direction counted as horizontal (y-up; 60° from vertical).
 _HORIZONTAL_Y = 0.5
-#: :func:`sure_prior`: the GNN's axis head holds at least this mass on one direction ...
-PRIOR_SURE = 0.95
-#: ... the selector's choice at most this much ...
-PRIOR_AGAINST = 0.05
-#: ... and the selector's calibrated confidence in its choice is below this.
-UNSURE_CONFIDENCE = 0.1
-#: :func:`agreeing_priors`: the GNN's axis head holds at least this mass on one direction ...
-PRIORS_AGREE_GNN = 0.9
-#: ... and the part-name prior (``sem_prior``) at least this share on it (the orientation
-#: prior, for a ranker that weighs it, at least ``PRIORS_AGREE_GNN``).
-PRIORS_AGREE_NAMES = 0.5
 
 
 @dataclass(frozen=True)
@@ -136,8 +111,8 @@ class EdgeRefinement:
         The learned selector's swept test of every candidate (``sweep_free_max``: the larger
         free fraction of the two directions); None without meshes.
     deferred : bool
-        The selector deferred to a sure GNN (:func:`sure_prior`); the repeated-parts vote
-        leaves such an edge alone.
+        The selector deferred to its priors (:mod:`kinmo.refine.defer`); the repeated-parts
+        vote leaves such an edge alone.
     """
 
     candidates: Candidates
@@ -278,86 +253,6 @@ def _network_feasibility(graph: PartGraph, moving: int, reference: int, cands: C
     s = axis_model.feasibility(torch.from_numpy(rest).to(device),
                                torch.from_numpy(moved).to(device), chunk=cfg.chunk).cpu().numpy()
     return line_feasibility(s, mot.line, mot.sign, len(cands))
-
-
-def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
-    """The learned selector's choice, or the GNN's direction where the GNN is sure and the
-    selector is not (module docstring).
-
-    Parameters
-    ----------
-    ranker : kinmo.refine.ranker.Ranker
-        Its ``features`` and calibrated confidence (:meth:`~kinmo.refine.ranker.Ranker.confidence`).
-    features : (C, len(FEATURES)) float64
-        The candidates' features; ``dir_prior`` is the GNN's axis-candidate mass on each
-        candidate's direction.
-    prob : (C,) float64
-        The ranker's probabilities.
-    best : int
-        The selector's choice.
-
-    Returns
-    -------
-    int
-        ``best``, unless the ranker weighs the fine type's orientation prior
-        (``orient_prior``: only such a ranker can overrule a sure axis head), the ``dir_prior``
-        of ``best`` is below :data:`PRIOR_AGAINST`, some candidate's is at least
-        :data:`PRIOR_SURE` and the calibrated confidence of ``best`` is below
-        :data:`UNSURE_CONFIDENCE`: then the most probable of the candidates the GNN is sure
-        of.
-    """
-    if best < 0 or "orient_prior" not in ranker.features:
-        return best
-    prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
-    if prior[best] >= PRIOR_AGAINST or prior.max() < PRIOR_SURE:
-        return best
-    if ranker.confidence(float(prob[best]), float(prior[best])) >= UNSURE_CONFIDENCE:
-        return best
-    ok = np.flatnonzero(prior >= PRIOR_SURE)
-    return int(ok[np.argmax(np.asarray(prob)[ok])])
-
-
-def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
-    """The learned selector's choice, or the direction that the GNN, the part-name prior and
-    (for a ranker that weighs it) the fine type's orientation prior agree on (module
-    docstring).
-
-    Parameters
-    ----------
-    ranker : kinmo.refine.ranker.Ranker
-        Its ``features``: a ranker that weighs ``orient_prior`` (the fine one) needs that
-        prior to agree as well.
-    features : (C, len(FEATURES)) float64
-        The candidates' features: ``dir_prior``, the GNN's axis-candidate mass on each
-        candidate's direction, ``sem_prior``, the part-name prior's share, and
-        ``orient_prior``, the fine type's orientation prior.
-    prob : (C,) float64
-        The ranker's probabilities.
-    best : int
-        The selector's choice.
-
-    Returns
-    -------
-    int
-        ``best``, unless some candidates hold at least :data:`PRIORS_AGREE_GNN` of the GNN's
-        mass, :data:`PRIORS_AGREE_NAMES` of the part-name prior and (``orient_prior`` rankers)
-        :data:`PRIORS_AGREE_GNN` of the orientation prior, while ``best`` holds at most
-        ``1 - PRIORS_AGREE_GNN`` of the GNN's: then the most probable of those candidates.
-        kinmo extension of Liu et al. 2023, Sec. 3.3 (issue 34).
-    """
-    if best < 0:
-        return best
-    prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
-    names = np.asarray(features[:, FEATURES.index("sem_prior")], dtype=np.float64)
-    if prior[best] > 1.0 - PRIORS_AGREE_GNN:
-        return best
-    agree = (prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES)
-    if "orient_prior" in ranker.features:
-        agree &= np.asarray(features[:, FEATURES.index("orient_prior")]) >= PRIORS_AGREE_GNN
-    ok = np.flatnonzero(agree)
-    if not ok.size:
-        return best
-    return int(ok[np.argmax(np.asarray(prob)[ok])])
 
 
 def hinge_blocked(refinement: EdgeRefinement) -> bool:

@@ -1,0 +1,122 @@
+"""When the learned selector defers to its priors (kinmo extension of Liu et al. 2023, Sec. 3.3).
+
+The learned selector (:func:`kinmo.refine.edge.select_edge`) ranks candidate lines by geometry
+and priors together. Two rules, applied to its choice before the sweep vetoes, let the priors
+win where the ranker's geometric terms overrule them against the evidence:
+
+- a **sure GNN** (:func:`sure_prior`): when the selector's choice gets almost none of the
+  GNN's axis-candidate mass (below :data:`PRIOR_AGAINST`), the GNN puts nearly all of it on
+  another direction (at least :data:`PRIOR_SURE`), and the selector's own calibrated
+  confidence is below :data:`UNSURE_CONFIDENCE`, the likeliest line of the GNN's direction
+  wins. An oven's knobs typed ``R_H_S`` by the type head, whose axis head was sure of the
+  vertical, had been turned horizontal by the type's orientation prior. Only rankers that
+  weigh that prior (``orient_prior``: the fine one) defer; out of fold, the coarse ranker's
+  deferrals turned one right dishwasher joint 90° off (docs/results/table1_four_settings.md).
+- **the priors agree** (:func:`agreeing_priors`): the GNN puts at least
+  :data:`PRIORS_AGREE_GNN` of its mass on one direction, the part-name prior (``sem_prior``,
+  :mod:`kinmo.refine.semantic_prior`) at least :data:`PRIORS_AGREE_NAMES` on it, for a ranker
+  that weighs it the fine type's orientation prior (``orient_prior``) at least
+  :data:`PRIORS_AGREE_GNN` too, and the choice lies on a direction the GNN gives at most
+  ``1 - PRIORS_AGREE_GNN``. The selector's geometric terms (a line on the OBB edge across a
+  door, the handle's side) had turned sure, named cabinet and room doors horizontal; the
+  coarse types carry no orientation at all (out of fold, both fold seeds:
+  docs/results/table1_four_settings.md). Parts with names the prior does not know get its
+  motion-level share only, so the rule can fire for them too.
+
+Both mark the edge deferred (:attr:`kinmo.refine.edge.EdgeRefinement.deferred`), so the
+repeated-parts vote (:mod:`kinmo.refine.repeated`) leaves it alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinmo.refine.features import FEATURES
+
+__all__ = ["PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN", "PRIORS_AGREE_NAMES", "UNSURE_CONFIDENCE",
+           "agreeing_priors", "sure_prior"]
+
+#: :func:`sure_prior`: the GNN's axis head holds at least this mass on one direction ...
+PRIOR_SURE = 0.95
+#: ... the selector's choice at most this much ...
+PRIOR_AGAINST = 0.05
+#: ... and the selector's calibrated confidence in its choice is below this.
+UNSURE_CONFIDENCE = 0.1
+#: :func:`agreeing_priors`: the GNN's axis head holds at least this mass on one direction ...
+PRIORS_AGREE_GNN = 0.9
+#: ... and the part-name prior (``sem_prior``) at least this share on it (the orientation
+#: prior, for a ranker that weighs it, at least ``PRIORS_AGREE_GNN``).
+PRIORS_AGREE_NAMES = 0.5
+
+
+def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
+    """The learned selector's choice, or the GNN's direction where the GNN is sure and the
+    selector is not (module docstring).
+
+    Parameters
+    ----------
+    ranker : kinmo.refine.ranker.Ranker
+        Its ``features`` and calibrated confidence (:meth:`~kinmo.refine.ranker.Ranker.confidence`).
+    features : (C, len(FEATURES)) float64
+        The candidates' features; ``dir_prior`` is the GNN's axis-candidate mass on each
+        candidate's direction.
+    prob : (C,) float64
+        The ranker's probabilities.
+    best : int
+        The selector's choice.
+
+    Returns
+    -------
+    int
+        ``best``, unless the ranker weighs the fine type's orientation prior
+        (``orient_prior``: only such a ranker can overrule a sure axis head), the ``dir_prior``
+        of ``best`` is below :data:`PRIOR_AGAINST`, some candidate's is at least
+        :data:`PRIOR_SURE` and the calibrated confidence of ``best`` is below
+        :data:`UNSURE_CONFIDENCE`: then the most probable of the candidates the GNN is sure
+        of.
+    """
+    if best < 0 or "orient_prior" not in ranker.features:
+        return best
+    prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
+    if prior[best] >= PRIOR_AGAINST or prior.max() < PRIOR_SURE:
+        return best
+    if ranker.confidence(float(prob[best]), float(prior[best])) >= UNSURE_CONFIDENCE:
+        return best
+    ok = np.flatnonzero(prior >= PRIOR_SURE)
+    return int(ok[np.argmax(np.asarray(prob)[ok])])
+
+
+def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
+    """The learned selector's choice, or the direction that the GNN, the part-name prior and
+    (for a ranker that weighs it) the fine type's orientation prior agree on (module
+    docstring).
+
+    Parameters
+    ----------
+    ranker, features, prob, best
+        As :func:`sure_prior`; ``features`` also gives each candidate's ``sem_prior`` (the
+        part-name prior's share) and ``orient_prior`` (the fine type's orientation prior,
+        which must agree for a ranker that weighs it).
+
+    Returns
+    -------
+    int
+        ``best``, unless some candidates hold at least :data:`PRIORS_AGREE_GNN` of the GNN's
+        mass, :data:`PRIORS_AGREE_NAMES` of the part-name prior and (``orient_prior`` rankers)
+        :data:`PRIORS_AGREE_GNN` of the orientation prior, while ``best`` holds at most
+        ``1 - PRIORS_AGREE_GNN`` of the GNN's: then the most probable of those candidates.
+        kinmo extension of Liu et al. 2023, Sec. 3.3 (issue 34).
+    """
+    if best < 0:
+        return best
+    prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
+    names = np.asarray(features[:, FEATURES.index("sem_prior")], dtype=np.float64)
+    if prior[best] > 1.0 - PRIORS_AGREE_GNN:
+        return best
+    agree = (prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES)
+    if "orient_prior" in ranker.features:
+        agree &= np.asarray(features[:, FEATURES.index("orient_prior")]) >= PRIORS_AGREE_GNN
+    ok = np.flatnonzero(agree)
+    if not ok.size:
+        return best
+    return int(ok[np.argmax(np.asarray(prob)[ok])])
