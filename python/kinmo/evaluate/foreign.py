@@ -193,35 +193,27 @@ def urdf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[Tr
         moved = frozenset(index[n] for n in below if n in index)
         if parts is not None and not moved:
             continue
+        where = f"joint {j.get('name', '')!r}"
         ax = j.find("axis")
-        axis = np.array([1.0, 0.0, 0.0]) if ax is None else numbers(ax, "xyz", 3, "1 0 0", model,
-                                                                     f"joint {j.get('name', '')!r}")
+        axis = np.array([1.0, 0.0, 0.0]) if ax is None else numbers(ax, "xyz", 3, "1 0 0", model, where)
         world = poses.get(child, np.eye(4))[:3, :3] @ axis
         world = world / np.linalg.norm(world)
-        out.append(TrueJoint(k, kind, world, moved, _urdf_joint(j, kind, world, model)))
+        lim = j.find("limit")  # lower / upper default to 0, as URDF's
+        ends = (None if j.get("type") == "continuous" or lim is None else
+                tuple(float(numbers(lim, a, 1, "0", model, where)[0]) for a in ("lower", "upper")))
+        out.append(TrueJoint(k, kind, world, moved, _urdf_joint(kind, world, ends)))
     return out
 
 
-def _urdf_joint(joint: Any, kind: str, direction: np.ndarray, model: Path) -> Joint:
-    """The range of a URDF ``<joint>`` as a :class:`~kinmo.data.model.Joint` along
-    ``direction`` (its world axis): ``<limit lower upper>`` (default 0, as URDF's) in degrees
-    (revolute) or the file's units (prismatic); ``None`` for a continuous joint, or one
-    without ``<limit>`` or whose limits are not ordered.
-
-    Raises
-    ------
-    KinmoDataError
-        ``lower`` or ``upper`` is not a finite number (:func:`kinmo.assets.urdf.numbers`).
-    """
-    from kinmo.assets.urdf import numbers
-
+def _urdf_joint(kind: str, direction: np.ndarray, ends: tuple[float, ...] | None) -> Joint:
+    """A URDF joint's range as a :class:`~kinmo.data.model.Joint` along ``direction`` (its
+    world axis): ``ends``, its ``<limit>``'s ``(lower, upper)`` in radians (revolute) or the
+    file's units (prismatic), in degrees or those units; ``None`` (a continuous joint, one
+    without ``<limit>``) or limits that are not ordered give no range."""
     limit = None
-    lim = joint.find("limit")
-    if joint.get("type") != "continuous" and lim is not None:
-        where = f"joint {joint.get('name', '')!r}"
-        lo, hi = (float(numbers(lim, a, 1, "0", model, where)[0]) for a in ("lower", "upper"))
-        if lo < hi:
-            limit = (math.degrees(lo), math.degrees(hi)) if kind == JointType.HINGE.value else (lo, hi)
+    if ends is not None and ends[0] < ends[1]:
+        lo, hi = ends
+        limit = (math.degrees(lo), math.degrees(hi)) if kind == JointType.HINGE.value else (lo, hi)
     return Joint(JointType(kind), None, direction, limit)
 
 
