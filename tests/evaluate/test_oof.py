@@ -65,3 +65,25 @@ def test_every_object_is_predicted_out_of_fold_in_four_settings(tmp_path):
 def test_fewer_objects_than_folds_is_one_clear_error(tmp_path):
     with pytest.raises(KinmoDataError, match="fewer than --folds 5"):
         oof_table1(_graphs(3), tmp_path, folds=5, preset="tiny", epochs=1, progress=False)
+
+
+def test_fold_gnns_get_their_ensemble_members_and_an_older_run_resumes(tmp_path):
+    from kinmo.runs import member_folders
+
+    graphs = _graphs()
+    single = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False)
+    stamp = {t: (tmp_path / "folds" / f"{t}_0" / "model.pt").stat().st_mtime_ns for t in ("fine", "coarse")}
+    ens = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False, members=1)
+    for t in ("fine", "coarse"):
+        for f in range(3):
+            run_dir = tmp_path / "folds" / f"{t}_{f}"
+            (member,) = member_folders(run_dir)
+            cfg = json.loads((member / "config.json").read_text())
+            assert cfg["seed"] == 1  # the fold's own seed + 1, on the fold's split
+            assert json.loads((member / "split.json").read_text()) == json.loads((run_dir / "split.json").read_text())
+        # the fold's own model was kept, only its member trained
+        assert (tmp_path / "folds" / f"{t}_0" / "model.pt").stat().st_mtime_ns == stamp[t]
+    assert json.loads((tmp_path / "oof.json").read_text())["members"] == 1
+    assert ens.models == single.models
+    from kinmo.train.gnn import load_run
+    assert len(load_run(tmp_path / "folds" / "fine_0", device="cpu").members) == 1  # predicted as one

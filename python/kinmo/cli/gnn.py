@@ -28,6 +28,7 @@ def train_gnn_cmd(
     flatten_prob: Optional[float] = typer.Option(None, "--flatten-prob", min=0.0, max=1.0, help="Share of training shapes also trained flattened (one leaf per link or PartNet leaf) [preset's: quick/paper 1, tiny 0]."),  # noqa: UP007
     drop_names_prob: Optional[float] = typer.Option(None, "--drop-names-prob", min=0.0, max=1.0, help="Share of training graphs with node names dropped to 'unknown' [preset's]."),  # noqa: UP007
     augment_turn: Optional[float] = typer.Option(None, "--augment-turn", min=0.0, max=1.0, help="Share of training shapes seen a random quarter turn off PartNet's facing each step [preset's: quick/paper 0.15, tiny 0]."),  # noqa: UP007
+    members: int = typer.Option(0, "--members", min=0, help="Also train this many models like it with seeds SEED+1, SEED+2 ... into OUT/members/<k>/: an ensemble whose answers inference averages (kinmo extension)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Train the motion GNN (Liu et al. 2023, Sec. 3.2) and write a run folder.
@@ -39,7 +40,7 @@ def train_gnn_cmd(
 
     from kinmo.cli._errors import cli_errors, fail
     from kinmo.train.config import preset as make_preset
-    from kinmo.train.gnn import train_gnn
+    from kinmo.train.gnn import train_gnn, train_members
 
     console = new_console()
     if types not in (None, "fine", "coarse"):
@@ -57,4 +58,8 @@ def train_gnn_cmd(
         f"{res.seconds:.1f} s: loss {last['loss']:.3f}, train acc {last['train_acc']:.3f}"
         + (f", test acc {last['test_acc']:.3f}" if res.split.test else "")
     )
+    if members:
+        with cli_errors(1):
+            extra = train_members(data, out, cfg, members, progress=not quiet)
+        console.print(f"trained {len(extra)} ensemble member(s) into {literal(Path(out) / 'members')}")
     console.print(f"run folder: {literal(res.run_dir)}")

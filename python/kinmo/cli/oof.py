@@ -20,6 +20,7 @@ def oof_cmd(
     seed: int = typer.Option(0, "--seed", help="Random seed (folds, GNNs, rankers)."),
     augment: bool = typer.Option(True, "--augment/--no-augment", help="Fine GNNs with the preset's hierarchy and name augmentations, as `kinmo train all`."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="GNNs trained at once (0: one per CPU)."),
+    members: int = typer.Option(0, "--members", min=0, help="Ensemble members of every fold GNN (seeds SEED+1 ...): each fold predicted by the average of 1 + N GNNs (as `kinmo train gnn --members`)."),
     executor: str = EXECUTOR,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -37,7 +38,7 @@ def oof_cmd(
         console = new_console(width=max(console.width, 140))
     with cli_errors(1):
         report = oof_table1(data, out, folds=folds, preset=preset, seed=seed, workers=workers,
-                            augment=augment, executor=executor, progress=not quiet)
+                            augment=augment, executor=executor, progress=not quiet, members=members)
     print_report(report, console)
     s = oof_summary(report)
     for t in ("fine", "coarse"):

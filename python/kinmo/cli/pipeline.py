@@ -42,6 +42,7 @@ def train_all(
     selector: str = typer.Option("learned", "--selector",
                                  help="learned (a ranker fit on out-of-fold GNNs; Table 1 adds the paper's rows) "
                                       "or paper (0.5/0.3/0.2): how refinement picks an axis."),
+    gnn_members: int = typer.Option(0, "--gnn-members", min=0, max=16, help="Ensemble members of every motion GNN (seeds seed+1, ...): each GNN, the ranker's fold GNNs included, predicts as the average of 1 + N models (kinmo extension; N+1 times the GNN training time)."),
     release: bool = typer.Option(False, "--release", help="Also train the release bundle OUT/release/model: the fine GNN, the coarse GNN (its check/ for pseudo-labelling) and the axis network again on every labelled object and the kept pseudo-labels (the pretrained model's recipe)."),
 ) -> None:
     """Prepare, train the motion GNN, the axis network and the ranker, pseudo-label, render and train
@@ -79,7 +80,7 @@ def train_all(
             labeled_fraction=labeled_fraction, seed=seed, ancsh_seeds=ancsh_seeds,
             ancsh_synth=ancsh_synth, ancsh_synth_as=ancsh_synth_as, workers=workers, skip_ancsh=skip_ancsh,
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
-            selector=selector, release=release,
+            selector=selector, release=release, gnn_members=gnn_members,
             **(TINY if preset == "tiny" else {}),
         )
         res = run_pipeline(cfg, console=console)

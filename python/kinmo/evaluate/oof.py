@@ -96,6 +96,7 @@ def oof_table1(
     augment: bool = True,
     executor: str = "local",
     progress: bool = True,
+    members: int = 0,
 ) -> EvalReport:
     """Table 1's four settings out of fold on every labelled object (module docstring).
 
@@ -113,6 +114,11 @@ def oof_table1(
     workers, executor
         GNNs trained at once, and where (:func:`kinmo.train.ranker.train_folds`).
     progress : bool
+    members : int
+        Ensemble members of every fold GNN (``folds/<types>_<f>/members/<k>/``,
+        :func:`kinmo.train.gnn.train_members`): each fold is then predicted by the average of
+        ``1 + members`` GNNs trained with seeds ``seed``, ``seed + 1`` ..., and its ranker is
+        fit on the other folds' ensemble predictions.
 
     Returns
     -------
@@ -135,7 +141,7 @@ def oof_table1(
     fold_of = dict(zip(ids, fold_ids(ids, [g.category for g in graphs], folds, seed)))
     train_folds(graphs, ids, out, k=folds, preset=preset, types=("fine", "coarse"), seed=seed,
                 threads=1, epochs=epochs, workers=workers, executor=executor, progress=progress,
-                augment=augment)
+                augment=augment, members=members)
     gnn: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
     runs: dict[tuple[str, int], Any] = {}
     for t in gnn:
@@ -170,6 +176,6 @@ def oof_table1(
              "OBB_fine": [refined["fine"][i] for i in ids]}
     report = evaluate_graphs(graphs, preds)
     write_report(report, out)
-    write_json(out / "oof.json", {"folds": folds, "preset": preset, "seed": seed,
+    write_json(out / "oof.json", {"folds": folds, "preset": preset, "seed": seed, "members": members,
                                   "objects": len(graphs), **oof_summary(report)})
     return report

@@ -6,7 +6,8 @@ Layout of a bundle folder (written by :func:`write_bundle`, e.g. ``runs/all/mode
     bundle.json      {"format": "kinmo-model-bundle", "version": 1, "gnn": "gnn",
                       "axis": "axis" | null, "ranker": "ranker.json" | null,
                       "selector": "ranker" | "paper" | "none", "trained_on": [ids...]}
-    gnn/             the motion-GNN run (model.pt: weights, config, semantic vocabulary)
+    gnn/             the motion-GNN run (model.pt: weights, config, semantic vocabulary;
+                     members/<k>/model.pt: its ensemble members, when it has any)
     axis/            optional: the axis-selection network run (model.pt ...)
     ranker.json      optional: the learned selector, with its semantic direction prior
     ranges.json      optional: the range-of-motion prior (issue 35; key "ranges" in
@@ -33,6 +34,7 @@ from pathlib import Path
 from kinmo.errors import KinmoDataError
 from kinmo.io import read_json_document, write_json
 from kinmo.refine.axis_io import CATEGORIES_FILE, category_files
+from kinmo.runs import MEMBERS_DIR, member_folders
 
 __all__ = ["BUNDLE_FILE", "BUNDLE_FORMAT", "BUNDLE_VERSION", "ModelBundle", "find_ranker",
            "read_bundle", "resolve_bundle", "write_bundle"]
@@ -162,6 +164,17 @@ def resolve_bundle(model: str | Path, axis_model: str | Path | None = None,
     return replace(b, axis=axis, ranker=rk)
 
 
+def _copy_members(run: Path, dest: Path) -> None:
+    """Copy the ensemble members of the GNN run folder ``run`` (``members/<k>/model.pt`` and
+    ``config.json``, :func:`kinmo.runs.member_folders`) into the bundle's run folder ``dest``."""
+    for folder in member_folders(run):
+        target = dest / MEMBERS_DIR / folder.name
+        target.mkdir(parents=True)
+        for name in ("model.pt", "config.json"):
+            if (folder / name).is_file():
+                shutil.copy2(folder / name, target / name)
+
+
 def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = None,
                  ranker: str | Path | None = None, trained_on: Sequence[str] = (),
                  ranges: str | Path | None = None, check: str | Path | None = None) -> ModelBundle:
@@ -172,7 +185,8 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
     out : str or Path
         The bundle folder; written whole into a temporary sibling, then renamed into place.
     gnn : str or Path
-        Run folder of ``kinmo train gnn`` (its ``model.pt`` and ``config.json`` are copied).
+        Run folder of ``kinmo train gnn`` (its ``model.pt`` and ``config.json`` are copied,
+        and its ensemble members', ``members/<k>/``).
     axis : str or Path, optional
         Run folder of ``kinmo train axis`` (its ``model.pt`` and ``categories.json``/
         per-category networks when present).
@@ -183,8 +197,8 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
     ranges : str or Path, optional
         ``ranges.json``, the range-of-motion prior (:meth:`kinmo.ranges.RangePrior.save`).
     check : str or Path, optional
-        Run folder of a second ``kinmo train gnn`` (its ``model.pt`` and ``config.json`` are
-        copied into ``check/``): the model pseudo-labelling requires to agree.
+        Run folder of a second ``kinmo train gnn`` (its ``model.pt``, ``config.json`` and
+        members are copied into ``check/``): the model pseudo-labelling requires to agree.
 
     Returns
     -------
@@ -218,6 +232,7 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
         for name in ("config.json", "split.json"):  # eval reads the split of its run
             if gnn.is_dir() and (gnn / name).is_file():
                 shutil.copy2(gnn / name, tmp / "gnn" / name)
+        _copy_members(gnn_pt.parent, tmp / "gnn")
         if axis is not None:
             axis = Path(axis)
             if axis.is_file():
@@ -245,6 +260,7 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
             shutil.copy2(check_pt, tmp / "check" / "model.pt")
             if (check_pt.parent / "config.json").is_file():
                 shutil.copy2(check_pt.parent / "config.json", tmp / "check" / "config.json")
+            _copy_members(check_pt.parent, tmp / "check")
         selector = "ranker" if ranker is not None else ("paper" if axis is not None else "none")
         write_json(tmp / BUNDLE_FILE, {
             "format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "gnn": "gnn",

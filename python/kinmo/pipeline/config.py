@@ -97,6 +97,12 @@ class PipelineConfig(BaseModel):
         flat, unnamed asset is predicted (issue 22) whichever way it faces (issue 36).
         ``False`` sets all three to 0 (the demo and ``tiny``, to stay fast). The coarse GNN
         never gets them (Table 1's coarse column stays the paper's).
+    gnn_members : int
+        Ensemble members of every motion GNN (fine, coarse, the ranker's fold GNNs and the
+        release's): each is trained ``1 + gnn_members`` times, with seeds ``seed``,
+        ``seed + 1`` ..., and predicts as the average of its models
+        (:func:`kinmo.train.gnn.train_members`, :func:`kinmo.inference.gnn.forward`; kinmo
+        extension). 0: single models (stage keys as before).
     release : bool
         After the baseline, train the release bundle (``out/release/model/``): the fine GNN,
         the coarse GNN (the bundle's ``check/``) and the axis network again on every
@@ -133,6 +139,7 @@ class PipelineConfig(BaseModel):
     synth_seed: int | None = Field(None, ge=0, le=99999)
     selector: Literal["learned", "paper"] = "learned"
     augment_gnn: bool = True
+    gnn_members: int = Field(0, ge=0, le=16)
     release: bool = False
 
     @model_validator(mode="after")

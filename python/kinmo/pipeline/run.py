@@ -42,7 +42,7 @@ from kinmo.runs import ANCSH_SEEDS_DIR, RESULT_FILE, SYNTH_EXTRA_FILE, TABLE2_SE
 from kinmo.stages import file_fingerprint
 from kinmo.synth import SYNTH_VERSION, generate_dataset
 from kinmo.train.config import NO_AUGMENTATIONS, preset as gnn_preset
-from kinmo.train.gnn import train_gnn
+from kinmo.train.gnn import train_gnn, train_members
 from kinmo.train.ranker import fold_config, fold_plan, ranker_graphs, train_ranker
 from kinmo.train.split import Split
 
@@ -337,9 +337,9 @@ class _Context:
             cats = {g.shape_id: g.category for g in rg}
             plan = fold_plan(ids, [cats[i] for i in ids], folder, k=RANKER_FOLDS, preset=cfg.preset,
                              types=RANKER_TYPES, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
-                             augment=cfg.augment_gnn)
+                             augment=cfg.augment_gnn, members=cfg.gnn_members)
             pending += [_Training(f"{v.prefix}train ranker: fold GNN {run_dir.name}", "gnn", run_dir, fcfg, split,
-                                  None, None) for run_dir, fcfg, split in plan]
+                                  None, None, cfg.gnn_members) for run_dir, fcfg, split in plan]
         # longest first (the axis network, then the augmented GNNs), so that the last one to
         # finish is a short one
         pending.sort(key=lambda t: (t.kind != "axis", -getattr(t.config, "flatten_prob", 0.0)))
@@ -396,7 +396,7 @@ class _Context:
         return v.out / "ranker", {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES),
                                                      "epochs": epochs, "augment": cfg.augment_gnn,
                                                      "fit": "cv-l2-category",
-                                                     "fold_gnns": _fold_stamp(cfg)}}
+                                                     "fold_gnns": _fold_stamp(cfg), **_members_key(cfg)}}
 
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
         """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
@@ -442,7 +442,8 @@ class _Context:
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
                               **({} if cfg.augment_gnn and types == "fine" else NO_AUGMENTATIONS))
             trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, split_file,
-                                       {**base, "gnn": gcfg.model_dump()}, v.graphs))
+                                       {**base, "gnn": gcfg.model_dump(), **_members_key(cfg)}, v.graphs,
+                                       cfg.gnn_members))
             gnn_runs[types] = run_dir
         axis_dir = v.reuse.get("axis", out / "axis")
         if "axis" not in v.reuse and cfg.refine:
@@ -679,7 +680,8 @@ class _Context:
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
                               **({} if cfg.augment_gnn and types == "fine" else NO_AUGMENTATIONS))
             trainings.append(_Training(f"release: train gnn ({types})", "gnn", vout / f"gnn_{types}", gcfg,
-                                       split_file, {**base, "gnn": gcfg.model_dump()}, caches))
+                                       split_file, {**base, "gnn": gcfg.model_dump(), **_members_key(cfg)},
+                                       caches, cfg.gnn_members))
         gnn_dir, check_dir = trainings[0].folder, trainings[1].folder
         axis_dir = None
         if cfg.refine:
@@ -771,6 +773,8 @@ class _Training:
         The stage's key (its ``.done`` marker).
     graphs : Path or list of PartGraph
         What it trains on (a cache folder or the graphs).
+    members : int
+        A motion GNN's ensemble members, trained after it (:func:`~kinmo.train.gnn.train_members`).
     """
 
     name: str
@@ -780,13 +784,17 @@ class _Training:
     split: Any
     key: dict[str, Any] | None
     graphs: Any
+    members: int = 0
 
     def run(self, progress: bool, console: Any, in_pool: bool) -> None:
-        """Train (``console`` and ``in_pool`` are not used: each is single-threaded already)."""
+        """Train (``console`` and ``in_pool`` are not used: each is single-threaded already).
+        A fold GNN (``key`` None) whose own ``model.pt`` exists only gets its missing members."""
         if self.kind == "axis":
             train_axis_model(self.graphs, self.folder, self.config, split=self.split, progress=progress)
-        else:
+            return
+        if self.key is not None or not (self.folder / "model.pt").is_file():
             train_gnn(self.graphs, self.folder, self.config, split=self.split, progress=progress)
+        train_members(self.graphs, self.folder, self.config, self.members, progress=progress)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -865,6 +873,12 @@ def _chain_failed(chain: list[_Training | _AncshStage], exc: Exception) -> list[
     raise KinmoError(f"{chain[0].name} ({chain[0].folder}): {exc}") from exc
 
 
+def _members_key(cfg: PipelineConfig) -> dict[str, Any]:
+    """The stage-key entry of the motion GNNs' ensemble members: none for single models, so
+    that runs without members keep their keys."""
+    return {"gnn_members": cfg.gnn_members} if cfg.gnn_members else {}
+
+
 def _fold_stamp(cfg: PipelineConfig) -> dict[str, Any]:
     """The ranker's fold GNNs' configurations by type set, as JSON values."""
     configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
@@ -895,4 +909,4 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     _ranker_fold_stamp(cfg, folder)
     train_ranker(v.graphs, folder, v.split, folds=RANKER_FOLDS, preset=cfg.preset, types=RANKER_TYPES,
                  seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs,
-                 workers=cfg.workers, augment=cfg.augment_gnn)
+                 workers=cfg.workers, augment=cfg.augment_gnn, members=cfg.gnn_members)

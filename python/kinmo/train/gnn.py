@@ -45,6 +45,7 @@ from kinmo.features import GraphTensors, SemanticVocab, collate, graph_tensors, 
 from kinmo.io import write_json, write_text
 from kinmo.models.losses import MotionLoss, class_weights
 from kinmo.models.motion_gnn import ModelConfig, MotionGNN
+from kinmo.runs import MEMBERS_DIR, member_folders
 import kinmo.train.distributed as distributed
 from kinmo.train.config import TrainConfig
 from kinmo.train.loop import (
@@ -75,6 +76,7 @@ __all__ = [
     "load_cache",
     "load_run",
     "train_gnn",
+    "train_members",
 ]
 
 METRIC_COLUMNS: tuple[str, ...] = (
@@ -102,6 +104,10 @@ class Run:
     device : torch.device
     path : Path
         The run folder.
+    members : tuple of Run
+        Further models of the same type set and vocabulary, trained like this one with other
+        seeds (``<run>/members/<k>/``, :data:`kinmo.runs.MEMBERS_DIR`): inference averages their answers
+        with this one's (:func:`kinmo.inference.gnn.forward`). Empty for a single model.
     """
 
     model: MotionGNN
@@ -109,6 +115,7 @@ class Run:
     vocab: SemanticVocab
     device: torch.device
     path: Path
+    members: tuple[Run, ...] = ()
 
     @property
     def types(self) -> str:
@@ -159,7 +166,16 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
     dev = resolve_device(device)
     model.to(dev).eval()
     vocab = SemanticVocab(payload.get("vocab", []))
-    return Run(model, config, vocab, dev, ckpt.parent)
+    members = []
+    for folder in member_folders(ckpt.parent):
+        m = load_run(folder, device)
+        if m.members or m.types != config.model.types or m.vocab.names != vocab.names:
+            raise KinmoDataError(folder, "an ensemble member must be a single motion GNN of the run's "
+                                         "type set and vocabulary (trained on the same objects)")
+        members.append(m)
+    return Run(model, config, vocab, dev, ckpt.parent, tuple(members))
+
+
 
 
 @dataclass
@@ -274,6 +290,51 @@ def train_gnn(
     with training_session(config.device, config.seed, config.threads, deterministic=True) as (
             dist_info, device):
         return _train(train_g, test_g, out, config, split, progress, on_epoch, dist_info, device)
+
+
+def train_members(cache: str | Path | Sequence[PartGraph], out: str | Path, config: TrainConfig,
+                  members: int, progress: bool = True) -> list[TrainResult]:
+    """Train the ensemble members of the run ``out`` (:attr:`Run.members`, kinmo extension): the
+    models averaged with the run's own at inference (:func:`kinmo.inference.gnn.forward`).
+
+    Member ``k`` (1 to ``members``) is :func:`train_gnn` of ``config`` with seed
+    ``config.seed + k`` on the run's own split (``out/split.json``, so the same objects and
+    vocabulary), into ``out/members/<k>/`` (:data:`kinmo.runs.MEMBERS_DIR`). Members already
+    trained (their ``model.pt`` exists) are kept: an interrupted run resumes.
+
+    Parameters
+    ----------
+    cache : str, Path or sequence of PartGraph
+        As :func:`train_gnn`.
+    out : str or Path
+        A run folder of :func:`train_gnn` (its ``split.json`` is used).
+    config : TrainConfig
+        The run's configuration.
+    members : int
+        Further models (0: none).
+    progress : bool
+
+    Returns
+    -------
+    list of TrainResult
+        The members trained by this call.
+
+    Raises
+    ------
+    KinmoDataError
+        ``out`` has no ``split.json`` (train the run first), or as :func:`train_gnn`.
+    """
+    out = Path(out)
+    if members > 0 and not (out / "split.json").is_file():
+        raise KinmoDataError(out / "split.json", "no split of the run: train its own model first")
+    done = []
+    for k in range(1, members + 1):
+        folder = out / MEMBERS_DIR / str(k)
+        if (folder / "model.pt").is_file():
+            continue
+        cfg = config.model_copy(update={"seed": config.seed + k})
+        done.append(train_gnn(cache, folder, cfg, split=out / "split.json", progress=progress))
+    return done
 
 
 def _train(train_g: list[PartGraph], test_g: list[PartGraph], out: Path, config: TrainConfig,

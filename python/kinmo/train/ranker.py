@@ -29,16 +29,21 @@ from kinmo.refine.groups import EdgeGroups
 from kinmo.refine.ranker import Ranker
 from kinmo.refine.semantic_prior import SemanticPrior
 from kinmo.train.config import NO_AUGMENTATIONS, TrainConfig, preset as make_preset
-from kinmo.train.gnn import load_run, train_gnn
+from kinmo.train.gnn import load_run, train_gnn, train_members
+from kinmo.runs import member_folders
 from kinmo.train.split import Split
 
 __all__ = ["fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_folds", "train_ranker"]
 
 
 def _fold_job(job: tuple) -> str:
-    """Train one fold GNN (a worker of :func:`train_folds`); returns its run folder."""
-    graphs, run_dir, cfg, split, progress = job
-    train_gnn(graphs, run_dir, cfg, split, progress=progress)
+    """Train one fold GNN and its ensemble members (a worker of :func:`train_folds`; a fold
+    whose own ``model.pt`` exists only gets its missing members); returns its run folder."""
+    graphs, run_dir, cfg, split, progress, *rest = job
+    members = rest[0] if rest else 0
+    if not (Path(run_dir) / "model.pt").is_file():
+        train_gnn(graphs, run_dir, cfg, split, progress=progress)
+    train_members(graphs, run_dir, cfg, members, progress=progress)
     return str(run_dir)
 
 
@@ -115,7 +120,7 @@ def ranker_graphs(data: str | Path, split: Split) -> list[PartGraph]:
 def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: int = 3,
               preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
               threads: int = 1, epochs: int | None = None,
-              augment: bool = True) -> list[tuple[Path, TrainConfig, Split]]:
+              augment: bool = True, members: int = 0) -> list[tuple[Path, TrainConfig, Split]]:
     """The fold GNNs of :func:`train_folds` still to train: run folder, configuration, split.
 
     Parameters
@@ -124,13 +129,14 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
         The training objects that have a labelled graph, sorted.
     categories : sequence of str
         Their categories (the folds are stratified by category, :func:`fold_ids`).
-    out, k, preset, types, seed, threads, epochs, augment
+    out, k, preset, types, seed, threads, epochs, augment, members
         As :func:`train_folds`.
 
     Returns
     -------
     list of (Path, TrainConfig, Split)
-        ``out/folds/<types>_<f>/`` without a ``model.pt``, in type-set then fold order; each
+        ``out/folds/<types>_<f>/`` without a ``model.pt`` or with fewer than ``members``
+        ensemble members (:func:`kinmo.runs.member_folders`), in type-set then fold order; each
         is :func:`~kinmo.train.gnn.train_gnn` of the graphs of ``ids`` with that
         configuration and split (fold ``f`` held out). ``kinmo train all`` trains them beside
         its other models (:mod:`kinmo.pipeline.run`).
@@ -142,7 +148,7 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
     for t in types:
         for f in range(k):
             run_dir = out / "folds" / f"{t}_{f}"
-            if (run_dir / "model.pt").is_file():
+            if (run_dir / "model.pt").is_file() and len(member_folders(run_dir)) >= members:
                 continue
             held = [i for i, ff in zip(ids, folds) if ff == f]
             rest = [i for i, ff in zip(ids, folds) if ff != f]
@@ -154,7 +160,8 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
 def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
                 k: int = 3, preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
                 threads: int = 1, epochs: int | None = None, workers: int = 1,
-                executor: str = "local", progress: bool = False, augment: bool = True) -> int:
+                executor: str = "local", progress: bool = False, augment: bool = True,
+                members: int = 0) -> int:
     """Train the fold GNNs of :func:`oof_predictions` for every type set, ``workers`` at a
     time on the project's executor (:func:`kinmo.executor.map_unordered`: the local process
     pool or Ray); each is one item, trained single-threaded (``threads``) as a sequential
@@ -171,6 +178,10 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
         ``"local"``, ``"ray"``, ``"ray:auto"`` or ``"ray:ADDRESS"``.
     progress : bool
         With one worker, each fold's epoch bar; with more, a bar counting finished folds.
+    members : int
+        Ensemble members of each fold GNN (:func:`kinmo.train.gnn.train_members`, trained in
+        the fold's item after it), so that the out-of-fold predictions are the same ensemble's
+        as the model they stand for at inference.
 
     Returns
     -------
@@ -185,12 +196,12 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
     by_id = {g.shape_id: g for g in graphs}
     ids = [i for i in sorted(train_ids) if i in by_id]
     plan = fold_plan(ids, [by_id[i].category for i in ids], out, k=k, preset=preset, types=types,
-                     seed=seed, threads=threads, epochs=epochs, augment=augment)
+                     seed=seed, threads=threads, epochs=epochs, augment=augment, members=members)
     jobs = [([by_id[i] for i in ids], run_dir, cfg, split) for run_dir, cfg, split in plan]
     if not jobs:
         return 0
     workers = resolve_workers(workers, len(jobs))
-    jobs = [(*j, progress and workers == 1) for j in jobs]
+    jobs = [(*j, progress and workers == 1, members) for j in jobs]
     with CountingBar(len(jobs), progress and workers > 1, "train ranker", "fold GNNs", counters={}) as bar:
         map_unordered(_fold_job, jobs, workers, lambda job, r: bar.advance(), _fold_failed, executor=executor)
     return len(jobs)
@@ -199,7 +210,7 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
 def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
                     k: int = 3, preset: str = "quick", types: str = "fine", seed: int = 0,
                     threads: int = 1, progress: bool = False, epochs: int | None = None,
-                    augment: bool = True) -> dict[str, object]:
+                    augment: bool = True, members: int = 0) -> dict[str, object]:
     """Out-of-fold predictions of the training objects (module docstring).
 
     Parameters
@@ -218,6 +229,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         The fold GNNs' epochs; by default the preset's (:func:`fold_config`).
     augment : bool
         The fine fold GNNs' hierarchy and name augmentations (:func:`fold_config`).
+    members : int
+        Ensemble members of each fold GNN (:func:`train_folds`).
 
     Returns
     -------
@@ -232,9 +245,10 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
     for f in range(k):
         held = [i for i, ff in zip(ids, folds) if ff == f]
         run_dir = out / "folds" / f"{types}_{f}"
-        if not (run_dir / "model.pt").is_file():
+        if not (run_dir / "model.pt").is_file() or len(member_folders(run_dir)) < members:
             train_folds(graphs, train_ids, out, k=k, preset=preset, types=(types,), seed=seed,
-                        threads=threads, epochs=epochs, progress=progress, augment=augment)
+                        threads=threads, epochs=epochs, progress=progress, augment=augment,
+                        members=members)
         # the fold GNN alone (no selector: the ranker is what this fits), through the one
         # prediction path every command uses
         fold = Predictor(load_run(run_dir, "cpu"))
@@ -247,7 +261,7 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
                  preset: str = "quick", types: Sequence[str] = ("fine", "coarse"), seed: int = 0,
                  threads: int = 1, progress: bool = True, epochs: int | None = None,
                  workers: int = 1, executor: str = "local", augment: bool = True,
-                 category_power: float | None = None) -> tuple[Ranker, dict]:
+                 category_power: float | None = None, members: int = 0) -> tuple[Ranker, dict]:
     """``kinmo train ranker``: OOF GNNs on the split's training objects, then the ranker.
 
     Parameters
@@ -276,6 +290,10 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     progress : bool
     workers, executor
         Fold GNNs trained at once, and where (:func:`train_folds`).
+    members : int
+        Ensemble members of each fold GNN (:func:`train_folds`): the ranker learns how far to
+        trust the same ensemble as the motion GNN it refines (``kinmo train all
+        --gnn-members``).
 
     Returns
     -------
@@ -295,12 +313,12 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     semantic = SemanticPrior.from_graphs(graphs)
     train_folds(graphs, sorted(train), out, k=folds, preset=preset, types=types, seed=seed,
                 threads=threads, epochs=epochs, workers=workers, executor=executor, progress=progress,
-                augment=augment)
+                augment=augment, members=members)
     parts = {}
     for t in types:
         preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,
                                 seed=seed, threads=threads, progress=progress, epochs=epochs,
-                                augment=augment)
+                                augment=augment, members=members)
         parts[t] = collect_groups(list(preds.values()), seed=seed, semantic=semantic)
     groups = EdgeGroups.concat(list(parts.values()))
     if not groups.y:
@@ -309,7 +327,7 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
                                        category_power=category_power)
     ranker.semantic = semantic
     ranker.meta["trained_on"] = {"data": str(data), "split": str(split), "types": list(types),
-                                 "preset": preset, "folds": folds, "augment": augment,
+                                 "preset": preset, "folds": folds, "augment": augment, "members": members,
                                  "epochs": fold_config(preset, "fine", epochs=epochs).epochs}
     groups.save(out / "oof_groups.npz")
     ranker.save(out / "ranker.json")
