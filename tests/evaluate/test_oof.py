@@ -10,6 +10,8 @@ import pytest
 from kinmo.errors import KinmoDataError
 from kinmo.evaluate.oof import SETTINGS, oof_table1
 from kinmo.ranges import RangePrior
+from kinmo.runs import member_folders
+from kinmo.train.gnn import load_run
 from motion_cabinet import cabinet_graph
 
 
@@ -68,8 +70,6 @@ def test_fewer_objects_than_folds_is_one_clear_error(tmp_path):
 
 
 def test_fold_gnns_get_their_ensemble_members_and_an_older_run_resumes(tmp_path):
-    from kinmo.runs import member_folders
-
     graphs = _graphs()
     single = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False)
     stamp = {t: (tmp_path / "folds" / f"{t}_0" / "model.pt").stat().st_mtime_ns for t in ("fine", "coarse")}
@@ -85,5 +85,4 @@ def test_fold_gnns_get_their_ensemble_members_and_an_older_run_resumes(tmp_path)
         assert (tmp_path / "folds" / f"{t}_0" / "model.pt").stat().st_mtime_ns == stamp[t]
     assert json.loads((tmp_path / "oof.json").read_text())["members"] == 1
     assert ens.models == single.models
-    from kinmo.train.gnn import load_run
     assert len(load_run(tmp_path / "folds" / "fine_0", device="cpu").members) == 1  # predicted as one

@@ -164,15 +164,17 @@ def resolve_bundle(model: str | Path, axis_model: str | Path | None = None,
     return replace(b, axis=axis, ranker=rk)
 
 
-def _copy_members(run: Path, dest: Path) -> None:
-    """Copy the ensemble members of the GNN run folder ``run`` (``members/<k>/model.pt`` and
-    ``config.json``, :func:`kinmo.runs.member_folders`) into the bundle's run folder ``dest``."""
-    for folder in member_folders(run):
-        target = dest / MEMBERS_DIR / folder.name
-        target.mkdir(parents=True)
-        for name in ("model.pt", "config.json"):
-            if (folder / name).is_file():
-                shutil.copy2(folder / name, target / name)
+def _copy_gnn_run(pt: Path, dest: Path, names: Sequence[str] = ("config.json",)) -> None:
+    """Copy a motion-GNN run into the bundle folder ``dest``: its weights ``pt``, the files
+    ``names`` beside them, and its ensemble members (``members/<k>/``,
+    :func:`kinmo.runs.member_folders`: weights and ``config.json`` each)."""
+    dest.mkdir(parents=True)
+    shutil.copy2(pt, dest / "model.pt")
+    for name in names:
+        if (pt.parent / name).is_file():
+            shutil.copy2(pt.parent / name, dest / name)
+    for folder in member_folders(pt.parent):
+        _copy_gnn_run(folder / "model.pt", dest / MEMBERS_DIR / folder.name)
 
 
 def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = None,
@@ -227,12 +229,8 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
     shutil.rmtree(tmp, ignore_errors=True)
     try:
         tmp.mkdir()
-        (tmp / "gnn").mkdir()
-        shutil.copy2(gnn_pt, tmp / "gnn" / "model.pt")
-        for name in ("config.json", "split.json"):  # eval reads the split of its run
-            if gnn.is_dir() and (gnn / name).is_file():
-                shutil.copy2(gnn / name, tmp / "gnn" / name)
-        _copy_members(gnn_pt.parent, tmp / "gnn")
+        # eval reads the split of its run
+        _copy_gnn_run(gnn_pt, tmp / "gnn", ("config.json", "split.json") if gnn.is_dir() else ())
         if axis is not None:
             axis = Path(axis)
             if axis.is_file():
@@ -256,11 +254,7 @@ def write_bundle(out: str | Path, gnn: str | Path, axis: str | Path | None = Non
         if ranges is not None:
             shutil.copy2(ranges, tmp / "ranges.json")
         if check_pt is not None:
-            (tmp / "check").mkdir()
-            shutil.copy2(check_pt, tmp / "check" / "model.pt")
-            if (check_pt.parent / "config.json").is_file():
-                shutil.copy2(check_pt.parent / "config.json", tmp / "check" / "config.json")
-            _copy_members(check_pt.parent, tmp / "check")
+            _copy_gnn_run(check_pt, tmp / "check")
         selector = "ranker" if ranker is not None else ("paper" if axis is not None else "none")
         write_json(tmp / BUNDLE_FILE, {
             "format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "gnn": "gnn",

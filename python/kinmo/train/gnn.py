@@ -106,8 +106,9 @@ class Run:
         The run folder.
     members : tuple of Run
         Further models of the same type set and vocabulary, trained like this one with other
-        seeds (``<run>/members/<k>/``, :data:`kinmo.runs.MEMBERS_DIR`): inference averages their answers
-        with this one's (:func:`kinmo.inference.gnn.forward`). Empty for a single model.
+        seeds (``<run>/members/<k>/``, :data:`kinmo.runs.MEMBERS_DIR`): inference averages
+        their answers with this one's (:func:`kinmo.inference.gnn.forward`). Empty for a
+        single model.
     """
 
     model: MotionGNN
@@ -174,8 +175,6 @@ def load_run(run: str | Path, device: str = "auto") -> Run:
                                          "type set and vocabulary (trained on the same objects)")
         members.append(m)
     return Run(model, config, vocab, dev, ckpt.parent, tuple(members))
-
-
 
 
 @dataclass

@@ -51,6 +51,11 @@ def _fold_failed(job: tuple, exc: Exception) -> str:
     raise KinmoError(f"fold GNN {job[1]}: {exc}") from exc
 
 
+def _fold_trained(run_dir: Path, members: int) -> bool:
+    """Whether the fold GNN of ``run_dir`` and ``members`` ensemble members of it are trained."""
+    return (run_dir / "model.pt").is_file() and len(member_folders(run_dir)) >= members
+
+
 def fold_config(preset: str, types: str, *, seed: int = 0, threads: int = 1,
                 epochs: int | None = None, augment: bool = True) -> TrainConfig:
     """The training configuration of a fold GNN (:func:`fold_plan`): the configuration of
@@ -148,7 +153,7 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
     for t in types:
         for f in range(k):
             run_dir = out / "folds" / f"{t}_{f}"
-            if (run_dir / "model.pt").is_file() and len(member_folders(run_dir)) >= members:
+            if _fold_trained(run_dir, members):
                 continue
             held = [i for i, ff in zip(ids, folds) if ff == f]
             rest = [i for i, ff in zip(ids, folds) if ff != f]
@@ -245,7 +250,7 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
     for f in range(k):
         held = [i for i, ff in zip(ids, folds) if ff == f]
         run_dir = out / "folds" / f"{types}_{f}"
-        if not (run_dir / "model.pt").is_file() or len(member_folders(run_dir)) < members:
+        if not _fold_trained(run_dir, members):
             train_folds(graphs, train_ids, out, k=k, preset=preset, types=(types,), seed=seed,
                         threads=threads, epochs=epochs, progress=progress, augment=augment,
                         members=members)
