@@ -89,3 +89,26 @@ def test_a_preset_change_refits_the_ranker_of_train_all(tmp_path, monkeypatch):
     monkeypatch.setattr(train_config, "AUGMENT_TURN", 0.15)
     pipeline_run._ranker_fold_stamp(cfg, tmp_path / "ranker")  # folds of another configuration go
     assert not (tmp_path / "ranker" / "folds").exists()
+
+
+def test_train_ranker_command_passes_members(monkeypatch, tmp_path):
+    """``kinmo train ranker --members N`` fits on fold GNNs with N members each (issue 34)."""
+    from typer.testing import CliRunner
+
+    import kinmo.train.ranker as train_ranker_module
+    from kinmo.cli import app
+
+    seen = {}
+
+    def fake(*a, **k):
+        seen.update(k)
+        return None, {}
+
+    monkeypatch.setattr(train_ranker_module, "train_ranker", fake)
+    args = ["train", "ranker", "--data", str(tmp_path), "--out", str(tmp_path / "o"),
+            "--split", str(tmp_path / "s.json")]
+    r = CliRunner().invoke(app, args + ["--members", "2"])
+    assert r.exit_code == 0, r.output
+    assert seen["members"] == 2
+    assert CliRunner().invoke(app, args).exit_code == 0 and seen["members"] == 0
+    assert CliRunner().invoke(app, args + ["--members", "-1"]).exit_code != 0

@@ -21,6 +21,7 @@ def train_ranker_cmd(
     seed: int = typer.Option(0, "--seed", help="Random seed (folds, GNNs, ranker)."),
     threads: int = typer.Option(1, "--threads", min=0, help="CPU threads for torch (per fold GNN)."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="Fold GNNs trained at once (0: one per CPU)."),
+    members: int = typer.Option(0, "--members", min=0, max=16, help="Ensemble members of every fold GNN (seeds SEED+1 ...): fit the ranker on the averaged predictions of 1 + N GNNs, as it will refine a motion GNN trained with `kinmo train gnn --members N` (kinmo extension)."),
     executor: str = EXECUTOR,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -35,7 +36,8 @@ def train_ranker_cmd(
         fail(f"--types: expected fine and/or coarse, got {types!r}", 2)
     with cli_errors(1):
         _, st = train_ranker(data, out, split, folds=folds, preset=preset, types=ts, seed=seed,
-                             threads=threads, progress=not quiet, workers=workers, executor=executor)
+                             threads=threads, progress=not quiet, workers=workers, executor=executor,
+                             members=members)
     c = new_console()
     what = "one ranker on the type sets pooled" if "pooled" in st else "a ranker per type set"
     c.print(f"wrote {literal(out / 'ranker.json')}: {what}")

@@ -28,6 +28,10 @@ same type set and vocabulary trained with other seeds (``members/<k>/``,
 runs each and averages their answers as the turns are averaged (:func:`average_members`). Out
 of fold on the 235 labelled objects, one single fine GNN's selector gain over it was −23.5 % and
 another seed's −32.4 % per category, the two averaged −46.0 % (docs/results/table1_four_settings.md).
+Two models whose directions are perpendicular tie in the mean axis (the answer is either, or
+between them); an even ensemble is the weakest there, and three models let the majority
+decide. As ``kinmo train all`` runs it, neither one nor two members beat the single GNN on
+every figure (session 29), so members stay opt-in.
 
 Frames: axes in each graph's mesh frame (PartNet is y-up), mesh units.
 """
