@@ -43,7 +43,7 @@ from kinmo.stages import file_fingerprint
 from kinmo.synth import SYNTH_VERSION, generate_dataset
 from kinmo.train.config import NO_AUGMENTATIONS, preset as gnn_preset
 from kinmo.train.gnn import train_gnn, train_members
-from kinmo.train.ranker import fold_config, fold_plan, ranker_graphs, train_ranker
+from kinmo.train.ranker import fold_config, fold_plan, ranker_graphs, train_fold, train_ranker
 from kinmo.train.split import Split
 
 __all__ = ["RANKER_FOLDS", "RANKER_TYPES", "SPLIT_TEST_FRACTION", "run_pipeline"]
@@ -788,13 +788,14 @@ class _Training:
 
     def run(self, progress: bool, console: Any, in_pool: bool) -> None:
         """Train (``console`` and ``in_pool`` are not used: each is single-threaded already).
-        A fold GNN (``key`` None) whose own ``model.pt`` exists only gets its missing members."""
+        A fold GNN of the ranker stage (``key`` None) is :func:`~kinmo.train.ranker.train_fold`."""
         if self.kind == "axis":
             train_axis_model(self.graphs, self.folder, self.config, split=self.split, progress=progress)
-            return
-        if self.key is not None or not (self.folder / "model.pt").is_file():
+        elif self.key is None:
+            train_fold(self.graphs, self.folder, self.config, self.split, self.members, progress)
+        else:
             train_gnn(self.graphs, self.folder, self.config, split=self.split, progress=progress)
-        train_members(self.graphs, self.folder, self.config, self.members, progress=progress)
+            train_members(self.graphs, self.folder, self.config, self.members, progress=progress)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -28,22 +28,29 @@ from kinmo.refine.fit_selector import DEFAULT_FEATURES, collect_groups, fit_type
 from kinmo.refine.groups import EdgeGroups
 from kinmo.refine.ranker import Ranker
 from kinmo.refine.semantic_prior import SemanticPrior
+from kinmo.runs import member_folders
 from kinmo.train.config import NO_AUGMENTATIONS, TrainConfig, preset as make_preset
 from kinmo.train.gnn import load_run, train_gnn, train_members
-from kinmo.runs import member_folders
 from kinmo.train.split import Split
 
-__all__ = ["fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_folds", "train_ranker"]
+__all__ = ["fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_fold", "train_folds",
+           "train_ranker"]
+
+
+def train_fold(graphs: Sequence[PartGraph], run_dir: Path, config: TrainConfig, split: Split,
+               members: int = 0, progress: bool = False) -> None:
+    """Train one fold GNN of :func:`fold_plan` and its ensemble members: a fold whose own
+    ``model.pt`` exists only gets its missing members (:func:`kinmo.train.gnn.train_members`),
+    so an interrupted run resumes. Used by :func:`train_folds` and ``kinmo train all``."""
+    if not (Path(run_dir) / "model.pt").is_file():
+        train_gnn(graphs, run_dir, config, split, progress=progress)
+    train_members(graphs, run_dir, config, members, progress=progress)
 
 
 def _fold_job(job: tuple) -> str:
-    """Train one fold GNN and its ensemble members (a worker of :func:`train_folds`; a fold
-    whose own ``model.pt`` exists only gets its missing members); returns its run folder."""
-    graphs, run_dir, cfg, split, progress, *rest = job
-    members = rest[0] if rest else 0
-    if not (Path(run_dir) / "model.pt").is_file():
-        train_gnn(graphs, run_dir, cfg, split, progress=progress)
-    train_members(graphs, run_dir, cfg, members, progress=progress)
+    """:func:`train_fold` of one job of :func:`train_folds` (a worker); returns its run folder."""
+    graphs, run_dir, cfg, split, progress, members = job
+    train_fold(graphs, run_dir, cfg, split, members, progress)
     return str(run_dir)
 
 
