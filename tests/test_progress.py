@@ -50,3 +50,25 @@ def test_a_report_table_written_to_a_log_is_not_cut_to_80_columns():
     assert r.returncode == 0, r.stderr
     assert "StorageFurniture" in r.stdout and "rejected no motion" in r.stdout
     assert "…" not in r.stdout
+
+
+REPEATS = """
+import logging
+from kinmo.progress import setup_logging
+setup_logging(0, {})
+log = logging.getLogger("kinmo.ranges.predict")
+for _ in range(3):
+    log.warning("%s: part %r is blocked both ways", "45332", "drawer")
+log.warning("%s: part %r is blocked both ways", "45332", "door")
+for _ in range(2):
+    log.error("45332: failed")
+"""
+
+
+def test_a_log_prints_a_repeated_warning_once_and_every_error():
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "FORCE_COLOR", "TERM", "KINMO_LOG")}
+    r = subprocess.run([sys.executable, "-c", REPEATS], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count("part 'drawer' is blocked") == 1
+    assert r.stderr.count("part 'door' is blocked") == 1
+    assert r.stderr.count("45332: failed") == 2

@@ -13,6 +13,10 @@ progress bar is live is printed above the bar instead of breaking it.
   calls it with the count of ``--verbose/-v`` (0: warnings, ``-v``: info, ``-vv``: debug);
   without ``-v`` the environment variable :data:`LOG_ENV` (``KINMO_LOG=info``, a level name
   or number) sets it. Library users configure :mod:`logging` as they like instead.
+  That handler prints a warning (or a lower record) once: a record whose logger, level and
+  message it has already printed is dropped (:class:`RepeatFilter`), so a long run's log does
+  not repeat the same fallback for the same part once per model that predicts it. Errors are
+  always printed.
 """
 
 from __future__ import annotations
@@ -25,8 +29,8 @@ from typing import Any
 from kinmo.errors import KinmoError
 
 __all__ = [
-    "LOG_ENV", "LOG_WIDTH", "CountingBar", "TrainingBar", "console", "literal", "log_level", "plain", "setup_logging",
-    "stderr_console",
+    "LOG_ENV", "LOG_WIDTH", "CountingBar", "RepeatFilter", "TrainingBar", "console", "literal", "log_level", "plain",
+    "setup_logging", "stderr_console",
 ]
 
 #: Environment variable giving the ``kinmo`` loggers' level when ``-v`` is not given.
@@ -130,6 +134,30 @@ def log_level(verbosity: int = 0, environ: Mapping[str, str] | None = None) -> i
     return level
 
 
+class RepeatFilter(logging.Filter):
+    """Drops a record below ``ERROR`` whose logger name, level and message this filter has
+    already let through (module docstring); errors and above always pass.
+
+    It remembers at most ``limit`` messages; past that, new messages pass and are not
+    remembered, so memory stays bounded on runs over many shapes.
+    """
+
+    def __init__(self, limit: int = 100_000) -> None:
+        super().__init__()
+        self.limit = limit
+        self._seen: set[tuple[str, int, str]] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno >= logging.ERROR:
+            return True
+        key = (record.name, record.levelno, record.getMessage())
+        if key in self._seen:
+            return False
+        if len(self._seen) < self.limit:
+            self._seen.add(key)
+        return True
+
+
 def setup_logging(verbosity: int = 0, environ: Mapping[str, str] | None = None) -> logging.Logger:
     """Give the ``kinmo`` logger its level (:func:`log_level`) and one rich handler on stderr.
 
@@ -150,6 +178,7 @@ def setup_logging(verbosity: int = 0, environ: Mapping[str, str] | None = None) 
     handler = RichHandler(console=stderr_console(), show_path=False, markup=False,
                           rich_tracebacks=False)
     handler._kinmo = True  # type: ignore[attr-defined]
+    handler.addFilter(RepeatFilter())
     log.addHandler(handler)
     return log
 

@@ -339,8 +339,8 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
             if c_hi - c_lo > (HINGE_BLOCKED_SHARE if hinge else BLOCKED_SHARE) * (hi - lo):
                 lo, hi = c_lo, c_hi
             else:
-                logger.warning("%s: part %r is blocked both ways within %.0f %% of its learned range "
-                               "(meshes interlocked at rest?); keeping that range", g.shape_id, lk.name,
+                logger.warning("%s: part %r (link %d) is blocked both ways within %.0f %% of its learned range "
+                               "(meshes interlocked at rest?); keeping that range", g.shape_id, lk.name, lk.id,
                                100 * (HINGE_BLOCKED_SHARE if hinge else BLOCKED_SHARE))
         span = MIN_HINGE_SPAN_DEG if hinge else MIN_SLIDER_SPAN * unit
         if not (math.isfinite(lo) and math.isfinite(hi)):
