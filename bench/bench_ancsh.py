@@ -34,8 +34,8 @@ itself, the loop ``kinmo train ancsh`` runs (its own batch order, every loss ter
 segmentation accuracy read each step), two epochs of ``--steps`` steps per round, the median
 over rounds of the first epoch's seconds per step (``fit_step_s``, which holds the start of
 the batch thread, whose first batch is not overlapped; issue 38's GPU target is judged on it)
-and of the second's (``fit_steady_step_s``, the steady state of a long run). It reads pre-rendered scans, no
-PyBullet and no dataset needed: ``DIR`` holds ``labeled/<key>/<frame>.npz`` (the cache of
+and of the second's (``fit_steady_step_s``, the steady state of a long run). It reads
+pre-rendered scans, no PyBullet and no dataset needed: ``DIR`` holds ``labeled/<key>/<frame>.npz`` (the cache of
 the ANCSH stage, ``kinmo train ancsh --scans``) and ``ancsh_parts.json`` (the objects'
 ANCSH parts), written by ``--write-scans DIR`` (a few megabytes, to carry to a GPU machine).
 Without ``ancsh_parts.json`` (a training run's own scans folder), ``--data`` and
