@@ -1,5 +1,6 @@
 """The learned selector's position stage (kinmo.refine.position): parallel candidates, the
-re-choice of a hinge line's position, its fit and cross-validated gate, its file."""
+re-choice of a hinge line's position, the freer-line rule, its fit and cross-validated gate,
+its file."""
 
 from __future__ import annotations
 
@@ -11,8 +12,10 @@ from kinmo.errors import KinmoDataError
 from kinmo.evaluate.settings import failure_kind
 from kinmo.refine.groups import EdgeGroups
 from kinmo.refine.position import (
+    FREER_GAIN,
     POSITION_FEATURES,
     fit_position,
+    freer_line,
     parallel_candidates,
     position_groups,
     reposition,
@@ -64,6 +67,63 @@ def test_reposition_moves_only_among_parallel_lines():
     assert reposition(pos, x, d, 0) == 1
     x[:, F["sweep_free_max"]] = [0.2, 0.1, 1.0, 0.2]  # a blocked winner: equally blocked lines
     assert reposition(pos, x, d, 0) == 3
+
+
+def test_freer_line_moves_only_to_a_likely_parallel_line_the_part_turns_about_more_freely():
+    x = np.zeros((4, len(FEATURES)))
+    d = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    x[:, F["sweep_free_max"]] = 1.0
+    x[:, F["sweep_free_min"]] = [0.35, 0.75, 1.0, 0.7]
+    p = np.array([0.34, 0.32, 0.30, 0.04])
+    assert freer_line(x, p, d, 0) == 1  # nearly as likely, freer on its blocked side
+    assert freer_line(x, p, d, 2) == 2  # no parallel line
+    assert freer_line(x, p, d, -1) == -1
+    assert freer_line(x, p, d, 1) == 1  # never to a line less free than the winner
+    # line 1 too unlikely against the winner: the antiparallel line 3 is the same line kind
+    assert freer_line(x, np.array([0.34, 0.10, 0.30, 0.26]), d, 0) == 3
+    # neither freer by FREER_GAIN: the winner stands
+    x[:, F["sweep_free_min"]] = [0.35, 0.35 + FREER_GAIN - 0.01, 1.0, 0.0]
+    assert freer_line(x, p, d, 0) == 0
+    # freer on the blocked side but blocked on the free one: no move
+    x[:, F["sweep_free_min"]] = [0.35, 0.75, 1.0, 0.0]
+    x[1, F["sweep_free_max"]] = 0.8
+    assert freer_line(x, p, d, 0) == 0
+    # no meshes: every swept term is 1 and nothing moves
+    x[:, F["sweep_free_min"]] = x[:, F["sweep_free_max"]] = 1.0
+    assert freer_line(x, p, d, 0) == 0
+
+
+@pytest.mark.exactdata
+def test_freer_line_brings_a_real_laptop_lid_nearer_its_hinge(mobility_root):
+    """Laptop 11406 (the shared data's test split): its screen's parallel candidate lines
+    near the hinge. Starting from the one farthest from the true hinge, with every line
+    equally likely, the rule moves to a line nearer the truth: about the true hinge the
+    screen closes onto the keyboard without meeting it (docs/results/ranges.md)."""
+    from kinmo.data.build import build_graph
+    from kinmo.data.model import FINE_TYPES
+    from kinmo.data.readers import read_shape
+    from kinmo.metrics.axis import line_distance
+    from kinmo.refine.selector import GNNPriors, candidate_features, edge_candidates, shape_meshes
+
+    g = build_graph(read_shape(mobility_root / "11406"), n_points=256)
+    meshes = shape_meshes(g)
+    assert meshes is not None
+    k = next(k for k, t in enumerate(g.edge_fine) if FINE_TYPES[int(t)].startswith("R_")
+             and g.node_names[int(g.sibling_edges[k][0])] == "screen_side")
+    i, j = (int(v) for v in g.sibling_edges[k])
+    d, o = g.edge_axis_direction[k], g.edge_axis_origin[k]
+    cands, frames = edge_candidates(g, i, j, "R", d, o)
+    pri = GNNPriors(np.full((len(g.sibling_edges), 10), 0.1), FINE_TYPES)
+    x, _ = candidate_features(g, i, j, k, cands, frames, pri, d, o, None, meshes)
+    dist = np.array([float(line_distance(cands.origins[n], cands.directions[n], o, d))
+                     for n in range(len(cands.origins))]) / g.scale
+    near = parallel_candidates(cands.directions, int(np.argmin(dist)))
+    near = near[dist[near] < 0.05]
+    start = int(near[np.argmax(dist[near])])
+    assert dist[start] > 0.015
+    moved = freer_line(x, np.ones(len(dist)), cands.directions, start)
+    assert moved != start and dist[moved] < dist[start]
+    assert x[moved, F["sweep_free_min"]] >= x[start, F["sweep_free_min"]] + FREER_GAIN
 
 
 def test_fit_ranker_offsets_are_fixed_scores():

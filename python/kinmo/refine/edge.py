@@ -59,7 +59,7 @@ from kinmo.refine.candidates import (
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.defer import agreeing_priors, sure_prior
 from kinmo.refine.features import FEATURE_GROUPS, FEATURES
-from kinmo.refine.position import reposition
+from kinmo.refine.position import freer_line, reposition
 from kinmo.refine.motions import (
     candidate_motions,
     network_inputs,
@@ -391,6 +391,7 @@ def select_edge(
         b = b0 = blocked_slide_veto(cands, x, p, b)
     if cands.motion != "P":
         b = reposition(ranker.position, x, cands.directions, b, np.log(np.maximum(p, 1e-12)))
+        b = freer_line(x, p, cands.directions, b)
     sg = sign if net_sign is None else np.where(x[:, FEATURES.index("collide_max")] > 0,
                                                 sign, net_sign)
     scores = CandidateScores(x[:, FEATURES.index("feasibility")], x[:, FEATURES.index("cos_gnn")],
