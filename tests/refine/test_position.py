@@ -79,7 +79,7 @@ def test_freer_line_moves_only_to_a_likely_parallel_line_the_part_turns_about_mo
     assert freer_line(x, p, d, 2) == 2  # no parallel line
     assert freer_line(x, p, d, -1) == -1
     assert freer_line(x, p, d, 1) == 1  # never to a line less free than the winner
-    # line 1 too unlikely against the winner: the antiparallel line 3 is the same line kind
+    # line 1 too unlikely against the winner; line 3 (antiparallel: a line up to its sign) is not
     assert freer_line(x, np.array([0.34, 0.10, 0.30, 0.26]), d, 0) == 3
     # neither freer by FREER_GAIN: the winner stands
     x[:, F["sweep_free_min"]] = [0.35, 0.35 + FREER_GAIN - 0.01, 1.0, 0.0]
