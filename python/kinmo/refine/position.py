@@ -123,6 +123,16 @@ def parallel_candidates(directions: np.ndarray, best: int, max_deg: float = PARA
     return np.flatnonzero(keep)
 
 
+def _as_free(x: np.ndarray, same: np.ndarray, best: int, blocked_gain: float) -> np.ndarray:
+    """Which of the lines ``same`` let the part turn about them as freely as about ``best``:
+    ``sweep_free_max`` (the freer side of the swept test) at least ``best``'s less
+    :data:`FREE_SLACK`, and ``sweep_free_min`` (the more blocked side) at least ``best``'s plus
+    ``blocked_gain`` (negative: a slack). ``(len(same),) bool``."""
+    x = np.asarray(x, np.float64)
+    hi, lo = x[:, FEATURE_INDEX["sweep_free_max"]], x[:, FEATURE_INDEX["sweep_free_min"]]
+    return (hi[same] >= hi[best] - FREE_SLACK) & (lo[same] >= lo[best] + blocked_gain)
+
+
 def reposition(position: Ranker | None, x: np.ndarray, directions: np.ndarray, best: int,
                base: np.ndarray | None = None) -> int:
     """The position stage's choice among the lines parallel to ``best``.
@@ -150,9 +160,7 @@ def reposition(position: Ranker | None, x: np.ndarray, directions: np.ndarray, b
     if position is None or best < 0:
         return best
     same = parallel_candidates(directions, best)
-    free = np.asarray(x)[:, FEATURE_INDEX["sweep_free_max"]]
-    free_min = np.asarray(x)[:, FEATURE_INDEX["sweep_free_min"]]
-    same = same[(free[same] >= free[best] - FREE_SLACK) & (free_min[same] >= free_min[best] - FREE_SLACK)]
+    same = same[_as_free(x, same, best, -FREE_SLACK)]
     if same.size < 2:
         return best
     score = position.scores(np.asarray(x)[same])
@@ -195,13 +203,9 @@ def freer_line(x: np.ndarray, prob: np.ndarray, directions: np.ndarray, best: in
     """
     if best < 0:
         return best
-    x = np.asarray(x, np.float64)
     prob = np.asarray(prob, np.float64)
     same = parallel_candidates(directions, best)
-    lo = x[:, FEATURE_INDEX["sweep_free_min"]]
-    hi = x[:, FEATURE_INDEX["sweep_free_max"]]
-    ok = same[(prob[same] >= FREER_PROB * prob[best]) & (hi[same] >= hi[best] - FREE_SLACK)
-              & (lo[same] >= lo[best] + FREER_GAIN)]
+    ok = same[(prob[same] >= FREER_PROB * prob[best]) & _as_free(x, same, best, FREER_GAIN)]
     if ok.size == 0:
         return best
     return int(ok[int(np.argmax(prob[ok]))])
@@ -285,11 +289,14 @@ def fit_position(groups: EdgeGroups, chosen: np.ndarray, base: Sequence[np.ndarr
     def means(v: Sequence[np.ndarray], c: np.ndarray) -> tuple[float, float]:
         return joint_means(np.array([v[n][c[n]] for n in rv], np.float64), w, cat)
 
-    # both sides as at inference: the freer-line rule after the choice (select_edge)
-    chosen = np.asarray(chosen, np.int64).copy()
-    after = chosen.copy()
+    # both sides as at inference: the freer-line rule after the choice (select_edge); a fold
+    # without a stage keeps the first stage's winners with the rule
+    first = np.asarray(chosen, np.int64)
+    prob = {int(n): np.exp(base[n]) for n in rv}
+    chosen = first.copy()
     for n in rv:
-        chosen[n] = freer_line(groups.x[n], np.exp(base[n]), groups.directions[n], int(after[n]))
+        chosen[n] = freer_line(groups.x[n], prob[int(n)], groups.directions[n], int(first[n]))
+    after = chosen.copy()
     for f in np.unique(folds):
         tr = np.flatnonzero(gf != f)
         if len(tr) < 2:
@@ -297,8 +304,8 @@ def fit_position(groups: EdgeGroups, chosen: np.ndarray, base: Sequence[np.ndarr
         r = fit_ranker([pairs[n] for n in tr], features=POSITION_FEATURES, l2=POSITION_L2,
                        seed=seed, offsets=[offsets[n] for n in tr])
         for n in rv[np.asarray(folds)[rv] == f]:
-            b = reposition(r, groups.x[n], groups.directions[n], int(after[n]), base[n])
-            after[n] = freer_line(groups.x[n], np.exp(base[n]), groups.directions[n], b)
+            b = reposition(r, groups.x[n], groups.directions[n], int(first[n]), base[n])
+            after[n] = freer_line(groups.x[n], prob[int(n)], groups.directions[n], b)
     dist, angle = groups.dist, groups.angle
     (before, cat_before), (pooled, per_cat) = means(dist, chosen), means(dist, after)
     stats.update({"position_dist_before": before, "position_dist_after": pooled,
