@@ -1,5 +1,6 @@
-"""The learned selector follows the direction that the GNN, the part-name prior and (for the
-fine ranker) the fine type's orientation prior agree on (kinmo.refine.defer.agreeing_priors)."""
+"""The coarse learned selector follows the direction that the GNN and the part-name prior agree
+on; the fine one, which weighs the fine type's orientation prior itself, keeps its choice
+(kinmo.refine.defer.agreeing_priors)."""
 
 from __future__ import annotations
 
@@ -39,15 +40,19 @@ _P = np.array([0.32, 0.24, 0.15, 0.05, 0.13])
 
 def test_a_choice_against_both_priors_gives_way_to_their_likeliest_line():
     assert agreeing_priors(_Coarse(), _DOOR, _P, 0) == 2
-    # the fine ranker too, where the fine type's orientation agrees (a vertical hinge type)
-    assert agreeing_priors(_Fine(), _DOOR, _P, 0) == 2
 
 
-def test_otherwise_the_choice_stands():
-    # the fine type's orientation disagrees (a flap's horizontal hinge type)
+def test_the_fine_ranker_keeps_its_choice_even_where_every_prior_agrees():
+    # the fine type's orientation agrees with the GNN and the names (a vertical hinge type):
+    # the fine ranker weighs all three itself (Knife 101108's blades, where all three
+    # priors point 90° from the annotated axes, and the ranker had them right)
+    assert agreeing_priors(_Fine(), _DOOR, _P, 0) == 0
     flap = _x([0.06] * 2 + [0.94] * 3, [0.17] * 2 + [0.83] * 3, [1.0] * 2 + [0.0] * 3)
     assert agreeing_priors(_Fine(), flap, _P, 0) == 0
     assert agreeing_priors(_Coarse(), flap, _P, 0) == 2  # the coarse ranker does not weigh it
+
+
+def test_otherwise_the_choice_stands():
     # the GNN is not sure enough
     g = PRIORS_AGREE_GNN - 0.02
     assert agreeing_priors(_Coarse(), _x([1 - g] * 2 + [g] * 3, [0.17] * 2 + [0.83] * 3), _P, 0) == 0

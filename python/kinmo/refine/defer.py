@@ -12,16 +12,20 @@ win where the ranker's geometric terms overrule them against the evidence:
   vertical, had been turned horizontal by the type's orientation prior. Only rankers that
   weigh that prior (``orient_prior``: the fine one) defer; out of fold, the coarse ranker's
   deferrals turned one right dishwasher joint 90° off (docs/results/table1_four_settings.md).
-- **the priors agree** (:func:`agreeing_priors`): the GNN puts at least
+- **the priors agree** (:func:`agreeing_priors`), for a ranker that does not weigh the fine
+  type's orientation prior (``orient_prior``: the coarse one): the GNN puts at least
   :data:`PRIORS_AGREE_GNN` of its mass on one direction, the part-name prior (``sem_prior``,
-  :mod:`kinmo.refine.semantic_prior`) at least :data:`PRIORS_AGREE_NAMES` on it, for a ranker
-  that weighs it the fine type's orientation prior (``orient_prior``) at least
-  :data:`PRIORS_AGREE_GNN` too, and the choice lies on a direction the GNN gives at most
-  ``1 - PRIORS_AGREE_GNN``. The selector's geometric terms (a line on the OBB edge across a
-  door, the handle's side) had turned sure, named cabinet and room doors horizontal; the
-  coarse types carry no orientation at all (out of fold, both fold seeds:
-  docs/results/table1_four_settings.md). Parts with names the prior does not know get its
-  motion-level share only, so the rule can fire for them too.
+  :mod:`kinmo.refine.semantic_prior`) at least :data:`PRIORS_AGREE_NAMES` on it, and the
+  choice lies on a direction the GNN gives at most ``1 - PRIORS_AGREE_GNN``. The coarse
+  selector's geometric terms (a line on the OBB edge across a door, the handle's side) had
+  turned sure, named cabinet doors horizontal; the coarse types carry no orientation at all
+  (out of fold, both fold seeds: docs/results/table1_four_settings.md). Parts with names the
+  prior does not know get its motion-level share only, so the rule can fire for them too.
+  The fine ranker weighs the orientation prior with the GNN's mass and the names itself, and
+  the rule's overrides of it went both ways: out of fold it fixed cabinet and room doors on
+  one fold seed and, with session 28's GNNs, fired on three joints, all of them right before
+  and 90° off after (Knife 101108's blades, Fan 101450; session 32), so it no longer applies
+  to the fine ranker.
 
 Both mark the edge deferred (:attr:`kinmo.refine.edge.EdgeRefinement.deferred`), so the
 repeated-parts vote (:mod:`kinmo.refine.repeated`) leaves it alone.
@@ -44,8 +48,7 @@ PRIOR_AGAINST = 0.05
 UNSURE_CONFIDENCE = 0.1
 #: :func:`agreeing_priors`: the GNN's axis head holds at least this mass on one direction ...
 PRIORS_AGREE_GNN = 0.9
-#: ... and the part-name prior (``sem_prior``) at least this share on it (the orientation
-#: prior, for a ranker that weighs it, at least ``PRIORS_AGREE_GNN``).
+#: ... and the part-name prior (``sem_prior``) at least this share on it.
 PRIORS_AGREE_NAMES = 0.5
 
 
@@ -95,28 +98,24 @@ def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -
     ----------
     ranker, features, prob, best
         As :func:`sure_prior`; ``features`` also gives each candidate's ``sem_prior`` (the
-        part-name prior's share) and ``orient_prior`` (the fine type's orientation prior,
-        which must agree for a ranker that weighs it).
+        part-name prior's share).
 
     Returns
     -------
     int
-        ``best``, unless some candidates hold at least :data:`PRIORS_AGREE_GNN` of the GNN's
-        mass, :data:`PRIORS_AGREE_NAMES` of the part-name prior and (``orient_prior`` rankers)
-        :data:`PRIORS_AGREE_GNN` of the orientation prior, while ``best`` holds at most
-        ``1 - PRIORS_AGREE_GNN`` of the GNN's: then the most probable of those candidates.
-        kinmo extension of Liu et al. 2023, Sec. 3.3 (issue 34).
+        ``best`` for a ranker that weighs ``orient_prior`` (the fine one: module docstring).
+        Otherwise ``best``, unless some candidates hold at least :data:`PRIORS_AGREE_GNN` of
+        the GNN's mass and :data:`PRIORS_AGREE_NAMES` of the part-name prior while ``best``
+        holds at most ``1 - PRIORS_AGREE_GNN`` of the GNN's: then the most probable of those
+        candidates. kinmo extension of Liu et al. 2023, Sec. 3.3 (issue 34).
     """
-    if best < 0:
+    if best < 0 or "orient_prior" in ranker.features:
         return best
     prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
     names = np.asarray(features[:, FEATURES.index("sem_prior")], dtype=np.float64)
     if prior[best] > 1.0 - PRIORS_AGREE_GNN:
         return best
-    agree = (prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES)
-    if "orient_prior" in ranker.features:
-        agree &= np.asarray(features[:, FEATURES.index("orient_prior")]) >= PRIORS_AGREE_GNN
-    ok = np.flatnonzero(agree)
+    ok = np.flatnonzero((prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES))
     if not ok.size:
         return best
     return int(ok[np.argmax(np.asarray(prob)[ok])])
