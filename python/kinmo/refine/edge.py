@@ -31,9 +31,9 @@ features (the part against the rest of the object, contact at rest not counted):
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
   or shaped like a flap).
 
-Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: a sure
-GNN, :func:`~kinmo.refine.defer.sure_prior`; priors that all agree,
-:func:`~kinmo.refine.defer.agreeing_priors`).
+Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: the fine
+ranker to a sure GNN, :func:`~kinmo.refine.defer.sure_prior`; the coarse ranker to the GNN and
+the part names where they agree, :func:`~kinmo.refine.defer.agreeing_priors`).
 
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
