@@ -389,6 +389,29 @@ def test_a_closed_door_with_a_range_learned_open_at_rest_opens_its_whole_span_fr
     assert -110.0 < lo < -rp.OPEN_AT_REST_MIN_DEG and hi == pytest.approx(60.0)
 
 
+def test_a_door_stopped_at_once_the_closing_way_is_closed_though_it_sticks_out(monkeypatch):
+    """The solid body stops the closed door within CLOSED_AT_REST_FREE_DEG the closing way.
+    Such a door is closed at rest even when it sticks out of the body more than
+    CLOSED_AT_REST_PROTRUSION (a fridge door with its handle: 0.18 of its width), as long as
+    it sticks out at most CLOSED_AT_REST_STOPPED_PROTRUSION (an open laptop lid, stopped by
+    meshes interlocked at its hinge, sticks out by its whole height)."""
+    import kinmo.ranges.predict as rp
+
+    p = _prediction()
+    m = _meshes(p.graph)
+    prior = _prior(("hinge", None, None, 5, 0.0, -110.0, 60.0))
+    monkeypatch.setattr(rp, "CLOSED_AT_REST_PROTRUSION", -1.0)  # "sticks out" by that test
+    lo, hi = _limits(predict_ranges(p, prior, m))["door"]
+    assert lo == 0.0 and hi == pytest.approx(170.0)
+    # stopped later than the bound, or sticking out more: the sweep alone bounds the range
+    free_deg = rp.CLOSED_AT_REST_FREE_DEG
+    for name in ("CLOSED_AT_REST_FREE_DEG", "CLOSED_AT_REST_STOPPED_PROTRUSION"):
+        with monkeypatch.context() as mp:
+            mp.setattr(rp, name, -1.0)
+            lo, hi = _limits(predict_ranges(p, prior, m))["door"]
+            assert -free_deg <= lo <= 0.0 and hi == pytest.approx(60.0)
+
+
 def test_a_part_free_both_ways_keeps_a_range_learned_about_a_mid_range_rest(monkeypatch):
     """A faucet handle annotated -90 to 90 about its rest and free both ways over it is not
     closed at rest, however little it sticks out: the rule needs a stop on the closing side
