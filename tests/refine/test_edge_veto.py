@@ -97,3 +97,69 @@ def test_a_switched_edge_moves_its_revolute_mass_to_the_slider_type():
 def test_the_vetoes_are_on_by_default_and_can_be_turned_off():
     assert RefineConfig().sweep_vetoes is True
     assert RefineConfig(sweep_vetoes=False).sweep_vetoes is False
+
+
+def test_a_spin_blocked_on_its_chosen_line_is_flagged_only_for_a_horizontal_continuous_hinge():
+    from kinmo.refine.edge import spin_blocked
+
+    cands, x, p = _case([0.04, 0.5, 0.9], "R_H_C")  # the chosen line (z) is blocked, others turn
+    scores = CandidateScores(np.full(3, 0.5), np.zeros(3), np.zeros(3), p, np.ones(3, np.int64), 0)
+    r = EdgeRefinement(cands, scores, np.zeros(3), _DIRS[0], free=x[:, _FREE].copy())
+    assert not hinge_blocked(r) and spin_blocked(r, "R_H_C")
+    assert not spin_blocked(r, "R_H_S")  # a door or a lid: PartNet holds them interlocked
+    assert not spin_blocked(r, "P_H")
+    assert not spin_blocked(dataclasses.replace(r, free=np.array([BLOCKED_FREE, 0.5, 0.9])), "R_H_C")
+    assert not spin_blocked(dataclasses.replace(r, free=None), "R_H_C")  # no meshes: no veto
+    vertical = dataclasses.replace(r, scores=dataclasses.replace(scores, best=2), direction=_DIRS[2],
+                                   free=np.array([0.5, 0.5, 0.04]))
+    assert not spin_blocked(vertical, "R_H_C")
+
+
+def _switch(monkeypatch, tmp_path, fine: str, slide_direction) -> tuple[str, np.ndarray]:
+    """refine_predictions on one edge typed ``fine`` whose chosen hinge line (z) the sweep
+    blocks while another line turns, and whose chosen slider line (``slide_direction``) is
+    free: the edge's type and axis afterwards."""
+    import kinmo.refine.refine as rr
+    from kinmo.mobility_tree import EdgePrediction
+    from kinmo.refine.ranker import _load_ranker_cached
+
+    from motion_cabinet import cabinet_graph
+    from .test_position import _linear
+    from .test_selector import _door_edge, _priors
+
+    def fake_select(graph, k, motion_type, *args, **kwargs):
+        if motion_type == "P_H":
+            cands, x, p = _case([0.0, 0.0, 0.0], "P_H")
+            free, d = np.array([1.0, 1.0, 1.0]), np.asarray(slide_direction, float)
+        else:
+            cands, x, p = _case([0.0, 0.0, 0.0], motion_type)
+            free, d = np.array([0.04, 0.5, 0.9]), _DIRS[0]
+        scores = CandidateScores(np.full(3, 0.5), np.zeros(3), np.zeros(3), p, np.ones(3, np.int64), 0)
+        return EdgeRefinement(cands, scores, np.zeros(3), d, free=free)
+
+    monkeypatch.setattr(rr, "select_edge", fake_select)
+    g = cabinet_graph(n_points=64)
+    k = _door_edge(g)
+    e = len(g.sibling_edges)
+    pri = _priors(g, k, fine)
+    pred = EdgePrediction(pri.probs.copy(), np.tile([0.0, 0.0, 1.0], (e, 1)), np.tile(g.obb_center[2], (e, 1)))
+    path = _linear(log_dir_prior=1.0).save(tmp_path / "ranker.json")
+    _load_ranker_cached.cache_clear()
+    out = rr.refine_predictions(g, pred, None, RefineConfig(selector="ranker", ranker=str(path)), only=[k],
+                                priors=pri)
+    return str(FINE_TYPES[int(np.argmax(out.type_prob[k]))]), out.axis_direction[k]
+
+
+def test_a_drawer_typed_a_blocked_spin_about_its_pull_axis_slides_along_it(monkeypatch, tmp_path):
+    """A drawer the GNN types a knob-like spin (R_H_C) about the line it pulls out along:
+    that line cannot turn it, and the part slides along it, so it becomes a slider there."""
+    t, d = _switch(monkeypatch, tmp_path, "R_H_C", [0.0, 0.0, 1.0])
+    assert t.startswith("P_") and abs(d[2]) == pytest.approx(1.0)
+
+
+def test_a_blocked_spin_stays_a_hinge_when_it_slides_only_across_its_line(monkeypatch, tmp_path):
+    t, d = _switch(monkeypatch, tmp_path, "R_H_C", [1.0, 0.0, 0.0])
+    assert t == "R_H_C" and abs(d[2]) == pytest.approx(1.0)
+    # a hinge that is not continuous keeps its type even where it could slide along its line
+    t, _ = _switch(monkeypatch, tmp_path, "R_H_S", [0.0, 0.0, 1.0])
+    assert t == "R_H_S"

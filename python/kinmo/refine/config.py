@@ -86,7 +86,9 @@ class RefineConfig(BaseModel):
         horizontal line free one way
         (:func:`kinmo.refine.edge.blocked_slide_veto`), and a revolute edge none of whose
         lines can turn becomes a slider when one of its slider lines is free
-        (:func:`kinmo.refine.edge.hinge_blocked`, :func:`kinmo.refine.refine.as_slider`).
+        (:func:`kinmo.refine.edge.hinge_blocked`, :func:`kinmo.refine.refine.as_slider`), as
+        does a continuous one whose chosen horizontal line cannot turn it, when it slides
+        along that line (:func:`kinmo.refine.edge.spin_blocked`).
     ranges : str or None
         kinmo extension (issue 35): path of the range-of-motion prior (``ranges.json``,
         :class:`kinmo.ranges.RangePrior`); after the selector, every moving joint gets its

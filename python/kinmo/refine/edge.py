@@ -29,7 +29,15 @@ features (the part against the rest of the object, contact at rest not counted):
 - a **blocked hinge** (:func:`hinge_blocked`): when no candidate line of a revolute edge
   lets the part turn either way, :func:`kinmo.refine.refine.refine_predictions` tries the
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
-  or shaped like a flap).
+  or shaped like a flap);
+- a **blocked spin** (:func:`spin_blocked`): a continuous revolute edge (``R_*_C``, a knob's
+  or a wheel's free turn) whose chosen line is horizontal and cannot turn the part either
+  way is tried as a slider too, and kept when the chosen slider line runs along the blocked
+  one (within 20 degrees, :data:`kinmo.refine.refine.SLIDE_ALONG_COS`) and is free one way:
+  the GNN found the line a drawer pulls out along and took it for a spin about it (ROS
+  cabinets, issue 36). Hinges that are not continuous are left alone: PartNet meshes hold
+  lids, doors and stapler arms interlocked, and a slide along their line would make them
+  sliders (tried: out of fold, staplers, a safe door and a toilet lid became sliders).
 
 Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: the fine
 ranker to a sure GNN, :func:`~kinmo.refine.defer.sure_prior`; the coarse ranker to the GNN and
@@ -74,7 +82,7 @@ from kinmo.refine.scoring import (
 from kinmo.refine.selector import candidate_features, edge_candidates
 
 __all__ = ["BLOCKED_FREE", "OPEN_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line",
-           "hinge_blocked", "refine_edge", "select_edge", "vetoed_slides"]
+           "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -260,6 +268,16 @@ def hinge_blocked(refinement: EdgeRefinement) -> bool:
     test frees less than :data:`BLOCKED_FREE` either way (False without the sweep)."""
     f = refinement.free
     return f is not None and f.size > 0 and float(np.max(f)) < BLOCKED_FREE
+
+
+def spin_blocked(refinement: EdgeRefinement, fine_type: str) -> bool:
+    """True for a continuous revolute edge (fine type ``R_*_C``: a knob, a wheel) whose chosen
+    line is horizontal and does not let the part turn: its swept test frees less than
+    :data:`BLOCKED_FREE` either way (False without the sweep or a choice)."""
+    f, best = refinement.free, refinement.scores.best
+    return fine_type.startswith("R_") and fine_type.endswith("_C") and f is not None and \
+        0 <= best < len(f) and float(f[best]) < BLOCKED_FREE and \
+        abs(float(refinement.direction[1])) < _HORIZONTAL_Y
 
 
 def vetoed_slides(cands: Candidates, free: np.ndarray | None) -> np.ndarray:

@@ -55,11 +55,18 @@ from kinmo.mobility_tree import (
     consistent_fine,
 )
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.edge import OPEN_FREE, EdgeRefinement, hinge_blocked, refine_edge, select_edge
+from kinmo.refine.edge import (OPEN_FREE, EdgeRefinement, hinge_blocked, refine_edge, select_edge,
+                               spin_blocked)
 from kinmo.refine.repeated import vote_repeated
 from kinmo.refine.ranker import DIRECTION_TOL_DEG
 
 logger = logging.getLogger(__name__)
+
+#: A continuous revolute edge whose chosen line is blocked both ways
+#: (:func:`kinmo.refine.edge.spin_blocked`) becomes a slider only along that line: the chosen
+#: slider line within this cosine (20 degrees) of it, and free one way
+#: (:data:`kinmo.refine.edge.OPEN_FREE`).
+SLIDE_ALONG_COS = float(np.cos(np.radians(20.0)))
 
 __all__ = [
     "EdgePredictions",
@@ -370,12 +377,16 @@ def refine_predictions(
         else:
             r = refine_edge(graph, i, j, types[k], pred.axis_direction[k], pred.axis_origin[k],
                             axis_model, cfg, rng=np.random.default_rng([cfg.seed, int(k)]))
-        if ranker is not None and cfg.sweep_vetoes and types[k].split("_")[0] == "R" and hinge_blocked(r):
-            # no hinge line turns the part: does it slide out? (issue 36, module docs)
+        revolute = ranker is not None and cfg.sweep_vetoes and types[k].split("_")[0] == "R"
+        every = revolute and hinge_blocked(r)
+        if every or (revolute and spin_blocked(r, types[k])):
+            # no hinge line, or not the chosen one, turns the part: does it slide out? (issue
+            # 36, module docs) With only the chosen line blocked, it must slide along that line
             rp = select_edge(graph, int(k), "P_H", pred.axis_direction[k], pred.axis_origin[k],
                              priors, ranker, axis_model, cfg,
                              rng=np.random.default_rng([cfg.seed, int(k)]), meshes=meshes)
-            if rp.free is not None and rp.scores.best >= 0 and float(rp.free[rp.scores.best]) >= OPEN_FREE:
+            if rp.free is not None and rp.scores.best >= 0 and float(rp.free[rp.scores.best]) >= OPEN_FREE \
+                    and (every or abs(float(np.dot(rp.direction, r.direction))) >= SLIDE_ALONG_COS):
                 r = rp
                 switched.add(int(k))
                 types[k] = "P_H"
