@@ -33,7 +33,7 @@ features (the part against the rest of the object, contact at rest not counted):
 - a **blocked spin** (:func:`spin_blocked`): a continuous revolute edge (``R_*_C``, a knob's
   or a wheel's free turn) whose chosen line is horizontal and cannot turn the part either
   way is tried as a slider too, and kept when the chosen slider line runs along the blocked
-  one (within 20 degrees, :data:`kinmo.refine.refine.SLIDE_ALONG_COS`) and is free one way:
+  one (within :data:`SLIDE_ALONG_DEG`) and is free one way:
   the GNN found the line a drawer pulls out along and took it for a spin about it (ROS
   cabinets, issue 36). Hinges that are not continuous are left alone: PartNet meshes hold
   lids, doors and stapler arms interlocked, and a slide along their line would make them
@@ -81,14 +81,17 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates
 
-__all__ = ["BLOCKED_FREE", "OPEN_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line",
-           "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
+__all__ = ["BLOCKED_FREE", "OPEN_FREE", "SLIDE_ALONG_DEG", "EdgeRefinement", "blocked_slide_veto",
+           "chosen_line", "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
 BLOCKED_FREE = 0.1
 #: ... and a line replacing it must be free for at least this fraction one way.
 OPEN_FREE = 0.9
+#: A blocked spin (:func:`spin_blocked`) becomes a slider only along its own line: the chosen
+#: slider line at most this many degrees from it (and free one way, :data:`OPEN_FREE`).
+SLIDE_ALONG_DEG = 20.0
 #: Largest ``|y|`` of a unit direction counted as horizontal (y-up; 60° from vertical).
 _HORIZONTAL_Y = 0.5
 

@@ -47,6 +47,7 @@ import numpy as np
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import COARSE_TYPES, FINE_TYPES
+from kinmo.metrics.axis import axis_angle_deg
 from kinmo.mobility_tree import (
     EdgePrediction,
     ShapePrediction,
@@ -55,18 +56,12 @@ from kinmo.mobility_tree import (
     consistent_fine,
 )
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.edge import (OPEN_FREE, EdgeRefinement, hinge_blocked, refine_edge, select_edge,
-                               spin_blocked)
+from kinmo.refine.edge import (OPEN_FREE, SLIDE_ALONG_DEG, EdgeRefinement, hinge_blocked, refine_edge,
+                               select_edge, spin_blocked)
 from kinmo.refine.repeated import vote_repeated
 from kinmo.refine.ranker import DIRECTION_TOL_DEG
 
 logger = logging.getLogger(__name__)
-
-#: A continuous revolute edge whose chosen line is blocked both ways
-#: (:func:`kinmo.refine.edge.spin_blocked`) becomes a slider only along that line: the chosen
-#: slider line within this cosine (20 degrees) of it, and free one way
-#: (:data:`kinmo.refine.edge.OPEN_FREE`).
-SLIDE_ALONG_COS = float(np.cos(np.radians(20.0)))
 
 __all__ = [
     "EdgePredictions",
@@ -386,7 +381,7 @@ def refine_predictions(
                              priors, ranker, axis_model, cfg,
                              rng=np.random.default_rng([cfg.seed, int(k)]), meshes=meshes)
             if rp.free is not None and rp.scores.best >= 0 and float(rp.free[rp.scores.best]) >= OPEN_FREE \
-                    and (every or abs(float(np.dot(rp.direction, r.direction))) >= SLIDE_ALONG_COS):
+                    and (every or axis_angle_deg(rp.direction, r.direction) <= SLIDE_ALONG_DEG):
                 r = rp
                 switched.add(int(k))
                 types[k] = "P_H"
