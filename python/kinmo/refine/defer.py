@@ -12,6 +12,13 @@ win where the ranker's geometric terms overrule them against the evidence:
   vertical, had been turned horizontal by the type's orientation prior. Only rankers that
   weigh that prior (``orient_prior``: the fine one) defer; out of fold, the coarse ranker's
   deferrals turned one right dishwasher joint 90° off (docs/results/table1_four_settings.md).
+  Where the part-name prior (``sem_prior``) also puts at least :data:`PRIORS_AGREE_NAMES` on
+  the GNN's direction, two witnesses stand against the choice, and it gives way below the
+  higher confidence :data:`NAMED_UNSURE_CONFIDENCE`: out of fold (fold seed 1) the fine
+  selector had turned the sure, named doors of Door 8877 and StorageFurniture 46456
+  horizontal at confidences 0.19 to 0.34, while the named choices it makes against a sure GNN
+  and is right about (Knife 101108's blades) sit at 0.38 and above
+  (docs/results/table1_four_settings.md, session 34).
 - **the priors agree** (:func:`agreeing_priors`), for a ranker that does not weigh the fine
   type's orientation prior (``orient_prior``: the coarse one): the GNN puts at least
   :data:`PRIORS_AGREE_GNN` of its mass on one direction, the part-name prior (``sem_prior``,
@@ -37,15 +44,18 @@ import numpy as np
 
 from kinmo.refine.features import FEATURES
 
-__all__ = ["PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN", "PRIORS_AGREE_NAMES", "UNSURE_CONFIDENCE",
-           "agreeing_priors", "sure_prior"]
+__all__ = ["NAMED_UNSURE_CONFIDENCE", "PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN", "PRIORS_AGREE_NAMES",
+           "UNSURE_CONFIDENCE", "agreeing_priors", "sure_prior"]
 
 #: :func:`sure_prior`: the GNN's axis head holds at least this mass on one direction ...
 PRIOR_SURE = 0.95
 #: ... the selector's choice at most this much ...
 PRIOR_AGAINST = 0.05
-#: ... and the selector's calibrated confidence in its choice is below this.
+#: ... and the selector's calibrated confidence in its choice is below this ...
 UNSURE_CONFIDENCE = 0.1
+#: ... or below this one, where the part-name prior also holds at least
+#: :data:`PRIORS_AGREE_NAMES` on the GNN's direction (two witnesses against the choice).
+NAMED_UNSURE_CONFIDENCE = 0.3
 #: :func:`agreeing_priors`: the GNN's axis head holds at least this mass on one direction ...
 PRIORS_AGREE_GNN = 0.9
 #: ... and the part-name prior (``sem_prior``) at least this share on it.
@@ -76,16 +86,23 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
         of ``best`` is below :data:`PRIOR_AGAINST`, some candidate's is at least
         :data:`PRIOR_SURE` and the calibrated confidence of ``best`` is below
         :data:`UNSURE_CONFIDENCE`: then the most probable of the candidates the GNN is sure
-        of.
+        of. Below :data:`NAMED_UNSURE_CONFIDENCE` the same holds for the candidates the GNN
+        is sure of whose ``sem_prior`` (the part-name prior's share) is at least
+        :data:`PRIORS_AGREE_NAMES`.
     """
     if best < 0 or "orient_prior" not in ranker.features:
         return best
     prior = np.asarray(features[:, FEATURES.index("dir_prior")], dtype=np.float64)
     if prior[best] >= PRIOR_AGAINST or prior.max() < PRIOR_SURE:
         return best
-    if ranker.confidence(float(prob[best]), float(prior[best])) >= UNSURE_CONFIDENCE:
-        return best
-    ok = np.flatnonzero(prior >= PRIOR_SURE)
+    conf = ranker.confidence(float(prob[best]), float(prior[best]))
+    sure = prior >= PRIOR_SURE
+    if conf >= UNSURE_CONFIDENCE:
+        named = sure & (np.asarray(features[:, FEATURES.index("sem_prior")]) >= PRIORS_AGREE_NAMES)
+        if conf >= NAMED_UNSURE_CONFIDENCE or not named.any():
+            return best
+        sure = named
+    ok = np.flatnonzero(sure)
     return int(ok[np.argmax(np.asarray(prob)[ok])])
 
 
