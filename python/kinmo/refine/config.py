@@ -80,6 +80,11 @@ class RefineConfig(BaseModel):
         the same reference part with the same predicted type (three or more: keys, buttons,
         a column of drawers) take the direction most of them chose
         (:mod:`kinmo.refine.repeated`).
+    pair_doors : bool
+        kinmo extension (issue 35): with the learned selector, two mirror parts side by side
+        (a cabinet's two doors), each with one such neighbour, turn about their outer edges:
+        a hinge line chosen at the seam moves to the part's parallel line on the other side
+        (:mod:`kinmo.refine.paired`).
     sweep_vetoes : bool
         kinmo extension (issue 36): with the learned selector and meshes, a slider line
         (horizontal or vertical) blocked both ways by the swept test gives way to a
@@ -114,6 +119,7 @@ class RefineConfig(BaseModel):
     selector: Literal["paper", "ranker"] = "paper"
     ranker: str | None = None
     vote_repeated: bool = True
+    pair_doors: bool = True
     sweep_vetoes: bool = True
     ranges: str | None = None
 

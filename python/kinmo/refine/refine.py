@@ -58,6 +58,7 @@ from kinmo.mobility_tree import (
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import (OPEN_FREE, SLIDE_ALONG_DEG, EdgeRefinement, hinge_blocked, refine_edge,
                                select_edge, spin_blocked)
+from kinmo.refine.paired import open_from_the_middle
 from kinmo.refine.repeated import vote_repeated
 from kinmo.refine.ranker import DIRECTION_TOL_DEG
 
@@ -390,6 +391,8 @@ def refine_predictions(
         details.update(vote_repeated(graph, pred.edges, types, details, ranker.confidence,
                                      mass=DIRECTION_TOL_DEG if ranker.choice == "direction" else None,
                                      slide_veto=cfg.sweep_vetoes))
+    if ranker is not None and cfg.pair_doors and details:
+        details.update(open_from_the_middle(graph, pred.edges, types, details))
     for k, r in details.items():
         origin[k], direction[k] = r.origin, r.direction
         conf[k] = r.confidence
