@@ -153,7 +153,9 @@ def open_from_the_middle(graph: PartGraph, edges: np.ndarray, types: Sequence[st
     Parameters
     ----------
     graph : PartGraph
+        As in :func:`door_pairs`.
     edges : (E, 2) int64
+        (moving, reference) node of every edge.
     types : sequence of str
         Predicted type of every edge.
     details : dict of int to EdgeRefinement
