@@ -94,6 +94,9 @@ def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
     list of (int, int, (3,) float64)
         Edge ``k`` of part ``a``, edge ``l`` of part ``b`` (same reference) and the unit
         vector ``u`` from ``a``'s centre to ``b``'s across the direction of ``k``; ``k < l``.
+
+    Cost: quadratic in the hinged edges of one reference part, but a pair's points are read
+    only when the OBBs leave it possible (each part's centred points once).
     """
     cos = float(np.cos(np.radians(angle_deg)))
     flat = float(np.cos(np.radians(plane_deg)))
@@ -106,6 +109,14 @@ def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
     half = np.asarray(graph.obb_half_extents, float)
     ext = np.sort(half, axis=1)
     thin = np.asarray(graph.obb_axes, float)[np.arange(len(half)), np.argmin(half, axis=1)]
+    reach = np.linalg.norm(half, axis=1)  # bounds any half width of the part's points
+    local: dict[int, np.ndarray] = {}
+
+    def centred(node: int) -> np.ndarray:
+        if node not in local:
+            local[node] = np.asarray(graph.points[node], float) - centre[node]
+        return local[node]
+
     found: list[tuple[int, int, np.ndarray]] = []
     for ks in buckets.values():
         for n, k in enumerate(ks):
@@ -117,15 +128,16 @@ def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
                     continue
                 if np.any(np.abs(ext[a] - ext[b]) > extent_tol * np.maximum(ext[a], ext[b])):
                     continue
-                pa = np.asarray(graph.points[a], float) - centre[a]
-                pb = np.asarray(graph.points[b], float) - centre[b]
                 off = centre[b] - centre[a]
-                h = min(float(np.abs(pa @ d).max()), float(np.abs(pb @ d).max()))
-                if abs(float(off @ d)) > height_tol * h:
-                    continue
                 u = _across(off, d)
                 gap = float(np.linalg.norm(u))
-                if gap <= 1e-12:
+                # cheap bounds first (the half widths below are at most ``reach``)
+                if gap <= 1e-12 or gap > side_max * (reach[a] + reach[b]) or \
+                        abs(float(off @ d)) > height_tol * min(reach[a], reach[b]):
+                    continue
+                pa, pb = centred(a), centred(b)
+                h = min(float(np.abs(pa @ d).max()), float(np.abs(pb @ d).max()))
+                if abs(float(off @ d)) > height_tol * h:
                     continue
                 u = u / gap
                 wa, wb = float(np.abs(pa @ u).max()), float(np.abs(pb @ u).max())
