@@ -77,12 +77,21 @@ def test_rows_of_three_centre_lines_and_other_directions_are_left_alone():
     assert open_from_the_middle(graph, edges, types3, row) == {}
     graph, edges = _cabinet()
     types = ["R_V_S", "R_V_S"]
-    # a chosen line through the part's centre is no hinge line: the pair is left alone
-    centre = _door(graph, 2, "left", 0.45, 0.4)
-    centre = EdgeRefinement(centre.candidates, centre.scores, graph.obb_center[2].copy(),
-                            UP.copy(), calibrated=0.45, dir_prior=centre.dir_prior)
-    assert open_from_the_middle(graph, edges, types, {0: _door(graph, 1, "left", 0.6, 0.3),
-                                                      1: centre}) == {}
+    # a chosen line through the part's centre, beside a door hinged at its outer edge, moves
+    # to its own outer edge; two centre lines give nothing to go by
+    def through_centre(node):
+        r = _door(graph, node, "left", 0.45, 0.4)
+        return EdgeRefinement(r.candidates, r.scores, graph.obb_center[node].copy(), UP.copy(),
+                              calibrated=0.45, dir_prior=r.dir_prior)
+
+    moved = open_from_the_middle(graph, edges, types, {0: _door(graph, 1, "left", 0.6, 0.3),
+                                                       1: through_centre(2)})
+    assert sorted(moved) == [1] and np.isclose(moved[1].origin[0], 0.25 + 0.24)
+    assert open_from_the_middle(graph, edges, types, {0: through_centre(1), 1: through_centre(2)}) == {}
+    # beside a door hinged at the seam, which moves out first, it moves too
+    both = open_from_the_middle(graph, edges, types, {0: _door(graph, 1, "right", 0.3, 0.6),
+                                                      1: through_centre(2)})
+    assert sorted(both) == [0, 1] and np.isclose(both[0].origin[0], -0.25 - 0.24)
     # directions that disagree, a centre-pivot type, or parts far apart: no pair
     seam = {0: _door(graph, 1, "left", 0.6, 0.3), 1: _door(graph, 2, "top", 0.2, 0.2)}
     assert door_pairs(graph, edges, types, seam) == []

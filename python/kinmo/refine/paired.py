@@ -30,16 +30,17 @@ The rule, after every edge has been selected (and after :mod:`kinmo.refine.repea
    centres lie between ``side_min`` and ``side_max`` times ``w_a + w_b`` apart.
 2. **One neighbour.** A part paired with more than one other part (a row of three or more
    doors) is left alone.
-3. **Hinge lines.** The chosen line of each member must lie off its part's centre, at least
-   ``edge_min`` of its half width along ``u``; a centre line is not a hinge line and the pair
-   is left alone.
+3. **Hinge lines.** A chosen line at least ``edge_min`` of its part's half width along ``u``
+   off its centre is a hinge line. Two centre lines give nothing to go by, and the pair is
+   left alone. A centre line beside a hinge on its part's outer edge (after step 4) moves
+   like a seam line: the side-pivoted door of a pair turns about its outer edge too.
 4. **Outer.** A member whose line lies on the seam's side of its centre (``a`` towards ``b``,
    or ``b`` towards ``a``) takes its most probable candidate within ``angle_deg`` of its
    chosen direction whose line lies at least ``edge_min`` of its half width on the other
    side; without such a candidate it keeps its choice. Only the line moves: the direction
    stays the one the selector chose, and so does the calibrated confidence. The candidate's
-   own confidence would understate what the pair knows: with it, two PartNet cabinets whose
-   seam hinges the rule corrected (46166) fell below the pseudo-label threshold.
+   own confidence would understate what the pair knows: with it, PartNet cabinet 46166,
+   whose seam hinge the rule corrected, fell below the pseudo-label threshold.
 
 Frames: mesh frame, like the predictions. Directions are unit (3,) float64 vectors; points
 and centres in mesh units. Cost: pairs are looked for among edges bucketed by reference
@@ -156,6 +157,20 @@ def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
             if len(partners[int(edges[k, 0])]) == 1 and len(partners[int(edges[l, 0])]) == 1]
 
 
+def _outward(graph: PartGraph, r: EdgeRefinement, node: int, d: np.ndarray, w: float,
+             out: np.ndarray, edge_min: float, cos: float) -> EdgeRefinement | None:
+    """``r`` moved to its most probable line parallel to ``d`` on the ``out`` side of the
+    part's centre (at least ``edge_min * w`` off it), or None without such a candidate."""
+    centre = np.asarray(graph.obb_center[node], float)
+    offset = _across(np.asarray(r.candidates.origins, float) - centre, d) @ out
+    ok = (np.abs(r.candidates.directions @ d) >= cos) & (offset >= edge_min * w)
+    if not ok.any():
+        return None
+    b = int(np.argmax(np.where(ok, r.scores.total, -np.inf)))
+    o, dn = chosen_line(graph, node, r.candidates, b, int(r.scores.sign[b]))
+    return replace(r, scores=replace(r.scores, best=b), origin=o, direction=dn)
+
+
 def open_from_the_middle(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
                          details: dict[int, EdgeRefinement], *,
                          angle_deg: float = 10.0, edge_min: float = 0.5,
@@ -198,16 +213,21 @@ def open_from_the_middle(graph: PartGraph, edges: np.ndarray, types: Sequence[st
             w = float(np.abs((np.asarray(graph.points[node], float) - centre[node]) @ out).max())
             line = float(_across(np.asarray(r.origin, float) - centre[node], d) @ out)
             members.append((e, r, node, d, w, line, out))
-        if any(abs(line) < edge_min * w for _, _, _, _, w, line, _ in members):
-            continue  # a centre line is no hinge line (step 3)
-        for e, r, node, d, w, line, out in members:
-            if line > 0:
-                continue  # already on the outer side
-            offset = _across(np.asarray(r.candidates.origins, float) - centre[node], d) @ out
-            ok = (np.abs(r.candidates.directions @ d) >= cos) & (offset >= edge_min * w)
-            if not ok.any():
-                continue
-            b = int(np.argmax(np.where(ok, r.scores.total, -np.inf)))
-            o, dn = chosen_line(graph, node, r.candidates, b, int(r.scores.sign[b]))
-            changed[e] = replace(r, scores=replace(r.scores, best=b), origin=o, direction=dn)
+        central = [abs(line) < edge_min * w for _, _, _, _, w, line, _ in members]
+        if all(central):
+            continue  # two centre lines: no hinges to go by (step 3)
+        outer = {}
+        for (e, r, node, d, w, line, out), mid in zip(members, central):
+            outer[e] = not mid and line > 0
+            if outer[e] or mid:
+                continue  # on the outer side already, or a centre line (after the seam's move)
+            moved = _outward(graph, r, node, d, w, out, edge_min, cos)
+            if moved is not None:
+                changed[e], outer[e] = moved, True
+        for (e, r, node, d, w, line, out), mid in zip(members, central):
+            partner = l if e == k else k
+            if mid and outer[partner]:  # a centre line beside an outer hinge (step 3)
+                moved = _outward(graph, r, node, d, w, out, edge_min, cos)
+                if moved is not None:
+                    changed[e] = moved
     return changed
