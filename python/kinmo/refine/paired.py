@@ -50,14 +50,29 @@ part, quadratic in a bucket's revolute edges (a few doors).
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from kinmo.data.graph import PartGraph
 from kinmo.refine.edge import EdgeRefinement, chosen_line
 
-__all__ = ["door_pairs", "open_from_the_middle"]
+__all__ = ["DoorPair", "door_pairs", "open_from_the_middle"]
+
+
+class DoorPair(NamedTuple):
+    """Two refined edges whose moving parts are side-by-side mirror parts (:func:`door_pairs`)."""
+
+    k: int
+    """Edge of part ``a`` (the smaller edge index)."""
+    l: int
+    """Edge of part ``b``, with the same reference part."""
+    u: np.ndarray
+    """(3,) float64: unit vector from ``a``'s OBB centre to ``b``'s, across ``k``'s direction."""
+    width_k: float
+    """Half width of ``a``'s points along ``u`` (mesh units)."""
+    width_l: float
+    """Half width of ``b``'s points along ``u`` (mesh units)."""
 
 
 def _hinged(kind: str) -> bool:
@@ -73,7 +88,7 @@ def _across(v: np.ndarray, d: np.ndarray) -> np.ndarray:
 def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
                details: dict[int, EdgeRefinement], *, angle_deg: float = 10.0,
                extent_tol: float = 0.2, height_tol: float = 0.5, plane_deg: float = 30.0,
-               plane_tol: float = 0.25, side_min: float = 0.8, side_max: float = 1.3) -> list[tuple[int, int, np.ndarray]]:
+               plane_tol: float = 0.25, side_min: float = 0.8, side_max: float = 1.3) -> list[DoorPair]:
     """Pairs of side-by-side mirror parts (steps 1 and 2 of the module's rule).
 
     Parameters
@@ -92,9 +107,8 @@ def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
 
     Returns
     -------
-    list of (int, int, (3,) float64)
-        Edge ``k`` of part ``a``, edge ``l`` of part ``b`` (same reference) and the unit
-        vector ``u`` from ``a``'s centre to ``b``'s across the direction of ``k``; ``k < l``.
+    list of DoorPair
+        In order of ``k``, then ``l``; ``k < l``.
 
     Cost: quadratic in the hinged edges of one reference part, but a pair's points are read
     only when the OBBs leave it possible (each part's centred points once).
@@ -118,7 +132,7 @@ def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
             local[node] = np.asarray(graph.points[node], float) - centre[node]
         return local[node]
 
-    found: list[tuple[int, int, np.ndarray]] = []
+    found: list[DoorPair] = []
     for ks in buckets.values():
         for n, k in enumerate(ks):
             a = int(edges[k, 0])
@@ -147,14 +161,14 @@ def door_pairs(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
                 if abs(float(thin[a] @ thin[b])) < flat or \
                         abs(float(off @ thin[a])) > plane_tol * (wa + wb):
                     continue  # not in one plane
-                found.append((k, l, u))
+                found.append(DoorPair(k, l, u, wa, wb))
     partners: dict[int, set[int]] = {}
-    for k, l, _ in found:
-        a, b = int(edges[k, 0]), int(edges[l, 0])
+    for p in found:
+        a, b = int(edges[p.k, 0]), int(edges[p.l, 0])
         partners.setdefault(a, set()).add(b)
         partners.setdefault(b, set()).add(a)
-    return [(k, l, u) for k, l, u in found
-            if len(partners[int(edges[k, 0])]) == 1 and len(partners[int(edges[l, 0])]) == 1]
+    return [p for p in found
+            if len(partners[int(edges[p.k, 0])]) == 1 and len(partners[int(edges[p.l, 0])]) == 1]
 
 
 def _outward(graph: PartGraph, r: EdgeRefinement, node: int, d: np.ndarray, w: float,
@@ -204,13 +218,14 @@ def open_from_the_middle(graph: PartGraph, edges: np.ndarray, types: Sequence[st
     cos = float(np.cos(np.radians(angle_deg)))
     centre = np.asarray(graph.obb_center, float)
     changed: dict[int, EdgeRefinement] = {}
-    for k, l, u in door_pairs(graph, edges, types, details, angle_deg=angle_deg, **pair_options):
+    for k, l, u, width_k, width_l in door_pairs(graph, edges, types, details,
+                                                angle_deg=angle_deg, **pair_options):
         members = []
-        for e, out in ((k, -u), (l, u)):  # ``out``: the outer side, away from the partner
+        # ``out``: the outer side, away from the partner; ``w``: the half width along it
+        for e, out, w in ((k, -u, width_k), (l, u, width_l)):
             r = details[e]
             node = int(edges[e, 0])
             d = np.asarray(r.direction, float)
-            w = float(np.abs((np.asarray(graph.points[node], float) - centre[node]) @ out).max())
             line = float(_across(np.asarray(r.origin, float) - centre[node], d) @ out)
             members.append((e, r, node, d, w, line, out))
         central = [abs(line) < edge_min * w for _, _, _, _, w, line, _ in members]
