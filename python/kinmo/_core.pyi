@@ -105,6 +105,24 @@ def mesh_distance(vertices_a: F64, faces_a: I64, vertices_b: F64, faces_b: I64) 
     ``1e-300``. ``ValueError`` when a mesh has no faces.
     """
 
+# --- decompose (rust/kinmo-py/src/decompose.rs) ------------------------------------------
+
+def concave_pieces(
+    vertices: F64,
+    leaves: Sequence[I64],
+    tolerance: float,
+    max_depth: int,
+    max_components: int,
+    hull_samples: int,
+    flat_relative: float,
+    slab_thickness: float,
+) -> list[list[tuple[F64, I64, I64]]]:
+    """Per leaf ``(F, 3)`` faces of ``vertices``: its convex pieces ``(vertices (H, 3),
+    faces (T, 3), face ids (K,))`` (``kinmo.export.collision.concave_parts``).
+
+    ``ValueError`` on bad arrays or settings.
+    """
+
 # --- interaction (rust/kinmo-py/src/interaction.rs) --------------------------------------
 
 def interaction_region(

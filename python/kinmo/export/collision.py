@@ -10,9 +10,10 @@ and units). The methods (``kinmo export/predict/pseudo-label --collision NAME``)
   hull is concave, i.e. fills a slot, a shell or the inside of a frame that another part may
   move into (a bucket's body around which its handle turns, a stapler's channel, a cabinet
   frame modelled as one leaf of separate boards). A leaf is concave when a point of its hull
-  lies farther than :data:`CONCAVITY` times the link's diagonal from the leaf's surface
-  (seeded samples); it is then split into its connected components, or in two by planes
-  (:func:`concave_parts`). Milliseconds per object; deterministic.
+  (seeded samples) lies farther than :data:`CONCAVITY` times the link's diagonal from the
+  leaf's surface (exact distances); it is then split into its connected components, or in
+  two by planes (:func:`concave_parts`, the loop in Rust: :func:`kinmo.geometry.concave_pieces`).
+  Milliseconds per object; deterministic.
 - ``hull``: the exact convex hull of every leaf mesh of the link (its PartNet
   ``textured_objs/*.obj`` parts, which are panels, handles, knobs: mostly convex already),
   kinmo's exact hull (:func:`kinmo.geometry.convex_hull`, the one the OBB fit uses; it
@@ -35,9 +36,6 @@ The choice of default, measured on the shared objects (time, pieces, the per-joi
 check of issue 35: each joint driven alone over its range, its penetration beyond the rest
 pose's at most 2% of the diagonal): ``bench/bench_collision.py`` and
 ``docs/results/collision.md`` (issue 24, item 2; issue 35).
-
-Length: over 500 lines, about a third of them docstrings and comments: one topic, the registry of
-collision methods and the one writer they share.
 """
 
 from __future__ import annotations
@@ -48,7 +46,6 @@ import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass
-from functools import cached_property
 from pathlib import Path
 from typing import Callable
 
@@ -56,7 +53,7 @@ import numpy as np
 
 from kinmo.errors import KinmoDataError, KinmoUsageError
 from kinmo.export.kinematics import FLAT_RELATIVE, SLAB_THICKNESS, LinkMesh, simulator_safe, write_obj
-from kinmo.geometry import convex_hull, sample_surface
+from kinmo.geometry import concave_pieces, convex_hull
 from kinmo.io import atomic_path
 
 __all__ = ["COLLISION_METHODS", "DEFAULT_COLLISION", "CollisionMethod", "collision_pieces",
@@ -198,116 +195,16 @@ _register(CollisionMethod("hull", "exact convex hull of every leaf mesh (millise
 
 #: ``parts``: a piece is split while a point of its hull lies farther than this share of the
 #: link's bounding-box diagonal from the piece's own surface (its concavity). Chosen on the
-#: shared objects (``docs/results/collision.md``, issue 35): 0.05 passed 0.5 points more
-#: joints, but took 2.3x ``hull``'s export time; 0.1 stays within 2x.
-CONCAVITY = 0.1
+#: shared objects (``docs/results/collision.md``, issue 35): 0.1 until session 36, when the
+#: split moved to Rust with exact distances and 0.05 came within 2x ``hull``'s export time
+#: (1.73x), passing 4 more of 876 joints than 0.1.
+CONCAVITY = 0.05
 #: ``parts``: the most plane splits on the way from a leaf to one of its pieces.
 SPLIT_DEPTH = 4
 #: ``parts``: a concave leaf of more connected components than this is cut by planes instead.
 MAX_COMPONENTS = 16
-#: ``parts``: points sampled on each hull, and at most on each leaf surface (seeded, seed 0).
+#: ``parts``: points sampled on each hull for the concavity test (seeded, seed 0).
 HULL_SAMPLES = 64
-SURFACE_SAMPLES = 2048
-
-
-def _part_piece(vertices: np.ndarray, used: np.ndarray) -> Piece | None:
-    """The convex piece of one face set of ``parts``: its hull, or for a flat set the hull
-    of the set thickened on both sides of its plane (a prism as thick as the slab of
-    :func:`simulator_safe`, :data:`~kinmo.export.kinematics.SLAB_THICKNESS` times its largest
-    extent, following its outline where the slab is its bounding rectangle); None without
-    area. ``used``: the set's vertex ids (sorted, unique)."""
-    v = vertices[used]
-    hull = _hull(v)
-    if hull is not None:
-        return hull
-    centre = v.mean(axis=0)
-    _, sv, axes = np.linalg.svd(v - centre, full_matrices=False)
-    if len(sv) < 2 or not sv[1] > FLAT_RELATIVE * sv[0]:  # a point or a segment
-        return None
-    offset = axes[2] * (SLAB_THICKNESS * float(np.ptp(v, axis=0).max()) / 2)
-    return _hull(np.concatenate([v - offset, v + offset]))
-
-
-def _components(faces: np.ndarray) -> list[np.ndarray]:
-    """Indices into ``faces`` (vertex ids, ``(F, 3)`` int) of each connected component (faces
-    sharing a vertex id), in order of their first face."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    n, nv = len(faces), int(faces.max()) + 1
-    rows = np.repeat(np.arange(n), 3)
-    graph = coo_matrix((np.ones(3 * n), (rows, n + faces.ravel())), shape=(n + nv, n + nv))
-    _, label = connected_components(graph, directed=False)
-    label = label[:n]
-    _, first = np.unique(label, return_index=True)
-    return [np.flatnonzero(label == label[i]) for i in np.sort(first)]
-
-
-def _tree(points: np.ndarray):
-    """A ``scipy.spatial.cKDTree`` of ``points`` (``(N, 3)`` float64) for a few nearest-point
-    queries, built unbalanced (faster to build, same answers)."""
-    from scipy.spatial import cKDTree
-
-    return cKDTree(points, balanced_tree=False, compact_nodes=False)
-
-
-class _Leaf:
-    """One leaf mesh, for the concavity of its face subsets (surface samples drawn once, on
-    first need)."""
-
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, tol: float):
-        self.v, self.f, self.tol = vertices, faces, tol
-
-    @cached_property
-    def centroids(self) -> np.ndarray:
-        """Face centroids, ``(F, 3)`` float64."""
-        return self.v[self.f].mean(axis=1)
-
-    @cached_property
-    def samples(self) -> tuple[np.ndarray, np.ndarray]:
-        """Points on the leaf, spaced about half the tolerance apart (at most
-        :data:`SURFACE_SAMPLES`), ``(n, 3)`` float64, and their faces, ``(n,)`` int64."""
-        tri = self.v[self.f]
-        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        n = int(min(SURFACE_SAMPLES, max(HULL_SAMPLES, np.ceil(area.sum() / (0.5 * self.tol) ** 2))))
-        return sample_surface(self.v, self.f, n, seed=0)
-
-    @cached_property
-    def merged(self) -> np.ndarray:
-        """``faces`` with vertices of equal position given one id, ``(F, 3)`` int64."""
-        used = np.unique(self.f)
-        _, ids = np.unique(self.v[used], axis=0, return_inverse=True)
-        lookup = np.zeros(len(self.v), dtype=np.int64)
-        lookup[used] = ids.ravel()
-        return lookup[self.f]
-
-    def concave(self, sub: np.ndarray, used: np.ndarray, hull: Piece) -> bool:
-        """Whether a point of those sampled on ``hull`` lies farther than the tolerance from
-        the surface of the faces ``sub`` (of vertex ids ``used``): from their vertices and,
-        where those are not near enough, from the leaf's surface samples on them."""
-        on_hull, _ = sample_surface(*hull, HULL_SAMPLES, seed=0)
-        d = _tree(self.v[used]).query(on_hull)[0]
-        far = d > self.tol
-        if not far.any():
-            return False
-        points, face = self.samples
-        mine = np.zeros(len(self.f), dtype=bool)
-        mine[sub] = True
-        near = points[mine[face]]
-        if not len(near):
-            return True
-        return bool((_tree(near).query(on_hull[far])[0] > self.tol).any())
-
-    def split(self, sub: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """``sub`` cut in two by the plane through the middle of its face centroids along
-        their principal axis (of largest spread); None when no plane separates them."""
-        c = self.centroids[sub]
-        _, _, axes = np.linalg.svd(c - c.mean(axis=0), full_matrices=False)
-        t = c @ axes[0]
-        left = t < 0.5 * (t.min() + t.max())
-        if left.all() or not left.any():
-            return None
-        return sub[left], sub[~left]
 
 
 def concave_parts(mesh: LinkMesh) -> list[Piece]:
@@ -315,17 +212,20 @@ def concave_parts(mesh: LinkMesh) -> list[Piece]:
 
     Every leaf mesh gets its convex hull, as in ``hull``, unless that hull is concave: some
     point of it (of :data:`HULL_SAMPLES` sampled on it) lies farther than :data:`CONCAVITY`
-    times the link's bounding-box diagonal from the leaf's surface (its vertices and up to
-    :data:`SURFACE_SAMPLES` points sampled on it), i.e. the hull fills a slot, a shell or the
-    inside of a frame that another part may move into. A concave leaf is split into its
+    times the link's bounding-box diagonal from the leaf's surface (exact distances to its
+    triangles), i.e. the hull fills a slot, a shell or the inside of a frame that another
+    part may move into. A concave leaf is split into its
     connected components (faces sharing a vertex position: a cabinet frame modelled as one
     leaf of separate boards) when it has 2 to :data:`MAX_COMPONENTS`; a concave leaf of one
     component, and any concave piece below it, is cut in two by the plane through the middle
     of its face centroids, across their principal axis of largest spread, at most
     :data:`SPLIT_DEPTH` cuts deep. Each piece is checked the same way; one no larger
     than the tolerance is kept whole. Every face lies in one piece, so the pieces cover the
-    leaf's surface. A flat piece is the hull of its points moved by half a slab thickness to
-    both sides of its plane (:func:`_part_piece`). Deterministic (seeded samples).
+    leaf's surface. A flat piece is the hull of its points moved by half a slab thickness
+    (:data:`~kinmo.export.kinematics.SLAB_THICKNESS` times its largest extent) to both sides
+    of its plane, a prism that follows its outline where :func:`simulator_safe`'s slab is
+    its bounding rectangle. Deterministic (seeded samples). The loop over a leaf's pieces
+    runs in Rust (:func:`kinmo.geometry.concave_pieces`).
 
     Parameters
     ----------
@@ -344,31 +244,10 @@ def concave_parts(mesh: LinkMesh) -> list[Piece]:
         return []
     used = mesh.vertices[np.unique(mesh.faces)]
     tol = CONCAVITY * float(np.linalg.norm(np.ptp(used, axis=0)))
-    out: list[Piece] = []
-    for faces in _leaves(mesh):
-        leaf: _Leaf | None = None
-        stack = [(np.arange(len(faces)), -1)]  # depth -1: the whole leaf, not yet split
-        while stack:
-            sub, depth = stack.pop()
-            used = np.unique(faces[sub])
-            piece = _part_piece(mesh.vertices, used)
-            if piece is None:
-                continue
-            # a piece no larger than the tolerance cannot be more concave than it
-            if depth < SPLIT_DEPTH and len(sub) > 1 and \
-                    np.linalg.norm(np.ptp(piece[0], axis=0)) > tol > 0:
-                leaf = leaf or _Leaf(mesh.vertices, faces, tol)
-                if leaf.concave(sub, used, piece):
-                    comps = _components(leaf.merged) if depth < 0 else []
-                    if 1 < len(comps) <= MAX_COMPONENTS:
-                        stack.extend((c, 0) for c in reversed(comps))
-                        continue
-                    halves = leaf.split(sub)
-                    if halves is not None:
-                        stack.extend((h, max(depth, 0) + 1) for h in reversed(halves))
-                        continue
-            out.append(piece)
-    return out
+    got = concave_pieces(mesh.vertices, _leaves(mesh), tol, max_depth=SPLIT_DEPTH,
+                         max_components=MAX_COMPONENTS, hull_samples=HULL_SAMPLES,
+                         flat_relative=FLAT_RELATIVE, slab_thickness=SLAB_THICKNESS)
+    return [(v, f) for leaf in got for v, f, _ in leaf]
 
 
 _register(CollisionMethod("parts", "leaf hulls, concave leaves split into convex parts "

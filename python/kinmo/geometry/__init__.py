@@ -9,6 +9,7 @@ the GIL released. Frames are those of the input; PartNet objects are y-up.
 - :mod:`kinmo.geometry.obb`: oriented bounding boxes.
 - :mod:`kinmo.geometry.hull`: exact convex hulls.
 - :mod:`kinmo.geometry.contact`: contact adjacency and mesh distances.
+- :mod:`kinmo.geometry.decompose`: convex pieces of concave meshes (collision geometry).
 - :mod:`kinmo.geometry.interaction`: interaction regions between two parts.
 - :mod:`kinmo.geometry.motion`: batched candidate motions.
 - :mod:`kinmo.geometry.sweep`: swept-collision feasibility and line-to-mesh distance.
@@ -17,6 +18,7 @@ the GIL released. Frames are those of the input; PartNet objects are y-up.
 """
 
 from kinmo.geometry.contact import contact_pairs, mesh_distance
+from kinmo.geometry.decompose import concave_pieces
 from kinmo.geometry.hull import convex_hull
 from kinmo.geometry.interaction import InteractionRegion, interaction_region
 from kinmo.geometry.mesh import load_obj, load_objs
@@ -32,6 +34,7 @@ __all__ = [
     "SweepObstacle",
     "apply_motions",
     "ball_query",
+    "concave_pieces",
     "contact_pairs",
     "convex_hull",
     "farthest_point_sample",

@@ -7,6 +7,7 @@
 //! `u32` vertex indices, PartNet objects are y-up.
 
 pub mod contact;
+pub mod decompose;
 pub mod error;
 pub mod hull;
 pub mod interaction;
@@ -14,6 +15,7 @@ pub mod mesh;
 pub mod motion;
 pub mod obb;
 pub mod pointnet;
+pub mod proximity;
 pub mod sampling;
 pub mod sweep;
 #[cfg(test)]

@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 
 mod contact;
 mod convert;
+mod decompose;
 mod errors;
 mod hull;
 mod interaction;
@@ -28,6 +29,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     pointnet::register(m)?;
     hull::register(m)?;
     contact::register(m)?;
+    decompose::register(m)?;
     interaction::register(m)?;
     motion::register(m)?;
     sweep::register(m)?;
