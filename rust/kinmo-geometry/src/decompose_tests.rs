@@ -101,12 +101,11 @@ fn a_u_is_cut_so_no_piece_fills_its_slot() {
 
 #[test]
 fn a_flat_mesh_becomes_a_thin_prism() {
-    let v = vec![
-        Point3::new(0.0, 0.0, 0.0),
-        Point3::new(2.0, 0.0, 0.0),
-        Point3::new(2.0, 1.0, 0.0),
-        Point3::new(0.0, 1.0, 0.0),
-    ];
+    // a 2 x 1 rectangle in the z = 0 plane
+    let v: Vec<Point3<f64>> = [(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (0.0, 1.0)]
+        .iter()
+        .map(|&(x, y)| Point3::new(x, y, 0.0))
+        .collect();
     let f = vec![[0, 1, 2], [0, 2, 3]];
     let pieces = concave_pieces(&v, &f, &params(0.05)).expect("pieces");
     assert_eq!(pieces.len(), 1);
