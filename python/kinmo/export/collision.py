@@ -197,7 +197,7 @@ _register(CollisionMethod("hull", "exact convex hull of every leaf mesh (millise
 #: link's bounding-box diagonal from the piece's own surface (its concavity). Chosen on the
 #: shared objects (``docs/results/collision.md``, issue 35): 0.1 until session 36, when the
 #: split moved to Rust with exact distances and 0.05 came within 2x ``hull``'s export time
-#: (1.73x), passing 4 more of 876 joints than 0.1.
+#: (1.88x, the median of three runs), passing 4 more of 876 joints than 0.1.
 CONCAVITY = 0.05
 #: ``parts``: the most plane splits on the way from a leaf to one of its pieces.
 SPLIT_DEPTH = 4

@@ -19,10 +19,11 @@
 use std::collections::HashMap;
 
 use nalgebra::{DMatrix, Point3, Vector3};
+use parry3d_f64::bounding_volume::Aabb;
 
 use crate::error::{GeometryError, Result};
 use crate::hull::convex_hull;
-use crate::mesh::{check_finite, TriMesh};
+use crate::mesh::TriMesh;
 use crate::proximity::point_mesh_distance;
 use crate::sampling::sample_surface;
 
@@ -74,7 +75,7 @@ pub fn concave_pieces(
             params.tolerance, params.hull_samples
         )));
     }
-    // faces naming existing vertices, and those vertices finite (the others are not read)
+    // faces naming existing vertices (their finiteness: the first hull's check)
     for (i, f) in faces.iter().enumerate() {
         if let Some(&v) = f.iter().find(|&&v| v as usize >= vertices.len()) {
             return Err(GeometryError::IndexOutOfRange {
@@ -85,26 +86,23 @@ pub fn concave_pieces(
             });
         }
     }
-    let all: Vec<u32> = (0..faces.len() as u32).collect();
-    let used: Vec<Point3<f64>> = used_vertices(faces, &all)
-        .iter()
-        .map(|&i| vertices[i as usize])
-        .collect();
-    check_finite(&used, "vertices")?;
     let tol = params.tolerance;
     let mut out = Vec::new();
     // (face ids, depth); depth -1: the whole mesh, not yet split
-    let mut stack: Vec<(Vec<u32>, i64)> = vec![(all, -1)];
+    let mut stack: Vec<(Vec<u32>, i64)> = vec![((0..faces.len() as u32).collect(), -1)];
     while let Some((sub, depth)) = stack.pop() {
         let used = used_vertices(faces, &sub);
-        let Some(piece) = part_piece(vertices, &used, params)? else {
+        let local: Vec<Point3<f64>> = used.iter().map(|&i| vertices[i as usize]).collect();
+        let Some(piece) = part_piece(&local, params)? else {
             continue;
         };
         if depth < i64::from(params.max_depth)
             && sub.len() > 1
             && tol > 0.0
-            && diagonal(&piece.0) > tol
-            && concave(vertices, faces, &sub, &used, &piece, params)?
+            && piece
+                .bounds()
+                .is_some_and(|(lo, hi)| (hi - lo).norm() > tol)
+            && concave(local, faces, &sub, &used, &piece, params)?
         {
             if depth < 0 {
                 let comps = components(vertices, faces);
@@ -120,7 +118,7 @@ pub fn concave_pieces(
                 continue;
             }
         }
-        out.push((piece, sub));
+        out.push((piece.into_parts(), sub));
     }
     Ok(out)
 }
@@ -131,19 +129,6 @@ fn used_vertices(faces: &[[u32; 3]], sub: &[u32]) -> Vec<u32> {
     used.sort_unstable();
     used.dedup();
     used
-}
-
-/// Length of the bounding-box diagonal of `points` (0 for none).
-fn diagonal(points: &[Point3<f64>]) -> f64 {
-    let Some(first) = points.first() else {
-        return 0.0;
-    };
-    let (mut lo, mut hi) = (first.coords, first.coords);
-    for p in points {
-        lo = lo.inf(&p.coords);
-        hi = hi.sup(&p.coords);
-    }
-    (hi - lo).norm()
 }
 
 /// Whether a singular value `small` is at most `relative` times `large` (NaN: flat), as
@@ -176,7 +161,10 @@ fn principal(points: &[Point3<f64>], want_axes: bool) -> (Vector3<f64>, Option<[
 
 /// The exact hull of `points`, corner points ascending; `None` without volume or as flat
 /// as `flat_relative` counts flat (`kinmo.export.collision._hull`).
-fn hull(points: &[Point3<f64>], flat_relative: f64) -> Result<Option<Piece>> {
+///
+/// # Errors
+/// [`GeometryError::NonFinite`] for a NaN or infinite point.
+fn hull(points: &[Point3<f64>], flat_relative: f64) -> Result<Option<TriMesh>> {
     let Some(h) = convex_hull(points)? else {
         return Ok(None);
     };
@@ -195,28 +183,27 @@ fn hull(points: &[Point3<f64>], flat_relative: f64) -> Result<Option<Piece>> {
         return Ok(None);
     }
     let tris = h.faces.iter().map(|f| f.map(|i| slot[&i])).collect();
-    Ok(Some((corners, tris)))
+    Ok(Some(TriMesh::new(corners, tris, "piece")?))
 }
 
 /// The piece of one face set (`kinmo.export.collision._part_piece`): the hull of its
-/// vertices `used`, or for a flat set the hull of the set thickened on both sides of its
+/// vertices `v`, or for a flat set the hull of the set thickened on both sides of its
 /// plane; `None` for a point or a segment.
-fn part_piece(vertices: &[Point3<f64>], used: &[u32], p: &SplitParams) -> Result<Option<Piece>> {
-    let v: Vec<Point3<f64>> = used.iter().map(|&i| vertices[i as usize]).collect();
-    if let Some(h) = hull(&v, p.flat_relative)? {
+fn part_piece(v: &[Point3<f64>], p: &SplitParams) -> Result<Option<TriMesh>> {
+    if let Some(h) = hull(v, p.flat_relative)? {
         return Ok(Some(h));
     }
     if v.len() < 2 {
         return Ok(None);
     }
-    let (sv, axes) = principal(&v, true);
+    let (sv, axes) = principal(v, true);
     let Some(axes) = axes else {
         return Ok(None);
     };
     if flat(sv[1], sv[0], p.flat_relative) {
         return Ok(None);
     }
-    let extent = diagonal_extent(&v);
+    let extent = Aabb::from_points(v.iter().copied()).extents().max();
     let offset = axes[2] * (p.slab_thickness * extent / 2.0);
     let thick: Vec<Point3<f64>> = v
         .iter()
@@ -226,34 +213,23 @@ fn part_piece(vertices: &[Point3<f64>], used: &[u32], p: &SplitParams) -> Result
     hull(&thick, p.flat_relative)
 }
 
-/// Largest extent of the points' axis-aligned bounding box.
-fn diagonal_extent(points: &[Point3<f64>]) -> f64 {
-    let (mut lo, mut hi) = (points[0].coords, points[0].coords);
-    for q in points {
-        lo = lo.inf(&q.coords);
-        hi = hi.sup(&q.coords);
-    }
-    (hi - lo).max()
-}
-
 /// Whether a point of those sampled on `piece` lies farther than the tolerance from the
-/// surface of the faces `sub` (exact distances).
+/// surface of the faces `sub`, whose vertex ids `used` (ascending) are at `local` (exact
+/// distances).
 fn concave(
-    vertices: &[Point3<f64>],
+    local: Vec<Point3<f64>>,
     faces: &[[u32; 3]],
     sub: &[u32],
     used: &[u32],
-    piece: &Piece,
+    piece: &TriMesh,
     p: &SplitParams,
 ) -> Result<bool> {
-    let hull_mesh = TriMesh::new(piece.0.clone(), piece.1.clone(), "piece")?;
-    let (on_hull, _) = sample_surface(&hull_mesh, p.hull_samples, 0)?;
+    let (on_hull, _) = sample_surface(piece, p.hull_samples, 0)?;
     let slot: HashMap<u32, u32> = used
         .iter()
         .enumerate()
         .map(|(k, &i)| (i, k as u32))
         .collect();
-    let local: Vec<Point3<f64>> = used.iter().map(|&i| vertices[i as usize]).collect();
     let tris: Vec<[u32; 3]> = sub
         .iter()
         .map(|&f| faces[f as usize].map(|i| slot[&i]))
