@@ -102,8 +102,9 @@ def _model(tmp_path, asset="", compiler="", extra=""):
     ({"compiler": 'meshdir="../"', "asset": '<mesh name="m" file="secret.stl"/>'}, "<compiler meshdir> '../' refused"),
     ({"compiler": 'assetdir="/tmp"'}, "<compiler assetdir> '/tmp' refused: it is an absolute path"),
     ({"compiler": 'meshdir="out"', "asset": '<mesh name="m" file="secret.stl"/>'},
-     "<mesh file> 'secret.stl' (in 'out') refused: it leads outside through a symbolic link"),
-    ({"asset": '<texture name="t" type="cube" fileright="../secret.png"/>'}, "<texture fileright>"),
+     "<compiler meshdir> 'out' refused: it leads outside through a symbolic link"),
+    ({"asset": '<mesh name="m" file="sub/../../secret.stl"/>'}, "'sub/../../secret.stl' refused: it climbs out"),
+    ({"asset": '<mesh name="m" file="out/../secret.stl"/>'}, "refused: it leads outside through a symbolic link"),
     ({"asset": '<hfield name="h" file="link.png"/>'}, "leads outside through a symbolic link"),
     ({"extra": '<include file="../other.xml"/>'}, "<include file> '../other.xml' refused"),
     ({"asset": '<mesh name="m" file="a:b.stl"/>'}, "contains ':'"),
@@ -112,7 +113,7 @@ def test_file_references_leaving_the_model_folder_are_refused(tmp_path, monkeypa
     import mujoco
 
     opened = []
-    monkeypatch.setattr(mujoco.MjModel, "from_xml_path", lambda *a: opened.append(a))
+    monkeypatch.setattr(mujoco.MjSpec, "from_file", lambda *a: opened.append(a))
     secret = write_mesh(tmp_path / "secret.stl")
     (tmp_path / "other.xml").write_text("<mujoco/>")
     kw = {k: v.replace("ABS", str(secret)) for k, v in kw.items()}
@@ -124,6 +125,28 @@ def test_file_references_leaving_the_model_folder_are_refused(tmp_path, monkeypa
     msg = str(e.value)
     assert msg.startswith(str(xml)) and problem in msg and "\n" not in msg
     assert "inside the model's folder" in msg and opened == []  # refused before MuJoCo opens it
+
+
+def test_meshes_up_and_back_into_the_folder_and_textures_outside_it_load(tmp_path):
+    """Meta-World names ``../objects/meshes/...`` from ``objects/`` (up, then back inside);
+    robosuite names ``../textures/*.png`` beside the model's folder. Textures are never
+    opened, so one that does not exist at all loads too."""
+    write_mesh(tmp_path / "objects" / "meshes" / "door.stl", offset=(0, 0, 3))
+    xml = tmp_path / "objects" / "door.xml"
+    xml.write_text(
+        '<mujoco><asset><texture name="wood" type="cube" file="../textures/wood.png"/>'
+        '<texture name="sky" type="skybox" builtin="gradient" width="8" height="8"/>'
+        '<material name="m" texture="wood"/><mesh name="d" file="../objects/meshes/door.stl"/></asset>'
+        '<worldbody><geom type="box" size="1 1 1" material="m"/><body name="door"><joint type="hinge"/>'
+        '<geom type="mesh" mesh="d" material="m"/></body></worldbody></mujoco>')
+    parts = dict((n, v) for n, v, _ in read_parts(xml))
+    assert list(parts) == ["world", "door"] and not (tmp_path / "textures").exists()
+    np.testing.assert_allclose(parts["door"].min(0), [-0.5, -0.5, 2.5], atol=1e-6)
+    # robosuite's cabinet.xml uses materials its arena defines: no geometry is lost without them
+    xml.write_text('<mujoco><worldbody><geom type="box" size="1 1 1" material="MatRedWood"/>'
+                   '<body name="drawer" pos="0 0 3"><joint type="slide"/><geom type="box" size="1 1 1" '
+                   'material="MatCeramic"/><site name="s" material="MatRedWood"/></body></worldbody></mujoco>')
+    assert [n for n, _, _ in read_parts(xml)] == ["world", "drawer"]
 
 
 def test_a_hostile_included_file_is_checked_too(tmp_path):

@@ -116,6 +116,25 @@ def test_a_missing_mesh_in_a_package_names_the_package_and_the_fix(tmp_path):
         read_parts(urdf)
 
 
+def test_relative_names_may_go_up_within_the_urdfs_ros_package(tmp_path):
+    """ROS packages keep meshes beside urdf/: ``../meshes/door.stl`` from pkg/urdf/ is inside
+    the package, while a name leaving the package, or any ``..`` of a URDF in no package,
+    is refused."""
+    urdf = _workspace(tmp_path)
+    mesh_urdf(urdf, {"body": "../meshes/body.obj", "door": "./../urdf/../meshes/door.stl"})
+    np.testing.assert_allclose(bounds(read_parts(urdf)), [[-0.5, -0.5, -0.5], [2.5, 0.5, 0.5]])
+    write_mesh(tmp_path / "ws" / "src" / "other.obj")
+    mesh_urdf(urdf, {"body": "../meshes/body.obj", "evil": "../../other.obj"})
+    with pytest.raises(KinmoDataError, match=r"link 'evil': mesh '../../other.obj' refused: it climbs "
+                                             r"out with '..' \(mesh paths are relative inside the URDF's "
+                                             r"folder, or its ROS package's"):
+        read_parts(urdf)
+    loose = mesh_urdf(tmp_path / "loose" / "urdf" / "r.urdf", {"a": "../meshes/a.obj"})
+    write_mesh(tmp_path / "loose" / "meshes" / "a.obj")
+    with pytest.raises(KinmoDataError, match="climbs out with '..'"):
+        read_parts(loose)
+
+
 @pytest.mark.parametrize("filename,problem", [
     ("package://../outside.obj", "package name is a relative folder reference"),
     ("package://cab/../../outside.obj", "climbs out with '..'"),

@@ -17,9 +17,14 @@ fields and SDFs are skipped (floors and terrain, not parts).
 **Files.** Every file the model names is checked before MuJoCo opens any
 (:func:`check_references`): the XML is parsed by :func:`kinmo.io.parse_xml` (bounded, no
 entities), ``<include file>`` followed (at most :data:`MAX_FILES` files), and every
-``file*`` attribute (mesh, texture, height field, skin, include, model) and the ``<compiler>``
+``file*`` attribute (mesh, height field, skin, include, model) and the ``<compiler>``
 folders ``meshdir`` / ``texturedir`` / ``assetdir`` must be relative and stay inside the
-model's folder (:mod:`kinmo.assets.refs`), each file under the ``file_bytes`` limit.
+model's folder (:mod:`kinmo.assets.refs`: ``..`` may go up within it, as Meta-World's
+``../objects/meshes/...`` from ``objects/``), each file under the ``file_bytes`` limit.
+Textures and materials are deleted from the parsed model (``mujoco.MjSpec``) before it is
+compiled: they carry no geometry, so texture files are never opened and need not exist
+(robosuite's objects name ``../textures/*.png`` beside their folder), and a material used
+but defined elsewhere (robosuite's ``cabinet.xml`` expects the arena's) is no error.
 
 The up axis is z (MuJoCo's gravity is along -z by default); units are the model's (metres by
 convention).
@@ -79,10 +84,16 @@ def _checked(model: Path, source: Path, sub: str, ref: str, tag: str) -> Path:
     first), its size under ``file_bytes``."""
     what = f"{tag} {ref!r}" + (f" (in {sub!r})" if sub else "")
     rel = f"{sub.rstrip('/')}/{ref}" if sub and reference_problem(ref) is None else ref
-    paths = [file_inside(model.parent, rel, source, what, _FIX)]
-    if source.parent != model.parent:  # an included file's folder, inside the model's
-        paths.append(file_inside(model.parent, f"{source.parent.relative_to(model.parent)}/{rel}",
-                                 source, what, _FIX))
+    paths: list[Path] = []
+    refused: KinmoDataError | None = None
+    for base in dict.fromkeys([model.parent, source.parent]):  # an included file's folder too
+        try:
+            paths.append(file_inside(model.parent, rel, source, what, _FIX, base=base))
+        except KinmoDataError as e:  # refused from here: MuJoCo may look it up from the other
+            refused = refused or e
+    if not paths:
+        assert refused is not None
+        raise refused
     path = next((p for p in paths if p.is_file()), paths[0])
     limits.check_file(path)
     return path
@@ -105,15 +116,13 @@ def check_references(model: Path) -> None:
         for compiler in root.iter("compiler"):
             for attr in dirs:
                 if d := compiler.get(attr):  # empty: none
-                    if (problem := reference_problem(d)) is not None:
-                        raise KinmoDataError(source, f"<compiler {attr}> {d!r} refused: it {problem} "
-                                                     f"({_FIX})")
+                    file_inside(model.parent, d, source, f"<compiler {attr}> {d!r}", _FIX)
                     dirs[attr] = d
     for source, root in files:
         for el in root.iter():
             sub = (dirs[_DIRS[el.tag]] or dirs["assetdir"]) if el.tag in _DIRS else ""
             for attr, ref in el.attrib.items():
-                if attr.startswith("file") and el.tag != "include":
+                if attr.startswith("file") and el.tag not in ("include", "texture"):
                     _checked(model, source, sub, ref, f"<{el.tag} {attr}>")
 
 
@@ -138,6 +147,23 @@ def _geom_mesh(m, d, g: int) -> tuple[np.ndarray, np.ndarray] | None:
             return None
         v, f = primitive(*sizes)
     return v @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g], f
+
+
+def _compiled_geometry(spec):
+    """``spec`` (a parsed ``mujoco.MjSpec``, no asset file opened yet) compiled without its
+    looks: textures and materials deleted, and every element's ``material`` emptied. They
+    carry no geometry, so texture files are neither checked nor opened (robosuite's objects
+    name ``../textures/*.png`` beside their folder), and a material the file uses but does
+    not define (robosuite's ``cabinet.xml`` and ``button.xml`` expect the arena's) is no
+    error. Returns the ``mujoco.MjModel``."""
+    for texture in list(spec.textures):
+        spec.delete(texture)
+    for material in list(spec.materials):
+        spec.delete(material)
+    for kind in ("geoms", "sites", "skins", "tendons", "flexes"):
+        for el in getattr(spec, kind, ()):
+            el.material = ""
+    return spec.compile()
 
 
 def _body_name(m, b: int) -> str:
@@ -169,7 +195,7 @@ def read_mjcf(path: Path, options: ReadOptions) -> list[Part]:
 
     check_references(path)
     try:
-        m = mujoco.MjModel.from_xml_path(str(path))
+        m = _compiled_geometry(mujoco.MjSpec.from_file(str(path)))
     except Exception as e:  # mujoco raises ValueError with a multi-line message
         raise KinmoDataError(path, f"MuJoCo cannot load the model: {' '.join(str(e).split())}") from None
     limits.check("parts", int(m.nbody), path)

@@ -4,12 +4,18 @@ assets): the containment rule, applied before any library opens them (issue 21; 
 A reference is text from an untrusted file, never a path as given. It is accepted when:
 
 - it is relative, with ``/`` (or ``\\``) separated pieces that are plain names
-  (:func:`kinmo.data.names.name_problem`: no ``..``, no ``:``, no control characters;
-  empty and ``.`` pieces are skipped);
-- joined to its root folder and with every symbolic link resolved, it still lies inside
-  that root (:func:`kinmo.data.names.inside`).
+  (:func:`kinmo.data.names.name_problem`: no ``:``, no control characters; empty and
+  ``.`` pieces are skipped) or ``..``;
+- joined to the folder it is relative to, with its ``..`` pieces folded in (lexically), it
+  lies inside its root folder: ``..`` may go up within the root, never above it
+  (``../meshes/door.stl`` from ``pkg/urdf/`` inside the package ``pkg``; Meta-World's
+  ``../objects/meshes/...`` from ``objects/``), and is refused as "climbs out with '..'"
+  otherwise;
+- with every symbolic link resolved, it still lies inside that root
+  (:func:`kinmo.data.names.inside`).
 
-The root is the input file's folder, or for ``package://NAME/rest`` the package's folder
+The root is the input file's folder (a URDF inside a ROS package: the package's folder,
+:func:`enclosing_package`), or for ``package://NAME/rest`` the package NAME's folder
 (:func:`package_root`).
 """
 
@@ -23,34 +29,50 @@ from kinmo.data.names import inside, name_problem
 from kinmo.errors import KinmoDataError
 from kinmo.io import parse_xml
 
-__all__ = ["file_inside", "package_root", "reference_problem"]
+__all__ = ["enclosing_package", "file_inside", "package_root", "reference_problem"]
 
 
 def reference_problem(ref: str) -> str | None:
-    """Why the relative file reference ``ref`` is refused, or None (module rule; symbolic
-    links are checked by :func:`file_inside`)."""
+    """Why the relative file reference ``ref`` is refused on its own, or None (module rule;
+    where its ``..`` pieces lead and symbolic links are checked by :func:`file_inside`)."""
     if not ref:
         return "is empty"
     pieces = ref.replace("\\", "/").split("/")
     if ref.startswith(("/", "\\")) or Path(ref).is_absolute():
         return "is an absolute path"
-    if ".." in pieces:
-        return "climbs out with '..'"
     for p in pieces:
-        if p not in ("", ".") and (problem := name_problem(p)) is not None:
+        if p not in ("", ".", "..") and (problem := name_problem(p)) is not None:
             return f"has a piece that {problem}"
     return None
 
 
-def file_inside(root: Path, ref: str, source: Path, what: str, fix: str) -> Path:
-    """``root / ref`` once the rule holds (module docs); it need not exist.
+def _folded(base: Path, ref: str) -> Path:
+    """``base / ref`` with the ``.`` and ``..`` pieces of ``ref`` folded in lexically (no file
+    system access; ``ref`` relative, checked by :func:`reference_problem`)."""
+    out = list(Path(os.path.abspath(base)).parts)
+    floor = 1  # never above the file system's root
+    for p in ref.replace("\\", "/").split("/"):
+        if p in ("", "."):
+            continue
+        if p == "..":
+            if len(out) > floor:
+                out.pop()
+        else:
+            out.append(p)
+    return Path(*out)
+
+
+def file_inside(root: Path, ref: str, source: Path, what: str, fix: str, base: Path | None = None) -> Path:
+    """``base / ref`` once the rule holds (module docs); it need not exist. Both ways of
+    reading its ``..`` pieces must stay inside ``root``: folded in lexically, and as the file
+    system follows it (each symbolic link resolved before the ``..`` after it).
 
     Parameters
     ----------
     root : Path
-        The folder ``ref`` must stay inside.
+        The folder the reference must stay inside.
     ref : str
-        The reference, relative to ``root``.
+        The reference, relative to ``base``.
     source : Path
         The input file it was read from (named in the error).
     what : str
@@ -58,6 +80,8 @@ def file_inside(root: Path, ref: str, source: Path, what: str, fix: str) -> Path
         'package://cab/x.obj'"``).
     fix : str
         The rule in words, told with the error (``"mesh paths stay inside the URDF's folder"``).
+    base : Path, optional
+        The folder ``ref`` is relative to, inside ``root`` (default: ``root``).
 
     Raises
     ------
@@ -65,7 +89,12 @@ def file_inside(root: Path, ref: str, source: Path, what: str, fix: str) -> Path
         ``"<source>: <what> refused: it <problem> (<fix>)"``.
     """
     problem = reference_problem(ref)
-    path = root / ref.replace("\\", "/")
+    start = root if base is None else base
+    folded = _folded(start, ref)
+    top = Path(os.path.abspath(root))
+    if problem is None and not (folded == top or top in folded.parents):
+        problem = "climbs out with '..'"
+    path = Path(start) / ref.replace("\\", "/")  # as a library opens it: links, then '..'
     if problem is None and not inside(path, root):
         problem = "leads outside through a symbolic link"
     if problem is not None:
@@ -82,6 +111,15 @@ def _package_name(folder: Path) -> str | None:
     except KinmoDataError:
         return None
     return None if el is None or el.text is None else el.text.strip()
+
+
+def enclosing_package(source: Path) -> Path | None:
+    """The folder of the ROS package holding ``source``: the nearest folder above it with a
+    readable ``package.xml`` that has a ``<name>``, or None."""
+    for folder in Path(os.path.abspath(source)).parents:
+        if _package_name(folder):
+            return folder
+    return None
 
 
 def package_root(name: str, source: Path, package_path: Sequence[Path] = ()) -> Path | None:

@@ -8,7 +8,9 @@ no visual; each ``<geometry>`` is one of:
   ``package://NAME/rest`` inside the package NAME (:func:`kinmo.assets.refs.package_root`: the
   nearest folder above the URDF with a ``package.xml`` named NAME, else ``DIR/NAME`` for a
   ``--package-path DIR``, else, as before issue 36, ``NAME/rest`` inside the URDF's folder);
-  a plain relative name, or ``file://`` followed by one, inside the URDF's folder.
+  a plain relative name, or ``file://`` followed by one, relative to the URDF's folder and
+  inside it, or inside the ROS package holding the URDF (:func:`kinmo.assets.refs.enclosing_package`:
+  ``../meshes/door.stl`` from ``pkg/urdf/``, as ROS packages lay meshes out).
 - ``<box size>``, ``<cylinder radius length>`` (along local z), ``<sphere radius>`` and
   ``<capsule radius length>``: meshed with trimesh (:mod:`kinmo.assets.primitives`).
 
@@ -31,7 +33,7 @@ from kinmo import limits
 from kinmo.assets import Part, ReadOptions, merge, read_xml, register, xml_root
 from kinmo.assets.mesh import mesh_parts
 from kinmo.assets.primitives import primitive
-from kinmo.assets.refs import file_inside, package_root
+from kinmo.assets.refs import enclosing_package, file_inside, package_root
 from kinmo.data.frames import UpAxis, default_up
 from kinmo.data.names import name_problem
 from kinmo.errors import KinmoDataError
@@ -157,8 +159,11 @@ def mesh_file(source: Path, link: str, filename: str, options: ReadOptions) -> P
         where = f"in package {name!r} at {root}"
     else:
         rel = filename[len("file://"):] if filename.startswith("file://") else filename
-        path = file_inside(source.parent, rel, source, what,
-                           "mesh paths are relative inside the URDF's folder, or package://NAME/...")
+        package = enclosing_package(source)
+        root = source.parent if package is None else package
+        path = file_inside(root, rel, source, what,
+                           "mesh paths are relative inside the URDF's folder, or its ROS package's, or "
+                           "package://NAME/...", base=source.parent)
         where = f"beside the URDF (looked for {path})"
     if not path.is_file():
         raise KinmoDataError(source, f"{what} not found {where}: add the file or fix the filename")
