@@ -128,7 +128,8 @@ def furniture_sim_objects(root: Path, exclude: set[str], together: set[str]) -> 
 
 def urdf_objects(repo_dir: Path, src: dict, out: Path, keep_dae: bool = False) -> list[dict]:
     """Objects cut from one URDF scene (``kind`` ``urdf_split``): every child link of a link
-    in ``split`` with a moving joint below it becomes ``OUT/<source>-<link>/model.urdf``: the
+    in ``split`` (without ``split``: the URDF's root link, the whole URDF one object) with a
+    moving joint below it becomes ``OUT/<source>-<link>/model.urdf``: the
     subtree with its joints (types kept: the truth), under a root ``base`` fixed at the
     subtree's pose in the scene (so up stays up), the meshes it names copied beside it under
     a ``package.xml`` of the same package name (``package://`` then resolves inside the
@@ -154,59 +155,62 @@ def urdf_objects(repo_dir: Path, src: dict, out: Path, keep_dae: bool = False) -
     def below(link: str) -> list[ET.Element]:
         return [j for j in children.get(link, []) for j in (j, *below(j.find("child").get("link")))]
 
+    if src.get("split"):
+        roots = [j0.find("child").get("link") for top in src["split"] for j0 in children.get(top, [])]
+    else:  # the whole URDF is one object: its root link
+        child_links = {j.find("child").get("link") for j in robot.findall("joint")}
+        roots = [name for name in links if name not in child_links][:1]
     rows = []
-    for top in src["split"]:
-        for j0 in children.get(top, []):
-            root = j0.find("child").get("link")
-            joints = below(root)
-            if not any(j.get("type") in moving for j in joints):
-                continue
-            oid = f"{src['name']}-{root}"
-            folder = out / oid
-            if folder.exists():
-                shutil.rmtree(folder)
-            folder.mkdir(parents=True)
-            shutil.copyfile(package_dir / "package.xml", folder / "package.xml")
-            T = poses[root]
-            xyz = " ".join(f"{x:.9g}" for x in T[:3, 3])
-            rpy = " ".join(f"{x:.9g}" for x in Rotation.from_matrix(T[:3, :3]).as_euler("xyz"))
-            new = ET.Element("robot", name=root)
-            ET.SubElement(new, "link", name="base")
-            fixed = ET.SubElement(new, "joint", name="base_fixed", type="fixed")
-            ET.SubElement(fixed, "parent", link="base")
-            ET.SubElement(fixed, "child", link=root)
-            ET.SubElement(fixed, "origin", xyz=xyz, rpy=rpy)
-            names = [root] + [j.find("child").get("link") for j in joints]
-            missing: list[str] = []
-            for name in names:
-                lk = ET.fromstring(ET.tostring(links[name]))
-                if lk.find("collision") is not None and not keep_dae:
-                    for v in lk.findall("visual"):
-                        m = v.find("geometry/mesh")
-                        if m is not None and m.get("filename", "").lower().endswith(".dae"):
-                            lk.remove(v)
-                for m in lk.iter("mesh"):
-                    fn = m.get("filename", "")
-                    prefix = f"package://{src['package']}/"
-                    if not fn.startswith(prefix):
-                        raise SystemExit(f"{urdf}: link {name}: mesh {fn} is not in package {src['package']}")
-                    rel = fn[len(prefix):]
-                    if not (package_dir / rel).is_file():  # a partial clone lacks it
-                        missing.append(rel)
-                        continue
-                    (folder / rel).parent.mkdir(parents=True, exist_ok=True)
-                    shutil.copyfile(package_dir / rel, folder / rel)
-                new.append(lk)
-            if missing:
-                print(f"{oid}: skipped, {len(missing)} mesh files missing from the clone ({missing[0]})")
-                shutil.rmtree(folder)
-                continue
-            for j in joints:
-                new.append(ET.fromstring(ET.tostring(j)))
-            ET.indent(new)
-            (folder / "model.urdf").write_text(ET.tostring(new, encoding="unicode") + "\n")
-            found = [{"name": j.get("name"), "type": j.get("type")} for j in joints if j.get("type") in moving]
-            rows.append({"id": oid, "files": [src["urdf"]], "joints": found})
+    for root in roots:
+        joints = below(root)
+        if not any(j.get("type") in moving for j in joints):
+            continue
+        oid = f"{src['name']}-{root}"
+        folder = out / oid
+        if folder.exists():
+            shutil.rmtree(folder)
+        folder.mkdir(parents=True)
+        shutil.copyfile(package_dir / "package.xml", folder / "package.xml")
+        T = poses[root]
+        xyz = " ".join(f"{x:.9g}" for x in T[:3, 3])
+        rpy = " ".join(f"{x:.9g}" for x in Rotation.from_matrix(T[:3, :3]).as_euler("xyz"))
+        new = ET.Element("robot", name=root)
+        ET.SubElement(new, "link", name="base")
+        fixed = ET.SubElement(new, "joint", name="base_fixed", type="fixed")
+        ET.SubElement(fixed, "parent", link="base")
+        ET.SubElement(fixed, "child", link=root)
+        ET.SubElement(fixed, "origin", xyz=xyz, rpy=rpy)
+        names = [root] + [j.find("child").get("link") for j in joints]
+        missing: list[str] = []
+        for name in names:
+            lk = ET.fromstring(ET.tostring(links[name]))
+            if lk.find("collision") is not None and not keep_dae:
+                for v in lk.findall("visual"):
+                    m = v.find("geometry/mesh")
+                    if m is not None and m.get("filename", "").lower().endswith(".dae"):
+                        lk.remove(v)
+            for m in lk.iter("mesh"):
+                fn = m.get("filename", "")
+                prefix = f"package://{src['package']}/"
+                if not fn.startswith(prefix):
+                    raise SystemExit(f"{urdf}: link {name}: mesh {fn} is not in package {src['package']}")
+                rel = fn[len(prefix):]
+                if not (package_dir / rel).is_file():  # a partial clone lacks it
+                    missing.append(rel)
+                    continue
+                (folder / rel).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(package_dir / rel, folder / rel)
+            new.append(lk)
+        if missing:
+            print(f"{oid}: skipped, {len(missing)} mesh files missing from the clone ({missing[0]})")
+            shutil.rmtree(folder)
+            continue
+        for j in joints:
+            new.append(ET.fromstring(ET.tostring(j)))
+        ET.indent(new)
+        (folder / "model.urdf").write_text(ET.tostring(new, encoding="unicode") + "\n")
+        found = [{"name": j.get("name"), "type": j.get("type")} for j in joints if j.get("type") in moving]
+        rows.append({"id": oid, "files": [src["urdf"]], "joints": found})
     return rows
 
 

@@ -8,6 +8,7 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from kinmo.assets import read_parts
 from repo_scripts import load_script
@@ -116,3 +117,43 @@ def test_a_urdf_scene_is_cut_into_one_package_per_jointed_subtree(tmp_path, monk
     parts = {n: v for n, v, _ in read_parts(folder / "model.urdf")}
     assert set(parts) == {"cab", "door"}
     assert np.allclose(parts["cab"].mean(0)[:2], [5, 1], atol=1e-6)  # the scene pose kept (up stays up)
+
+
+def test_a_urdf_without_split_is_one_object(tmp_path, monkeypatch):
+    """IsaacGymEnvs' cabinet is a whole URDF: without ``split`` its root link is the object,
+    with every joint below it (the fixed handle kept, only the moving joint counted)."""
+    mod = _script()
+    root = tmp_path / "src" / "gym"
+    pkg = root / "assets" / "cab_model"
+    (pkg / "urdf").mkdir(parents=True)
+    (pkg / "package.xml").write_text("<package><name>cab_model</name></package>")
+    (pkg / "urdf" / "cab.urdf").write_text("""<robot name="cab">
+  <link name="body"><visual><geometry><box size="0.4 0.4 0.4"/></geometry></visual></link>
+  <link name="drawer"><visual><geometry><box size="0.3 0.3 0.1"/></geometry></visual></link>
+  <link name="handle"><visual><geometry><box size="0.02 0.1 0.02"/></geometry></visual></link>
+  <joint name="slide" type="prismatic"><parent link="body"/><child link="drawer"/><origin xyz="0.05 0 0"/>
+    <axis xyz="1 0 0"/><limit lower="0" upper="0.3" effort="1" velocity="1"/></joint>
+  <joint name="fix" type="fixed"><parent link="drawer"/><child link="handle"/><origin xyz="0.16 0 0"/></joint>
+</robot>
+""")
+    (root / "LICENSE.txt").write_text("BSD\n")
+    git = ["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run(["git", "init", "-q", str(root)], check=True)
+    subprocess.run([*git, "add", "-A"], check=True)
+    subprocess.run([*git, "commit", "-qm", "fake"], check=True)
+    commit = subprocess.run([*git, "rev-parse", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
+    manifest = tmp_path / "sources.json"
+    manifest.write_text(json.dumps({"sources": [{
+        "name": "gym", "repo": "owner/gym", "commit": commit, "license": "BSD-3-Clause",
+        "license_file": "LICENSE.txt", "kind": "urdf_split", "root": "assets/cab_model",
+        "urdf": "assets/cab_model/urdf/cab.urdf", "package": "cab_model", "package_dir": "assets/cab_model"}]}))
+    monkeypatch.setattr(mod, "SOURCES", manifest)
+    out = tmp_path / "out"
+    assert mod.main(["--out", str(out), "--cache", str(tmp_path / "cache"),
+                     "--git-base", str(tmp_path / "src" / "{name}")]) == 0
+    rows = json.loads((out / "sources.json").read_text())["objects"]
+    assert [r["id"] for r in rows] == ["gym-body"]
+    assert rows[0]["joints"] == [{"name": "slide", "type": "prismatic"}]
+    parts = {n: v for n, v, _ in read_parts(out / "gym-body" / "model.urdf")}
+    assert set(parts) == {"body", "drawer", "handle"}
+    assert parts["handle"].mean(0)[0] == pytest.approx(0.21)  # placed through both joints

@@ -69,10 +69,16 @@ def test_slider_sign_flips_to_open_away_from_the_reference():
 
 
 def test_fixed_merge_keeps_the_larger_parts_motion():
+    """Rule 3: moving nodes of one reference joined by a Fixed edge are one part, with the
+    larger one's joint, unless both are large, move otherwise, and each is surer of its own
+    motion than of the weld: then a door and a drawer stay two links (session 37)."""
+    import dataclasses
+
     g = cabinet_graph()
+    line = [-0.5, 0.75, 0.31]
     spec = {
-        (2, 1): ("R", 0.95, [0, 1, 0]),
-        (3, 1): ("R", 0.8, [1, 0, 0]),
+        (2, 1): ("R", 0.95, [0, 1, 0], line),
+        (3, 1): ("R", 0.8, [0, 1, 0], line),
         (2, 3): ("Fixed", 0.9),
     }
     tree = build_mobility_tree(g, _pred(g, spec))
@@ -80,10 +86,72 @@ def test_fixed_merge_keeps_the_larger_parts_motion():
     assert len(moving) == 1
     lk = moving[0]
     assert sorted(lk.parts) == [2, 3]
-    # the drawer's OBB is larger than the door's: its (horizontal) axis wins
+    # the drawer's OBB is larger than the door's: its joint is the group's
     assert lk.name == "drawer"
-    assert abs(lk.joint.direction[0]) == pytest.approx(1.0)
     assert tree.link_nodes[lk.id] == [2, 3]
+    # another motion (a horizontal axis, or a slider), each part surer of it than of the weld:
+    # two links; a surer weld still joins them
+    loose = {**spec, (2, 3): ("Fixed", 0.6)}
+    for other in (("R", 0.8, [1, 0, 0]), ("P", 0.8, [0, 0, 1])):
+        tree = build_mobility_tree(g, _pred(g, {**loose, (3, 1): other}))
+        assert sorted(sorted(lk.parts) for lk in tree.moving_links) == [[2], [3]]
+        tree = build_mobility_tree(g, _pred(g, {**spec, (3, 1): other}))
+        assert [sorted(lk.parts) for lk in tree.moving_links] == [[2, 3]]
+    # the same type on a parallel line across the cabinet (the second door of a pair): two links
+    far = build_mobility_tree(g, _pred(g, {**loose, (3, 1): ("R", 0.8, [0, 1, 0], [0.5, 0.75, 0.31])}))
+    assert len(far.moving_links) == 2
+    # ... but a part small beside the other (a handle) joins it whatever its motion, and the
+    # larger part's axis wins
+    half = np.where(np.arange(len(g.parent))[:, None] == 2, g.obb_half_extents * 0.2, g.obb_half_extents)
+    small = dataclasses.replace(g, obb_half_extents=half)
+    tree = build_mobility_tree(small, _pred(small, {**loose, (3, 1): ("R", 0.8, [1, 0, 0])}))
+    assert [sorted(lk.parts) for lk in tree.moving_links] == [[2, 3]]
+    assert abs(tree.moving_links[0].joint.direction[0]) == pytest.approx(1.0)
+
+
+def _front_cabinet(tmp_path):
+    """A URDF read as kinmo reads a user's asset: a body, a drawer and a door on its front
+    (apart), and a small handle on the drawer touching nothing else. Returns the graph and
+    its node index by name."""
+    from kinmo.data.build import build_graph
+    from kinmo.data.readers import read_shape
+    from kinmo.user_input import stage_partnet
+
+    boxes = {"body": ((0, 0, 0), (0.4, 0.4, 0.4)), "drawer": ((0.21, 0, 0.1), (0.02, 0.38, 0.18)),
+             "door": ((0.21, 0, -0.1), (0.02, 0.38, 0.18)), "handle": ((0.23, 0, 0.15), (0.02, 0.1, 0.02))}
+    links = "".join(f'<link name="{n}"><visual><origin xyz="{" ".join(map(str, c))}"/><geometry><box '
+                    f'size="{" ".join(map(str, sz))}"/></geometry></visual></link>' for n, (c, sz) in boxes.items())
+    joints = "".join(f'<joint name="j_{n}" type="fixed"><parent link="body"/><child link="{n}"/></joint>'
+                     for n in list(boxes)[1:])
+    urdf = tmp_path / "cab.urdf"
+    urdf.write_text(f'<robot name="cab">{links}{joints}</robot>')
+    stage_partnet(urdf, tmp_path / "staged")
+    g = build_graph(read_shape(tmp_path / "staged"))
+    return g, {n: k for k, n in enumerate(g.node_names)}
+
+
+def test_a_small_moving_part_not_touching_its_reference_rides_on_the_part_it_touches(tmp_path):
+    """Rule 2c (session 37): a drawer's handle predicted to turn relative to the door below it,
+    which it does not touch, joins its drawer, the one sibling it touches; it keeps its motion
+    when its reference is the part it touches, or when that part does not move."""
+    g, n = _front_cabinet(tmp_path)
+    touching = {frozenset((int(a), int(b))) for (a, b), c in zip(g.sibling_edges, g.sibling_contact) if c}
+    assert frozenset((n["handle"], n["drawer"])) in touching
+    assert not {frozenset((n["handle"], n[o])) for o in ("body", "door")} & touching
+    drawer = (n["drawer"], n["body"])
+    spec = {drawer: ("P", 0.95, [1, 0, 0]), (n["door"], n["body"]): ("R", 0.9, [0, 1, 0]),
+            (n["handle"], n["door"]): ("R", 0.9, [1, 0, 0])}
+    tree = build_mobility_tree(g, _pred(g, spec))
+    parts = sorted(sorted(lk.parts) for lk in tree.moving_links)
+    assert parts == sorted([sorted([n["drawer"], n["handle"]]), [n["door"]]])
+    assert _by_name(tree)["drawer"].joint.type is JointType.SLIDER
+    # the drawer does not move: the handle keeps its motion
+    alone = build_mobility_tree(g, _pred(g, {k: v for k, v in spec.items() if k != drawer}))
+    assert [n["handle"]] in [sorted(lk.parts) for lk in alone.moving_links]
+    # turning relative to its drawer (a knob on it): its own link, nested in the drawer's
+    knob = build_mobility_tree(g, _pred(g, {**spec, (n["handle"], n["door"]): ("None", 0.9),
+                                            (n["handle"], n["drawer"]): ("R", 0.9, [1, 0, 0])}))
+    assert [n["handle"]] in [sorted(lk.parts) for lk in knob.moving_links]
 
 
 def test_conflict_keeps_the_most_confident_reference():

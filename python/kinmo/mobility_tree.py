@@ -19,10 +19,21 @@ by the following deterministic rules.
    face is the one whose axis holds the largest share of its offset) loses its motion and
    joins that node's group (rule 4): a drawer handle "sliding" up its drawer's front. A button
    pressed into a safe's door slides along the face normal and keeps its motion.
+   **Parts mounted on a moving part** (session 37): a moving node that does not touch its
+   reference, touches exactly one sibling, a moving one, and is at most
+   :data:`MERGE_VOLUME_RATIO` of that sibling's OBB volume loses its motion and joins the
+   sibling's group the same way: a joint joins parts that touch, and a drawer's handle
+   predicted to turn relative to the door below it rides on its drawer (the Franka cabinet of
+   IsaacGymEnvs, IAI kitchen cabinets).
 3. **Fixed merge.** Moving nodes with the same reference that are joined by an edge predicted
    ``Fixed`` (either direction) are one rigid part (a door and its handle, both moving
    relative to the cabinet): they form one *motion group* whose joint is that of its largest
-   member (OBB volume, then number of leaves, then pre-order index).
+   member (OBB volume, then number of leaves, then pre-order index). Since session 37, two
+   *large* nodes (each OBB's largest half extent at least :data:`FIXED_APART_SIZE` of the
+   whole object's) join only when they are predicted to move alike (the same coarse type; a
+   turning type also on the same line, as below): a drawer and the door beside it, or the
+   two doors of a pair, are not one part because the GNN calls the edge between them
+   ``Fixed`` (the Franka cabinet of IsaacGymEnvs). Smaller parts join as before.
    **Small parts in contact** are merged the same way: two moving nodes with the same
    reference that touch (``sibling_contact``), have the same predicted type, one at most
    :data:`MERGE_VOLUME_RATIO` of the other's OBB volume, are one rigid part (a handle
@@ -108,6 +119,12 @@ MERGE_VOLUME_RATIO = 0.05
 #: ... and, for turning types, the largest distance between the two axis lines, relative to
 #: the larger part's OBB diagonal.
 MERGE_LINE_FRACTION = 0.1
+
+#: Rule 3, Fixed merge: two moving nodes whose OBBs' largest half extents are both at least
+#: this share of the whole object's (the root node's) are large parts (doors, drawers, lids),
+#: which a Fixed edge joins only when they are predicted to move alike. Smaller parts (keys,
+#: buttons, handles) join as before: the Fixed edge is the better evidence there.
+FIXED_APART_SIZE = 0.25
 
 #: Rule 2b: a small slider mounted on a moving part whose slide is at least this far from
 #: the normal of the face it sits on (degrees) moves with the part.
@@ -304,13 +321,22 @@ def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.n
     have the same type (a turning type also on the same line)."""
     if not _touch(a, b, contact, edge_index):
         return False
-    ea, eb = ref[a][1], ref[b][1]
-    lo, hi = sorted((float(volume[a]), float(volume[b])))
-    if not (hi > 0.0 and lo <= MERGE_VOLUME_RATIO * hi):
+    if not _small_beside(a, b, volume):
         return False
     small = a if volume[a] <= volume[b] else b
     if not _touch(small, ref[small][0], contact, edge_index):
         return True  # mounted on the larger part, not on the reference: it moves with the part
+    return _same_motion(a, b, ref, lab, direction, origin, volume, half)
+
+
+def _same_motion(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.ndarray, direction: np.ndarray,
+                 origin: np.ndarray, volume: np.ndarray, half: np.ndarray) -> bool:
+    """Whether moving nodes ``a`` and ``b`` are predicted to move alike: the same coarse type,
+    and for a turning type parallel axes (within :data:`MERGE_AXIS_DEG`) on the same line
+    (within :data:`MERGE_LINE_FRACTION` of the larger part's OBB diagonal): a handle turning
+    about its door's hinge, not a knob on its own parallel axis, nor the second door of a pair
+    on the other side."""
+    ea, eb = ref[a][1], ref[b][1]
     if lab[ea] != lab[eb]:
         return False
     if lab[ea] == _P:
@@ -319,8 +345,6 @@ def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.n
     na, nb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
     if na == 0.0 or nb == 0.0 or abs(float(da @ db)) / (na * nb) < np.cos(np.radians(MERGE_AXIS_DEG)):
         return False
-    # turning: the same line (a handle turning about its door's hinge), not a knob on its own
-    # parallel axis; within MERGE_LINE_FRACTION of the larger part's OBB diagonal
     gap = np.cross(np.asarray(origin[eb], dtype=np.float64) - np.asarray(origin[ea], dtype=np.float64), da / na)
     big = a if volume[a] >= volume[b] else b
     return float(np.linalg.norm(gap)) <= MERGE_LINE_FRACTION * 2.0 * float(np.linalg.norm(half[big]))
@@ -346,6 +370,44 @@ def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, ha
     offset = np.abs(a @ (np.asarray(center[i], dtype=np.float64) - np.asarray(center[j], dtype=np.float64)))
     face = int(np.argmax(offset / np.maximum(np.asarray(half[j], dtype=np.float64), 1e-12)))
     return abs(float(a[face] @ d)) / nd <= np.cos(np.radians(ACROSS_FACE_DEG))
+
+
+def _mounted_on(i: int, j: int, ref: dict[int, tuple[int, int]], volume: np.ndarray, contact: np.ndarray,
+                edge_index: dict[tuple[int, int], int]) -> int | None:
+    """Rule 2c: the moving node that the moving node ``i``, predicted to move relative to
+    ``j``, is mounted on, or None. ``i`` does not touch ``j``, touches exactly one sibling
+    ``m``, ``m`` moves, and ``i`` is small beside it (:func:`_small_beside`): a drawer's handle
+    predicted to move relative to a door it does not touch rides on its drawer."""
+    if _touch(i, j, contact, edge_index):
+        return None
+    touched = {int(b) for (a, b), e in edge_index.items() if a == i and _touch(i, int(b), contact, edge_index)}
+    if len(touched) != 1:
+        return None
+    m = touched.pop()
+    return m if m in ref and _small_beside(i, m, volume) else None
+
+
+def _held_apart(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.ndarray, cp: np.ndarray,
+                size: np.ndarray, direction: np.ndarray, origin: np.ndarray, volume: np.ndarray,
+                half: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
+    """Rule 3: whether a ``Fixed`` edge between the moving nodes ``a`` and ``b`` (same
+    reference) leaves them apart: both large (largest half extent at least
+    :data:`FIXED_APART_SIZE` of the root's, ``size`` ``(V,)``), predicted to move otherwise
+    (:func:`_same_motion`), and each surer of its own motion (its coarse type's probability in
+    ``cp`` ``(E, 5)``) than the edge between them is of ``Fixed``."""
+    if min(size[a], size[b]) < FIXED_APART_SIZE * size[0] or \
+            _same_motion(a, b, ref, lab, direction, origin, volume, half):
+        return False
+    weld = max(float(cp[e, _FIXED]) for pair in ((a, b), (b, a)) if (e := edge_index.get(pair)) is not None)
+    own = min(float(cp[ref[n][1], lab[ref[n][1]]]) for n in (a, b))
+    return own > weld
+
+
+def _small_beside(a: int, b: int, volume: np.ndarray) -> bool:
+    """Whether the smaller of nodes ``a`` and ``b`` has at most :data:`MERGE_VOLUME_RATIO` of
+    the larger one's OBB volume (``volume`` ``(V,) float64``)."""
+    lo, hi = sorted((float(volume[a]), float(volume[b])))
+    return hi > 0.0 and lo <= MERGE_VOLUME_RATIO * hi
 
 
 def build_mobility_tree(
@@ -385,6 +447,7 @@ def build_mobility_tree(
     center = np.asarray(graph.obb_center, dtype=np.float64)
     half = np.asarray(graph.obb_half_extents, dtype=np.float64)
     volume = np.prod(2.0 * half, axis=1)
+    size = half.max(axis=1)
     n_leaves = np.array([len(graph.leaves_of(n)) for n in range(v)])
     edge_index = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
     contact = np.asarray(graph.sibling_contact, dtype=bool).reshape(-1)
@@ -411,6 +474,8 @@ def build_mobility_tree(
         if lab[k] == _P and j in ref and _slides_across(i, j, pred.direction[k], center, half, graph.obb_axes,
                                                         volume, contact, edge_index):
             mounted[i] = j
+        elif (m := _mounted_on(i, j, ref, volume, contact, edge_index)) is not None:
+            mounted[i] = m
     for i in mounted:
         dropped.append(ref.pop(i)[1])
     dropped.sort()
@@ -424,7 +489,7 @@ def build_mobility_tree(
                 fixed = any(
                     (e := edge_index.get(pair)) is not None and lab[e] == _FIXED
                     for pair in ((a, b), (b, a))
-                )
+                ) and not _held_apart(a, b, ref, lab, cp, size, pred.direction, pred.origin, volume, half, edge_index)
                 if fixed or _small_in_contact(a, b, ref, lab, pred.direction, pred.origin, volume, half,
                                              contact, edge_index):
                     dsu.union(a, b)
