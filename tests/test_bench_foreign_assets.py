@@ -18,6 +18,28 @@ def _script():
     return load_script("bench/foreign_assets.py")
 
 
+def _commit(root: Path) -> str:
+    """``root`` made a git repository with one commit of everything in it; returns the commit."""
+    git = ["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run(["git", "init", "-q", str(root)], check=True)
+    subprocess.run([*git, "add", "-A"], check=True)
+    subprocess.run([*git, "commit", "-qm", "fake"], check=True)
+    return subprocess.run([*git, "rev-parse", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
+
+
+def _build(tmp_path: Path, monkeypatch, source: dict) -> list[dict]:
+    """Run the script on a manifest of ``source`` (repositories under ``tmp_path/src``) into
+    ``tmp_path/out``; returns the rows of its ``sources.json``."""
+    mod = _script()
+    manifest = tmp_path / "sources.json"
+    manifest.write_text(json.dumps({"sources": [source]}))
+    monkeypatch.setattr(mod, "SOURCES", manifest)
+    out = tmp_path / "out"
+    assert mod.main(["--out", str(out), "--cache", str(tmp_path / "cache"),
+                     "--git-base", str(tmp_path / "src" / "{name}")]) == 0
+    return json.loads((out / "sources.json").read_text())["objects"]
+
+
 def _fake_furniture_repo(root: Path) -> str:
     """A furniture_sim-like repository: a cabinet asset file (a mesh, a texture), two body
     variants (one with a hinge door, one without joints). Returns its commit."""
@@ -37,25 +59,15 @@ def _fake_furniture_repo(root: Path) -> str:
     (cab / "cab_body1.xml").write_text(
         '<mujocoinclude><body name="block"><geom type="box" size="0.2 0.2 0.2"/></body></mujocoinclude>')
     (root / "LICENSE").write_text("Apache License 2.0 (test)\n")
-    git = ["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t"]
-    subprocess.run(["git", "init", "-q", str(root)], check=True)
-    subprocess.run([*git, "add", "-A"], check=True)
-    subprocess.run([*git, "commit", "-qm", "fake"], check=True)
-    return subprocess.run([*git, "rev-parse", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
+    return _commit(root)
 
 
 def test_a_repository_at_its_commit_becomes_one_folder_per_jointed_object(tmp_path, monkeypatch):
-    mod = _script()
     commit = _fake_furniture_repo(tmp_path / "src" / "fake")
-    manifest = tmp_path / "sources.json"
-    manifest.write_text(json.dumps({"sources": [{
+    rows = _build(tmp_path, monkeypatch, {
         "name": "furniture_sim", "repo": "owner/fake", "commit": commit, "license": "Apache-2.0",
-        "license_file": "LICENSE", "kind": "furniture_sim", "root": "", "exclude": []}]}))
-    monkeypatch.setattr(mod, "SOURCES", manifest)
+        "license_file": "LICENSE", "kind": "furniture_sim", "root": "", "exclude": []})
     out = tmp_path / "out"
-    assert mod.main(["--out", str(out), "--cache", str(tmp_path / "cache"),
-                     "--git-base", str(tmp_path / "src" / "{name}")]) == 0
-    rows = json.loads((out / "sources.json").read_text())["objects"]
     assert [r["id"] for r in rows] == ["furniture_sim-cab0"]  # the jointless variant is left out
     assert rows[0]["commit"] == commit and rows[0]["joints"] == [{"name": "hinge", "type": "hinge"}]
     assert (out / "LICENSES" / "furniture_sim").read_text().startswith("Apache")
@@ -72,7 +84,6 @@ def test_a_repository_at_its_commit_becomes_one_folder_per_jointed_object(tmp_pa
 def test_a_urdf_scene_is_cut_into_one_package_per_jointed_subtree(tmp_path, monkeypatch):
     import trimesh
 
-    mod = _script()
     root = tmp_path / "src" / "maps"
     pkg = root / "apt"
     (pkg / "meshes").mkdir(parents=True)
@@ -93,21 +104,12 @@ def test_a_urdf_scene_is_cut_into_one_package_per_jointed_subtree(tmp_path, monk
 </robot>
 """)
     (root / "LICENSE").write_text("MIT\n")
-    git = ["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t"]
-    subprocess.run(["git", "init", "-q", str(root)], check=True)
-    subprocess.run([*git, "add", "-A"], check=True)
-    subprocess.run([*git, "commit", "-qm", "fake"], check=True)
-    commit = subprocess.run([*git, "rev-parse", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
-    manifest = tmp_path / "sources.json"
-    manifest.write_text(json.dumps({"sources": [{
+    commit = _commit(root)
+    rows = _build(tmp_path, monkeypatch, {
         "name": "apt", "repo": "owner/maps", "commit": commit, "license": "MIT", "license_file": "LICENSE",
         "kind": "urdf_split", "root": "apt", "urdf": "apt/urdf/scene.urdf", "package": "apt",
-        "package_dir": "apt", "split": ["side"]}]}))
-    monkeypatch.setattr(mod, "SOURCES", manifest)
+        "package_dir": "apt", "split": ["side"]})
     out = tmp_path / "out"
-    assert mod.main(["--out", str(out), "--cache", str(tmp_path / "cache"),
-                     "--git-base", str(tmp_path / "src" / "{name}")]) == 0
-    rows = json.loads((out / "sources.json").read_text())["objects"]
     assert [r["id"] for r in rows] == ["apt-cab"]  # the shelf has no joint below it
     assert rows[0]["joints"] == [{"name": "hinge", "type": "revolute"}]
     folder = out / "apt-cab"
@@ -122,7 +124,6 @@ def test_a_urdf_scene_is_cut_into_one_package_per_jointed_subtree(tmp_path, monk
 def test_a_urdf_without_split_is_one_object(tmp_path, monkeypatch):
     """IsaacGymEnvs' cabinet is a whole URDF: without ``split`` its root link is the object,
     with every joint below it (the fixed handle kept, only the moving joint counted)."""
-    mod = _script()
     root = tmp_path / "src" / "gym"
     pkg = root / "assets" / "cab_model"
     (pkg / "urdf").mkdir(parents=True)
@@ -137,21 +138,12 @@ def test_a_urdf_without_split_is_one_object(tmp_path, monkeypatch):
 </robot>
 """)
     (root / "LICENSE.txt").write_text("BSD\n")
-    git = ["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t"]
-    subprocess.run(["git", "init", "-q", str(root)], check=True)
-    subprocess.run([*git, "add", "-A"], check=True)
-    subprocess.run([*git, "commit", "-qm", "fake"], check=True)
-    commit = subprocess.run([*git, "rev-parse", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
-    manifest = tmp_path / "sources.json"
-    manifest.write_text(json.dumps({"sources": [{
+    commit = _commit(root)
+    rows = _build(tmp_path, monkeypatch, {
         "name": "gym", "repo": "owner/gym", "commit": commit, "license": "BSD-3-Clause",
         "license_file": "LICENSE.txt", "kind": "urdf_split", "root": "assets/cab_model",
-        "urdf": "assets/cab_model/urdf/cab.urdf", "package": "cab_model", "package_dir": "assets/cab_model"}]}))
-    monkeypatch.setattr(mod, "SOURCES", manifest)
+        "urdf": "assets/cab_model/urdf/cab.urdf", "package": "cab_model", "package_dir": "assets/cab_model"})
     out = tmp_path / "out"
-    assert mod.main(["--out", str(out), "--cache", str(tmp_path / "cache"),
-                     "--git-base", str(tmp_path / "src" / "{name}")]) == 0
-    rows = json.loads((out / "sources.json").read_text())["objects"]
     assert [r["id"] for r in rows] == ["gym-body"]
     assert rows[0]["joints"] == [{"name": "slide", "type": "prismatic"}]
     parts = {n: v for n, v, _ in read_parts(out / "gym-body" / "model.urdf")}
