@@ -372,18 +372,17 @@ def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, ha
     return abs(float(a[face] @ d)) / nd <= np.cos(np.radians(ACROSS_FACE_DEG))
 
 
-def _mounted_on(i: int, j: int, ref: dict[int, tuple[int, int]], volume: np.ndarray, contact: np.ndarray,
-                edge_index: dict[tuple[int, int], int]) -> int | None:
+def _mounted_on(i: int, j: int, ref: dict[int, tuple[int, int]], volume: np.ndarray,
+                touching: dict[int, set[int]]) -> int | None:
     """Rule 2c: the moving node that the moving node ``i``, predicted to move relative to
     ``j``, is mounted on, or None. ``i`` does not touch ``j``, touches exactly one sibling
-    ``m``, ``m`` moves, and ``i`` is small beside it (:func:`_small_beside`): a drawer's handle
-    predicted to move relative to a door it does not touch rides on its drawer."""
-    if _touch(i, j, contact, edge_index):
+    ``m`` (``touching``: each node's siblings in contact, either edge direction), ``m`` moves,
+    and ``i`` is small beside it (:func:`_small_beside`): a drawer's handle predicted to move
+    relative to a door it does not touch rides on its drawer."""
+    touched = touching.get(i, set())
+    if j in touched or len(touched) != 1:
         return None
-    touched = {int(b) for (a, b), e in edge_index.items() if a == i and _touch(i, int(b), contact, edge_index)}
-    if len(touched) != 1:
-        return None
-    m = touched.pop()
+    (m,) = touched
     return m if m in ref and _small_beside(i, m, volume) else None
 
 
@@ -451,6 +450,10 @@ def build_mobility_tree(
     n_leaves = np.array([len(graph.leaves_of(n)) for n in range(v)])
     edge_index = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
     contact = np.asarray(graph.sibling_contact, dtype=bool).reshape(-1)
+    touching: dict[int, set[int]] = {}
+    for a, b in edges[contact].tolist():
+        touching.setdefault(a, set()).add(b)
+        touching.setdefault(b, set()).add(a)
 
     # 1. one reference per moving node
     dropped: list[int] = []
@@ -474,7 +477,7 @@ def build_mobility_tree(
         if lab[k] == _P and j in ref and _slides_across(i, j, pred.direction[k], center, half, graph.obb_axes,
                                                         volume, contact, edge_index):
             mounted[i] = j
-        elif (m := _mounted_on(i, j, ref, volume, contact, edge_index)) is not None:
+        elif (m := _mounted_on(i, j, ref, volume, touching)) is not None:
             mounted[i] = m
     for i in mounted:
         dropped.append(ref.pop(i)[1])

@@ -46,22 +46,6 @@ def reference_problem(ref: str) -> str | None:
     return None
 
 
-def _folded(base: Path, ref: str) -> Path:
-    """``base / ref`` with the ``.`` and ``..`` pieces of ``ref`` folded in lexically (no file
-    system access; ``ref`` relative, checked by :func:`reference_problem`)."""
-    out = list(Path(os.path.abspath(base)).parts)
-    floor = 1  # never above the file system's root
-    for p in ref.replace("\\", "/").split("/"):
-        if p in ("", "."):
-            continue
-        if p == "..":
-            if len(out) > floor:
-                out.pop()
-        else:
-            out.append(p)
-    return Path(*out)
-
-
 def file_inside(root: Path, ref: str, source: Path, what: str, fix: str, base: Path | None = None) -> Path:
     """``base / ref`` once the rule holds (module docs); it need not exist. Both ways of
     reading its ``..`` pieces must stay inside ``root``: folded in lexically, and as the file
@@ -90,7 +74,7 @@ def file_inside(root: Path, ref: str, source: Path, what: str, fix: str, base: P
     """
     problem = reference_problem(ref)
     start = root if base is None else base
-    folded = _folded(start, ref)
+    folded = Path(os.path.abspath(Path(start) / ref.replace("\\", "/")))  # '..' folded lexically
     top = Path(os.path.abspath(root))
     if problem is None and not (folded == top or top in folded.parents):
         problem = "climbs out with '..'"
