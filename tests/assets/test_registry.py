@@ -33,6 +33,22 @@ def test_every_format_has_one_reader_in_registration_order(inputs):
     assert not is_user_input(inputs["dataset"]) and not is_user_input(inputs["dataset"].parent)
 
 
+def test_the_order_does_not_depend_on_which_format_module_is_imported_first():
+    """Importing a format module directly (``kinmo.evaluate.foreign`` imports
+    ``kinmo.assets.mjcf``) registers it first; the registry still keeps kinmo's order, with a
+    format registered later after kinmo's."""
+    import subprocess
+    import sys
+
+    code = ("import kinmo.assets.mjcf, kinmo.assets.urdf\n"
+            "from kinmo.assets import READERS, register, reader_for\n"
+            "register('toy', 'a toy', lambda p: False, lambda p: 'y')(lambda p, o: [])\n"
+            "reader_for('x.glb')\n"
+            "print(','.join(READERS))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "mesh,folder,urdf,mjcf,toy"
+
+
 def test_up_axes_follow_each_format(inputs):
     ups = {k: asset_up(inputs[k]) for k in ("glb", "folder", "urdf", "urdf_xml", "mjcf")}
     assert ups == {"glb": "y", "folder": "y", "urdf": "z", "urdf_xml": "z", "mjcf": "z"}

@@ -111,7 +111,9 @@ class Reader:
     up: Callable[[Path], UpAxis] = field(repr=False)
 
 
-#: Format name -> reader, in registration order (the first that accepts a path reads it).
+#: Format name -> reader: kinmo's formats in :data:`_MODULES`' order, then formats registered
+#: later in their registration order (the first that accepts a path reads it). The order does
+#: not depend on which format module was imported first.
 READERS: dict[str, Reader] = {}
 
 #: The format modules of kinmo, imported (so registered) on first use, in this order.
@@ -124,6 +126,10 @@ def register(name: str, description: str, accepts: Callable[[Path], bool],
 
     def deco(fn: Callable[[Path, ReadOptions], list[Part]]):
         READERS[name] = Reader(name, description, accepts, fn, up)
+        rank = {m: k for k, m in enumerate(_MODULES)}
+        ordered = sorted(READERS.items(), key=lambda kv: rank.get(kv[0], len(rank)))  # stable
+        READERS.clear()
+        READERS.update(ordered)
         return fn
 
     return deco

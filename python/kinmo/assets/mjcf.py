@@ -44,7 +44,7 @@ from kinmo.assets.primitives import primitive
 from kinmo.assets.refs import file_inside, reference_problem
 from kinmo.errors import KinmoDataError
 
-__all__ = ["MAX_FILES", "check_references", "read_mjcf"]
+__all__ = ["MAX_FILES", "check_references", "compile_mjcf", "read_mjcf"]
 
 #: Most XML files one model may name through ``<include>`` (a cycle is refused before).
 MAX_FILES = 256
@@ -166,6 +166,32 @@ def _compiled_geometry(spec):
     return spec.compile()
 
 
+def compile_mjcf(path: str | Path):
+    """The MJCF model at ``path`` compiled as kinmo reads it: every file it names checked first
+    (:func:`check_references`), then parsed with ``mujoco.MjSpec`` and compiled without its
+    looks (textures and materials deleted: module docs, "Files"). The one way kinmo opens an
+    MJCF file: :func:`read_mjcf` and the foreign-asset evaluation's true joints
+    (:func:`kinmo.evaluate.foreign.mjcf_true_joints`) both go through it.
+
+    Returns
+    -------
+    mujoco.MjModel
+
+    Raises
+    ------
+    KinmoDataError
+        As :func:`check_references`; MuJoCo cannot compile the model (its message in one line).
+    """
+    import mujoco
+
+    path = Path(path)
+    check_references(path)
+    try:
+        return _compiled_geometry(mujoco.MjSpec.from_file(str(path)))
+    except Exception as e:  # mujoco raises ValueError with a multi-line message
+        raise KinmoDataError(path, f"MuJoCo cannot load the model: {' '.join(str(e).split())}") from None
+
+
 def _body_name(m, b: int) -> str:
     return "world" if b == 0 else (m.body(b).name or f"body_{b}")
 
@@ -193,11 +219,7 @@ def read_mjcf(path: Path, options: ReadOptions) -> list[Part]:
     """
     import mujoco
 
-    check_references(path)
-    try:
-        m = _compiled_geometry(mujoco.MjSpec.from_file(str(path)))
-    except Exception as e:  # mujoco raises ValueError with a multi-line message
-        raise KinmoDataError(path, f"MuJoCo cannot load the model: {' '.join(str(e).split())}") from None
+    m = compile_mjcf(path)
     limits.check("parts", int(m.nbody), path)
     for k in range(int(m.nmesh)):
         limits.check("triangles", int(m.mesh_facenum[k]), path)

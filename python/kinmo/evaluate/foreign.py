@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from kinmo.assets import Part, read_parts
+from kinmo.assets.mjcf import compile_mjcf
 from kinmo.data.model import Joint, JointType, Link
 from kinmo.data.readers import read_shape
 from kinmo.errors import KinmoDataError, KinmoError
@@ -119,14 +120,12 @@ def mjcf_true_joints(model: str | Path, parts: Sequence[Part] | None) -> list[Tr
     Raises
     ------
     KinmoDataError
-        MuJoCo cannot load the model.
+        A file reference refused, or MuJoCo cannot load the model
+        (:func:`kinmo.assets.mjcf.compile_mjcf`).
     """
     import mujoco
 
-    try:
-        m = mujoco.MjModel.from_xml_path(str(model))
-    except Exception as e:  # mujoco raises ValueError with a multi-line message
-        raise KinmoDataError(model, f"MuJoCo cannot load the model: {' '.join(str(e).split())}") from None
+    m = compile_mjcf(model)  # as kinmo's reader opens it: references checked, no textures
     d = mujoco.MjData(m)
     mujoco.mj_kinematics(m, d)
     index = {name: k for k, (name, _, _) in enumerate(parts or [])}
