@@ -165,6 +165,29 @@ def test_both_variants_are_scored_and_an_unreadable_asset_counts_as_missed(asset
         evaluate_foreign(assets, predictor, assets, progress=False)
 
 
+def test_a_refused_asset_fails_alone_and_is_never_opened_by_mujoco(assets, tmp_path):
+    """An MJCF whose mesh reference climbs out of its folder is refused before MuJoCo opens
+    it, for the true joints too (they used to come from ``mujoco.MjModel.from_xml_path`` on
+    the unchecked file); the evaluation goes on with the other assets and counts it as failed."""
+    from conftest import write_untrained_models
+
+    from kinmo.inference.predictor import Predictor
+
+    (assets / "sneaky").mkdir()
+    (assets / "sneaky" / "model.xml").write_text(
+        '<mujoco><asset><mesh name="m" file="../../outside.stl"/></asset><worldbody>'
+        '<body name="a"><geom type="box" size="0.1 0.1 0.1"/></body>'
+        '<body name="b"><joint type="hinge"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
+    with pytest.raises(KinmoDataError, match="climbs out"):
+        mjcf_true_joints(assets / "sneaky" / "model.xml", None)
+    gnn, _ = write_untrained_models(tmp_path / "models")
+    out = tmp_path / "eval"
+    res = evaluate_foreign(assets, Predictor.from_parts(gnn, device="cpu"), out, ["file"], progress=False)
+    assert res["file"]["objects"] == 3 and res["file"]["failed"] == 2 and res["file"]["true_joints"] == 4
+    row = {r["id"]: r for r in json.loads((out / "foreign.json").read_text())["rows"]["file"]}["sneaky"]
+    assert "climbs out" in row["error"] and row["n_true"] == 0
+
+
 def test_turned_and_z_up_glbs_are_scored_turned_back(assets, tmp_path):
     """Issue 36's rotation and up-axis checks on foreign assets: the GLB holds the y-up parts
     turned about their box centre (and written z-up), and predicted directions come back."""

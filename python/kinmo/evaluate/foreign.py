@@ -246,7 +246,10 @@ def evaluate_foreign(
     Parameters
     ----------
     folder : str or Path
-        A foreign-asset folder (:func:`find_foreign`).
+        A foreign-asset folder (:func:`find_foreign`). An asset kinmo cannot read counts as
+        failed, with its error in its row; its true joints count (all missed) when they can
+        still be found, and are unknown (none) when the file is refused before MuJoCo opens
+        it (a file reference, a limit: :func:`kinmo.assets.mjcf.compile_mjcf`).
     predictor : Predictor
         A loaded :class:`~kinmo.inference.predictor.Predictor` (the bundle, refined as it says).
     out : str or Path
@@ -290,7 +293,14 @@ def evaluate_foreign(
             parts[o.id] = read_parts(o.model)
         except KinmoError as e:
             parts[o.id], errors[o.id] = None, " ".join(str(e).split())
-        truth[o.id] = true_joints_of(o.model, parts[o.id])
+        try:
+            truth[o.id] = true_joints_of(o.model, parts[o.id])
+        except KinmoError:
+            if parts[o.id] is not None:
+                raise
+            # refused before MuJoCo opened it (a file reference, a limit): its joints are
+            # unknown, so it counts as a failed object with no true joint
+            truth[o.id] = []
     results: dict[str, dict[str, Any]] = {}
     all_rows: dict[str, list[dict[str, Any]]] = {}
     for variant in variants:
