@@ -308,23 +308,24 @@ def _compact_parts(graph: PartGraph, leaf_owner: dict[int, int], link: int) -> t
     return tuple(out)
 
 
-def _touch(a: int, b: int, contact: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
-    """Nodes ``a`` and ``b`` touch (``sibling_contact`` of their edge, either direction)."""
-    return any((e := edge_index.get(p)) is not None and bool(contact[e]) for p in ((a, b), (b, a)))
+def _touch(a: int, b: int, touching: dict[int, set[int]]) -> bool:
+    """Nodes ``a`` and ``b`` touch (``touching``: each node's siblings in contact, from
+    ``sibling_contact`` of their edge in either direction)."""
+    return b in touching.get(a, ())
 
 
 def _small_in_contact(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.ndarray,
                       direction: np.ndarray, origin: np.ndarray, volume: np.ndarray, half: np.ndarray,
-                      contact: np.ndarray, edge_index: dict[tuple[int, int], int]) -> bool:
+                      touching: dict[int, set[int]]) -> bool:
     """Rule 3's second case for moving nodes ``a``, ``b`` of the same reference: in contact,
     one small beside the other, and either the small one does not touch the reference or both
     have the same type (a turning type also on the same line)."""
-    if not _touch(a, b, contact, edge_index):
+    if not _touch(a, b, touching):
         return False
     if not _small_beside(a, b, volume):
         return False
     small = a if volume[a] <= volume[b] else b
-    if not _touch(small, ref[small][0], contact, edge_index):
+    if not _touch(small, ref[small][0], touching):
         return True  # mounted on the larger part, not on the reference: it moves with the part
     return _same_motion(a, b, ref, lab, direction, origin, volume, half)
 
@@ -351,8 +352,7 @@ def _same_motion(a: int, b: int, ref: dict[int, tuple[int, int]], lab: np.ndarra
 
 
 def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, half: np.ndarray,
-                   axes: np.ndarray, volume: np.ndarray, contact: np.ndarray,
-                   edge_index: dict[tuple[int, int], int]) -> bool:
+                   axes: np.ndarray, volume: np.ndarray, touching: dict[int, set[int]]) -> bool:
     """Rule 2b: node ``i`` predicted to slide along ``direction`` relative to the moving node
     ``j`` is small beside it (OBB volume at most :data:`MERGE_VOLUME_RATIO` of ``j``'s), touches
     it, and slides across the face of ``j``'s OBB it sits on: the face whose axis holds the
@@ -360,7 +360,7 @@ def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, ha
     least :data:`ACROSS_FACE_DEG` from that face's normal. A button pressed into a door slides
     along the normal and keeps its motion."""
     if not (volume[j] > 0.0 and volume[i] <= MERGE_VOLUME_RATIO * volume[j]) or \
-            not _touch(i, j, contact, edge_index):
+            not _touch(i, j, touching):
         return False
     d = np.asarray(direction, dtype=np.float64)
     nd = float(np.linalg.norm(d))
@@ -380,7 +380,7 @@ def _mounted_on(i: int, j: int, ref: dict[int, tuple[int, int]], volume: np.ndar
     and ``i`` is small beside it (:func:`_small_beside`): a drawer's handle predicted to move
     relative to a door it does not touch rides on its drawer."""
     touched = touching.get(i, set())
-    if j in touched or len(touched) != 1:
+    if _touch(i, j, touching) or len(touched) != 1:
         return None
     (m,) = touched
     return m if m in ref and _small_beside(i, m, volume) else None
@@ -475,7 +475,7 @@ def build_mobility_tree(
     for i in sorted(ref):
         j, k = ref[i]
         if lab[k] == _P and j in ref and _slides_across(i, j, pred.direction[k], center, half, graph.obb_axes,
-                                                        volume, contact, edge_index):
+                                                        volume, touching):
             mounted[i] = j
         elif (m := _mounted_on(i, j, ref, volume, touching)) is not None:
             mounted[i] = m
@@ -494,7 +494,7 @@ def build_mobility_tree(
                     for pair in ((a, b), (b, a))
                 ) and not _held_apart(a, b, ref, lab, cp, size, pred.direction, pred.origin, volume, half, edge_index)
                 if fixed or _small_in_contact(a, b, ref, lab, pred.direction, pred.origin, volume, half,
-                                             contact, edge_index):
+                                             touching):
                     dsu.union(a, b)
     members: dict[int, list[int]] = {}
     for a in moving:
