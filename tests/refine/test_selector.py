@@ -438,14 +438,21 @@ def test_selection_error_is_per_category_and_pooled_per_type_set():
 
 
 def test_fit_selector_chooses_its_regularisation_by_cross_validation():
-    from kinmo.refine.fit_selector import CATEGORY_POWERS, L2_GRID, fit_selector
+    from kinmo.refine.fit_selector import CATEGORY_POWERS, DEFAULT_L2, L2_GRID, fit_selector
 
     rng = np.random.default_rng(0)
     groups = _groups_of(["a", "b", "c"] * 8, [0.0] * 24, [90.0] * 24)
     # feature 0 marks the right candidate (with noise): any L2 finds it
     groups.x = [np.column_stack([np.array([1.0, 0.0]) + 0.1 * rng.normal(size=2),
                                  np.zeros((2, len(FEATURES) - 1))]) for _ in range(24)]
-    ranker, st = fit_selector(groups, features=(FEATURES[0],), k=3)
+    # by default the L2 weight is DEFAULT_L2 (issue 34, session 39) and the category
+    # weighting is chosen
+    ranker, _ = fit_selector(groups, features=(FEATURES[0],), k=3)
+    assert [(t["l2"], t["category_power"]) for t in ranker.meta["selection"]] == [
+        (DEFAULT_L2, p) for p in CATEGORY_POWERS]
+    assert ranker.meta["l2"] == DEFAULT_L2 == 0.01
+    # l2=None chooses it among the grid too
+    ranker, st = fit_selector(groups, features=(FEATURES[0],), k=3, l2=None)
     tried = ranker.meta["selection"]
     assert [(t["l2"], t["category_power"]) for t in tried] == [
         (lam, p) for p in CATEGORY_POWERS for lam in L2_GRID]
@@ -464,7 +471,7 @@ def test_a_ranker_per_type_set_in_one_file(tmp_path):
     import json
 
     from kinmo.data.model import COARSE_TYPES
-    from kinmo.refine.fit_selector import fit_selector, fit_type_rankers
+    from kinmo.refine.fit_selector import COARSE_L2, DEFAULT_L2, fit_selector, fit_type_rankers
 
     rng = np.random.default_rng(0)
 
@@ -480,6 +487,9 @@ def test_a_ranker_per_type_set_in_one_file(tmp_path):
                                      features=(FEATURES[0],), k=3, l2=0.01, category_power=0.0,
                                      coarse_from="coarse")
     assert set(stats) == {"fine", "coarse"} and ranker.coarse is not None
+    # the coarse ranker takes its own L2 weight, by default COARSE_L2 (issue 34, session 39)
+    assert (ranker.meta["l2"], ranker.coarse.meta["l2"]) == (0.01, COARSE_L2)
+    assert COARSE_L2 == 0.003 and DEFAULT_L2 == 0.01
     x = np.zeros((2, len(FEATURES)))
     x[:, 0] = [1.0, 0.0]
     assert np.argmax(ranker.for_types(FINE_TYPES).probabilities(x)) == 0

@@ -35,6 +35,7 @@ from kinmo.progress import CountingBar, console as new_console, literal
 from kinmo.pseudo_label import PseudoLabelConfig, pseudo_label_dataset
 from kinmo.ranges import fit_range_prior
 from kinmo.ranges.prior import PRIOR_VERSION
+from kinmo.refine.fit_selector import COARSE_L2, DEFAULT_L2
 from kinmo.refine.refine import RefineConfig
 from kinmo.refine.train import preset_config as axis_preset, train_axis_model
 from kinmo.report import write_report
@@ -393,9 +394,10 @@ class _Context:
         epochs = fold_config(cfg.preset, "fine", epochs=cfg.gnn_epochs).epochs
         # the fold GNNs' whole configuration: a preset change (e.g. its augmentations) refits
         # the ranker on fold GNNs trained like the new motion GNN, never a stale one
+        fit = f"l2-{DEFAULT_L2}-{COARSE_L2}-cv-category"  # a new fit refits the ranker
         return v.out / "ranker", {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES),
                                                      "epochs": epochs, "augment": cfg.augment_gnn,
-                                                     "fit": "cv-l2-category",
+                                                     "fit": fit,
                                                      "fold_gnns": _fold_stamp(cfg), **_members_key(cfg)}}
 
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
