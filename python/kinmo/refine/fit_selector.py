@@ -157,12 +157,12 @@ L2_GRID: tuple[float, ...] = (0.003, 0.01, 0.03, 0.1)
 #: The fine ranker's L2 weight unless told otherwise (:func:`fit_selector`'s default; issue 34,
 #: session 39). Choosing it among :data:`L2_GRID` by the inner cross-validation left the
 #: selector's gain to chance: the inner choice took 0.03 or 0.1 in 7 of the 30 fits (fine and
-#: coarse) of three out-of-fold runs, and the test split's fine ranker took 0.1 and then lost to its own GNN
-#: per category. Out of fold on the 235 labelled objects (fold seeds 0, 1, 2; `kinmo eval
-#: oof` on the same fold GNNs), the fine selector's per-category gain against its GNN went
-#: from -40.4 / -36.6 / -14.4 % (chosen among the grid) to -40.4 / -36.6 / -30.3 % (0.01),
-#: and -41.5 / -37.1 / -28.6 % with 0.003, which also made the generic-name and leaf GLBs of
-#: the test split worse (mean angle 14.3 -> 15.9 and 13.4 -> 20.0 degrees; 0.01: 13.0, 14.3);
+#: coarse) of three out-of-fold runs, and the test split's fine ranker took 0.1 and then lost to
+#: its own GNN per category. Out of fold on the 235 labelled objects (fold seeds 0, 1, 2; `kinmo
+#: eval oof` on the same fold GNNs), the fine selector's per-category gain against its GNN went
+#: from -40.4 / -36.6 / -14.4 % (chosen among the grid) to -40.4 / -36.6 / -30.3 % (0.01), and
+#: -41.5 / -37.1 / -28.6 % with 0.003, which also made the generic-name and leaf GLBs of the
+#: test split worse (mean angle 14.3 -> 15.9 and 13.4 -> 20.0 degrees; 0.01: 13.0, 14.3);
 #: docs/results/table1_four_settings.md.
 DEFAULT_L2: float = 0.01
 
@@ -212,15 +212,15 @@ def fit_selector(groups: EdgeGroups, *, features: tuple[str, ...] = FEATURES, k:
 
     The category weighting (and the L2 weight, with ``l2=None``) is chosen by the same
     cross-validation (by shape, ``k`` folds, ``repeats`` fold draws) among
-    :data:`CATEGORY_POWERS` (x :data:`L2_GRID`) unless given: among the pairs whose out-of-fold choices have a
-    pooled per-joint angle no larger than the GNN's own, the one with the lowest
+    :data:`CATEGORY_POWERS` (x :data:`L2_GRID`) unless given: among the pairs whose out-of-fold
+    choices have a pooled per-joint angle no larger than the GNN's own, the one with the lowest
     per-category mean (:func:`selection_error`, averaged over the draws; Table 1's two
     summaries); when no pair qualifies, the lowest pooled angle. One draw of folds left the
     choice to chance: out of fold on the 235 labelled objects, three fold seeds gave
-    per-category gains of -26 % to -34 % on the coarse GNN's edges (issue 34). On the out-of-fold
-    groups of the 166 training objects of the shared data's split (three fold seeds), the
-    per-category mean angle of the selector against the GNN's own went from -10% / -7%
-    (fine / coarse, the former fixed L2 0.1) to about -30% / -20% (issue 34,
+    per-category gains of -26 % to -34 % on the coarse GNN's edges (issue 34). On the
+    out-of-fold groups of the 166 training objects of the shared data's split (three fold
+    seeds), the per-category mean angle of the selector against the GNN's own went from -10% /
+    -7% (fine / coarse, the former fixed L2 0.1) to about -30% / -20% (issue 34,
     docs/results/table1_four_settings.md).
 
     Parameters
