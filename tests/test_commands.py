@@ -63,6 +63,16 @@ def test_prepare_train_all_eval_category_as_written(tmp_path, monkeypatch, mobil
     assert {r["shape_id"] for r in rows} == set(test)
     assert {r["model"] for r in rows} == {"GNN_fine", "GNN_coarse", "OBB_fine", "OBB_coarse"}
 
+    # out of fold on every labelled object, with the pseudo-label rule graded per fold (issue 34)
+    res = runner.invoke(app, ["eval", "oof", "--data", "runs/all/cache/labeled", "--out", "oof",
+                              "--folds", "3", "--preset", "quick", "-q"])
+    assert res.exit_code == 0, res.output
+    out = " ".join(res.output.split())
+    assert f"pseudo-label rule at 0.6 out of fold: {len(LABELED)} objects" in out
+    rule = json.loads((tmp_path / "oof/oof.json").read_text())["pseudo_rule"]
+    assert rule["all"]["objects"] == len(LABELED) and set(rule["categories"]) <= {"Laptop", "Refrigerator"}
+    assert "| **all** |" in (tmp_path / "oof/pseudo-label-rule/summary.md").read_text()
+
 
 def test_train_all_without_data_names_what_to_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)

@@ -9,6 +9,10 @@ import pytest
 
 from kinmo.errors import KinmoDataError
 from kinmo.evaluate.oof import SETTINGS, oof_table1
+from kinmo.evaluate.pseudo_rule import grade_pseudo_rule
+from kinmo.inference.predictor import Predictor
+from kinmo.pseudo_label import PseudoLabelConfig
+from kinmo.refine.config import RefineConfig
 from kinmo.ranges import RangePrior
 from kinmo.runs import member_folders
 from kinmo.train.gnn import load_run
@@ -34,7 +38,7 @@ def _held_out(out, k):
 
 def test_every_object_is_predicted_out_of_fold_in_four_settings(tmp_path):
     graphs = _graphs()
-    report = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False)
+    report = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False).report
     assert report.models == list(SETTINGS)
     for m in SETTINGS:
         rows = report.shapes[m]
@@ -60,7 +64,7 @@ def test_every_object_is_predicted_out_of_fold_in_four_settings(tmp_path):
     assert "gain_fine" in summary and "gain_coarse" in summary
     assert (tmp_path / "table1.md").is_file() and (tmp_path / "table1.csv").is_file()
     # a second run finds its folds trained and gives the same table
-    again = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False)
+    again = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False).report
     assert _no_nan(again.table) == _no_nan(report.table)
 
 
@@ -71,9 +75,9 @@ def test_fewer_objects_than_folds_is_one_clear_error(tmp_path):
 
 def test_fold_gnns_get_their_ensemble_members_and_an_older_run_resumes(tmp_path):
     graphs = _graphs()
-    single = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False)
+    single = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False).report
     stamp = {t: (tmp_path / "folds" / f"{t}_0" / "model.pt").stat().st_mtime_ns for t in ("fine", "coarse")}
-    ens = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False, members=1)
+    ens = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False, members=1).report
     for t in ("fine", "coarse"):
         for f in range(3):
             run_dir = tmp_path / "folds" / f"{t}_{f}"
@@ -86,3 +90,44 @@ def test_fold_gnns_get_their_ensemble_members_and_an_older_run_resumes(tmp_path)
     assert json.loads((tmp_path / "oof.json").read_text())["members"] == 1
     assert ens.models == single.models
     assert len(load_run(tmp_path / "folds" / "fine_0", device="cpu").members) == 1  # predicted as one
+
+
+def test_the_pseudo_label_rule_is_graded_out_of_fold_by_each_folds_models(tmp_path):
+    graphs = _graphs()
+    res = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False,
+                     pseudo=PseudoLabelConfig(threshold=0.0))
+    rule = res.pseudo_rule
+    assert rule is not None and rule.threshold == 0.0
+    # every labelled object graded once, by the models of the fold that held it out
+    assert rule.n_objects == len(graphs)
+    assert sorted({j.shape_id for j in rule.joints}) == sorted(g.shape_id for g in graphs)
+    by_id = {g.shape_id: g for g in graphs}
+    for f, held in enumerate(_held_out(tmp_path, 3)):
+        cfg = RefineConfig(selector="ranker", ranker=str(tmp_path / "rankers" / f"ranker_{f}.json"))
+        prior = RangePrior.load(tmp_path / "ranges" / f"ranges_{f}.json")
+        fine = Predictor(load_run(tmp_path / "folds" / f"fine_{f}", "cpu"), None, cfg, ranges=prior)
+        coarse = Predictor(load_run(tmp_path / "folds" / f"coarse_{f}", "cpu"), None, cfg, ranges=prior)
+        direct = grade_pseudo_rule(fine, [by_id[i] for i in sorted(held)], PseudoLabelConfig(threshold=0.0),
+                                   check=coarse)
+        # (as text: a still joint's angle is NaN, which equals nothing)
+        assert sorted(map(repr, direct.joints)) == sorted(repr(j) for j in rule.joints if j.shape_id in held)
+    doc = json.loads((tmp_path / "oof.json").read_text())["pseudo_rule"]
+    assert doc == json.loads((tmp_path / "pseudo-label-rule" / "summary.json").read_text())
+    assert doc["threshold"] == 0.0 and doc["all"]["objects"] == len(graphs)
+    assert "| **all** | 6 |" in (tmp_path / "pseudo-label-rule" / "summary.md").read_text()
+    # not asked: not graded, not written; Table 1 is the same
+    again = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False, pseudo_rule=False)
+    assert again.pseudo_rule is None and _no_nan(again.report.table) == _no_nan(res.report.table)
+    assert not (tmp_path / "pseudo-label-rule").exists()  # not the earlier run's
+    assert "pseudo_rule" not in json.loads((tmp_path / "oof.json").read_text())
+
+
+def test_a_fold_whose_selector_cannot_be_fit_is_one_clear_error(tmp_path, monkeypatch):
+    import kinmo.evaluate.oof as oof
+
+    def no_positive(*a, **k):
+        raise ValueError("fit_ranker: no group with a positive candidate")
+
+    monkeypatch.setattr(oof, "fit_type_rankers", no_positive)
+    with pytest.raises(KinmoDataError, match="fold 0: cannot fit the selector .* no group with a positive"):
+        oof_table1(_graphs(), tmp_path, folds=3, preset="tiny", epochs=1, progress=False)

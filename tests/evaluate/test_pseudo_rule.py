@@ -82,3 +82,19 @@ def test_a_rule_that_keeps_nothing_writes_null_not_nan(predictor, monkeypatch, t
     md = (tmp_path / "summary.md").read_text()
     assert "| **all** | 3 | 0 | – |" in md and "link precision" in md
     assert len(rep.links) == 6 and doc["all"]["links"] == 0 and doc["all"]["link_precision"] is None
+
+
+def test_reports_of_batches_extend_into_the_report_of_all(predictor, monkeypatch):
+    _gnn(monkeypatch)
+    cfg = PseudoLabelConfig(threshold=0.0, refine=RefineConfig())
+    graphs = _graphs()
+    whole = grade_pseudo_rule(predictor, graphs, cfg)
+    parts = grade_pseudo_rule(predictor, graphs[:1], cfg)
+    parts.extend(grade_pseudo_rule(predictor, graphs[1:], cfg))
+    assert parts.n_objects == whole.n_objects == 3
+    assert parts.kept == whole.kept and parts.joints == whole.joints and parts.links == whole.links
+    assert parts.summary() == whole.summary()
+    other = grade_pseudo_rule(predictor, graphs[:1], PseudoLabelConfig(threshold=0.5, refine=RefineConfig()))
+    with pytest.raises(ValueError, match="threshold 0.5"):
+        parts.extend(other)
+    assert parts.n_objects == 3  # a refused report adds nothing

@@ -21,6 +21,7 @@ def oof_cmd(
     augment: bool = typer.Option(True, "--augment/--no-augment", help="Fine GNNs with the preset's hierarchy and name augmentations, as `kinmo train all`."),
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="GNNs trained at once (0: one per CPU)."),
     members: int = typer.Option(0, "--members", min=0, help="Ensemble members of every fold GNN (seeds SEED+1 ...): each fold predicted by the average of 1 + N GNNs (as `kinmo train gnn --members`)."),
+    pseudo_rule: bool = typer.Option(True, "--pseudo-rule/--no-pseudo-rule", help="Also grade the pseudo-label rule out of fold (its defaults, the fold's coarse GNN as the second model) into OUT/pseudo-label-rule/."),
     executor: str = EXECUTOR,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -37,12 +38,25 @@ def oof_cmd(
     if not console.is_terminal:  # logs: do not squeeze the tables
         console = new_console(width=max(console.width, 140))
     with cli_errors(1):
-        report = oof_table1(data, out, folds=folds, preset=preset, seed=seed, workers=workers,
-                            augment=augment, executor=executor, progress=not quiet, members=members)
-    print_report(report, console)
-    s = oof_summary(report)
+        res = oof_table1(data, out, folds=folds, preset=preset, seed=seed, workers=workers,
+                         augment=augment, executor=executor, progress=not quiet, members=members,
+                         pseudo_rule=pseudo_rule)
+    print_report(res.report, console)
+    s = oof_summary(res.report)
     for t in ("fine", "coarse"):
         if f"gain_{t}" in s:
             g = s[f"gain_{t}"]
             console.print(f"selector vs GNN_{t}: per-category mean {g['mean']:+.1%}, pooled {g['all']:+.1%}")
+    if res.pseudo_rule is not None:
+        a = res.pseudo_rule.summary()
+
+        def num(k: str, p: int = 3) -> str:
+            return "–" if a[k] != a[k] else f"{a[k]:.{p}f}"  # NaN: nothing to average
+
+        console.print(
+            f"pseudo-label rule at {res.pseudo_rule.threshold:g} out of fold: {int(a['objects'])} objects, "
+            f"{int(a['kept'])} kept ({num('kept_share')}), joint precision {num('joint_precision')}, "
+            f"type accuracy {num('type_acc')}, axis error {num('axis_mean_deg', 2)}°; per link "
+            f"{num('link_precision')}, {num('link_type_acc')}, {num('link_axis_mean_deg', 2)}° "
+            f"({literal(out / 'pseudo-label-rule' / 'summary.md')})")
     console.print(f"wrote {literal(out / 'table1.md')} and {literal(out / 'oof.json')}")

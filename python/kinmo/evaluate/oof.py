@@ -21,6 +21,15 @@ did not train on it:
    learned ranges on every labelled object, and those of the ``GNN`` rows the tree's default
    ranges (0–90°, 0.3 × size).
 
+5. Per fold, the pseudo-label rule (:mod:`kinmo.evaluate.pseudo_rule`, issue 34) is graded
+   on the held-out objects, as ``kinmo train all`` grades it on its test split: the fold's
+   fine GNN, selector and range prior score every joint
+   (:func:`kinmo.pseudo_label.score_graph`), the fold's coarse GNN is the second model that
+   must agree, and every joint of a kept object is graded against the truth. Unlike ``kinmo
+   pseudo-label``, the selector runs without an axis-selection network (as the ``OBB`` rows
+   here). On 235 objects this is about 3.4 times the test split's 69, so a handful of
+   annotation exceptions (rocker buttons, bottom-hinged doors) move it less.
+
 Caveat, stated in the output: the groups a fold's ranker is fit on were predicted by GNNs
 that trained on that fold's objects (their features, never their labels, depend on them).
 
@@ -28,30 +37,37 @@ Outputs (``OUT/``): ``table1.csv``, ``table1.md`` (:func:`kinmo.evaluate.tables.
 per category, the ``mean`` over categories and the pooled ``all`` row), ``oof.json`` (the
 per-category mean and pooled joint axis error of the four settings and the selector's gain),
 ``folds/<types>_<f>/`` (the GNN runs, reused when present: an interrupted run resumes),
-``rankers/ranker_<f>.json`` and ``ranges/ranges_<f>.json``.
+``rankers/ranker_<f>.json``, ``ranges/ranges_<f>.json`` and ``pseudo-label-rule/``
+(``summary.json``, ``summary.md``: :func:`kinmo.evaluate.pseudo_rule.write_pseudo_rule`;
+``oof.json``'s ``pseudo_rule`` is the same document).
 """
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from kinmo.data.cache import load_cache
 from kinmo.data.graph import PartGraph
 from kinmo.errors import KinmoDataError
+from kinmo.evaluate.pseudo_rule import PseudoRuleReport, grade_pseudo_rule, write_pseudo_rule
 from kinmo.evaluate.shape_metrics import EvalReport, evaluate_graphs
 from kinmo.evaluate.tables import write_report
 from kinmo.inference.predictor import Predictor
 from kinmo.io import write_json
+from kinmo.pseudo_label import PseudoLabelConfig
 from kinmo.ranges import fit_range_prior
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.fit_selector import DEFAULT_FEATURES, collect_groups, fit_type_rankers, fold_ids
+from kinmo.refine.selector import shape_meshes
 from kinmo.refine.semantic_prior import SemanticPrior
 from kinmo.train.gnn import load_run
 from kinmo.train.ranker import train_folds
 
-__all__ = ["SETTINGS", "oof_summary", "oof_table1"]
+__all__ = ["OOFResult", "SETTINGS", "oof_summary", "oof_table1"]
 
 #: The four settings of Table 1, in the paper's column order.
 SETTINGS = ("GNN_coarse", "GNN_fine", "OBB_coarse", "OBB_fine")
@@ -84,6 +100,22 @@ def oof_summary(report: EvalReport) -> dict[str, Any]:
     return out
 
 
+@dataclass(frozen=True)
+class OOFResult:
+    """What :func:`oof_table1` computed (also written, module docstring).
+
+    Attributes
+    ----------
+    report : EvalReport
+        Table 1's four settings (:data:`SETTINGS`), per category.
+    pseudo_rule : PseudoRuleReport or None
+        The pseudo-label rule graded out of fold (step 5); None when not graded.
+    """
+
+    report: EvalReport
+    pseudo_rule: PseudoRuleReport | None = None
+
+
 def oof_table1(
     data: str | Path | Sequence[PartGraph],
     out: str | Path,
@@ -97,7 +129,9 @@ def oof_table1(
     executor: str = "local",
     progress: bool = True,
     members: int = 0,
-) -> EvalReport:
+    pseudo_rule: bool = True,
+    pseudo: PseudoLabelConfig | None = None,
+) -> OOFResult:
     """Table 1's four settings out of fold on every labelled object (module docstring).
 
     Parameters
@@ -119,16 +153,24 @@ def oof_table1(
         :func:`kinmo.train.gnn.train_members`): each fold is then predicted by the average of
         ``1 + members`` GNNs trained with seeds ``seed``, ``seed + 1`` ..., and its ranker is
         fit on the other folds' ensemble predictions.
+    pseudo_rule : bool
+        Grade the pseudo-label rule out of fold (module docstring, step 5).
+    pseudo : PseudoLabelConfig or None
+        Its options (``threshold``, ``score``, ``sign``, ``agree_prob``, ``agree_deg`` ...;
+        ``refine`` is not used: the fold's selector is); None: ``kinmo pseudo-label``'s
+        defaults.
 
     Returns
     -------
-    EvalReport
-        Columns :data:`SETTINGS`, rows per category (also written, module docstring).
+    OOFResult
+        Table 1 (columns :data:`SETTINGS`, rows per category) and the graded pseudo-label
+        rule (also written, module docstring).
 
     Raises
     ------
     KinmoDataError
-        Fewer labelled graphs than folds.
+        Fewer labelled graphs than folds, or a fold's selector cannot be fit (no candidate
+        group of the other folds has a right candidate: too few objects, or GNNs too weak).
     """
     out = Path(out)
     graphs = [g for g in (load_cache(data) if isinstance(data, (str, Path)) else data)
@@ -154,28 +196,44 @@ def oof_table1(
     groups = {t: collect_groups([gnn[t][i] for i in ids], seed=seed, semantic=semantic_all)
               for t in ("fine", "coarse")}
     refined: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
+    pseudo = pseudo or PseudoLabelConfig()
+    rule = PseudoRuleReport(float(pseudo.threshold), 0) if pseudo_rule else None
     (out / "rankers").mkdir(parents=True, exist_ok=True)
     (out / "ranges").mkdir(parents=True, exist_ok=True)
     for f in range(folds):
         rest = {i for i in ids if fold_of[i] != f}
-        ranker, _ = fit_type_rankers({t: g.of_shapes(rest) for t, g in groups.items()},
-                                     features=DEFAULT_FEATURES, k=3, seed=seed)
+        try:
+            ranker, _ = fit_type_rankers({t: g.of_shapes(rest) for t, g in groups.items()},
+                                         features=DEFAULT_FEATURES, k=3, seed=seed)
+        except ValueError as e:  # e.g. no group with a right candidate: nothing to learn from
+            raise KinmoDataError(data if isinstance(data, (str, Path)) else out,
+                                 f"fold {f}: cannot fit the selector on the other folds' predictions "
+                                 f"({e}); more objects or a longer --preset") from None
         ranker.semantic = SemanticPrior.from_graphs([g for g in graphs if g.shape_id in rest])
         path = ranker.save(out / "rankers" / f"ranker_{f}.json")
         prior = fit_range_prior(g for g in graphs if g.shape_id in rest)
         prior_path = out / "ranges" / f"ranges_{f}.json"
         prior.save(prior_path)
         cfg = RefineConfig(selector="ranker", ranker=str(path))
-        for t in refined:
-            pr = Predictor(runs[(t, f)], None, cfg, ranges=prior)
-            for i in ids:
-                if fold_of[i] == f:
-                    refined[t][i] = pr.refine_prediction(gnn[t][i])
+        pr = {t: Predictor(runs[(t, f)], None, cfg, ranges=prior) for t in refined}
+        for g in graphs:
+            if fold_of[g.shape_id] != f:
+                continue
+            meshes = shape_meshes(g)  # read once: both selectors' sweeps and the rule's
+            for t in refined:
+                refined[t][g.shape_id] = pr[t].refine_prediction(gnn[t][g.shape_id], meshes)
+            if rule is not None:
+                rule.extend(grade_pseudo_rule(pr["fine"], [g], pseudo, meshes=meshes, check=pr["coarse"]))
     preds = {"GNN_coarse": [gnn["coarse"][i] for i in ids], "GNN_fine": [gnn["fine"][i] for i in ids],
              "OBB_coarse": [refined["coarse"][i] for i in ids],
              "OBB_fine": [refined["fine"][i] for i in ids]}
     report = evaluate_graphs(graphs, preds)
     write_report(report, out)
+    extra: dict[str, Any] = {}
+    if rule is not None:
+        extra["pseudo_rule"] = write_pseudo_rule(rule, out / "pseudo-label-rule")
+    else:  # an earlier run's grading would sit beside a table it was not made with
+        shutil.rmtree(out / "pseudo-label-rule", ignore_errors=True)
     write_json(out / "oof.json", {"folds": folds, "preset": preset, "seed": seed, "members": members,
-                                  "objects": len(graphs), **oof_summary(report)})
-    return report
+                                  "objects": len(graphs), **oof_summary(report), **extra})
+    return OOFResult(report, rule)

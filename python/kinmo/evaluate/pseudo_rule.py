@@ -24,9 +24,11 @@ links; **link type accuracy**: matched links of the true motion (``R``, ``P``, `
 **link axis error**: their mean angle. Per edge, a kept joint whose moving part truly moves
 counts as a false one when its predicted reference is not the node the annotation's edge
 names (a drawer moving relative to a table's back panel, a node that also holds other links'
-parts, is labelled ``None``); per link it counts as the joint it is. Out of fold on the 235
-labelled objects (seed 0's folds, a side script of 2026-11-25), at 0.6: joint precision 0.916
-per edge, 0.954 per link.
+parts, is labelled ``None``); per link it counts as the joint it is.
+
+``kinmo train all`` grades the rule on its test split; ``kinmo eval oof`` grades it on every
+labelled object, each with the models of the fold that held it out
+(:func:`kinmo.evaluate.oof.oof_table1`, :meth:`PseudoRuleReport.extend`).
 
 Issue 34's targets for the pseudo-labels of the shared PartNet shapes: type accuracy 0.95 and
 4° at joint precision 0.97.
@@ -133,6 +135,22 @@ class PseudoRuleReport:
     kept: list[str] = field(default_factory=list)
     joints: list[JointGrade] = field(default_factory=list)
     links: list[LinkGrade] = field(default_factory=list)
+
+    def extend(self, other: PseudoRuleReport) -> None:
+        """Add ``other``'s objects, kept ids, joints and links to this report (one report from
+        several graded batches: the folds of ``kinmo eval oof``).
+
+        Raises
+        ------
+        ValueError
+            The two reports were graded at different thresholds.
+        """
+        if other.threshold != self.threshold:
+            raise ValueError(f"threshold {other.threshold:g} is not this report's {self.threshold:g}")
+        self.n_objects += other.n_objects
+        self.kept += other.kept
+        self.joints += other.joints
+        self.links += other.links
 
     def summary(self, category: str | None = None) -> dict[str, float]:
         """Kept share and the kept joints' figures (module docstring), for every object or
