@@ -112,3 +112,25 @@ def test_train_ranker_command_passes_members(monkeypatch, tmp_path):
     assert seen["members"] == 2
     assert CliRunner().invoke(app, args).exit_code == 0 and seen["members"] == 0
     assert CliRunner().invoke(app, args + ["--members", "-1"]).exit_code != 0
+
+
+def test_a_ranker_that_cannot_be_fit_is_one_clear_error(tmp_path, monkeypatch):
+    """``kinmo train all`` on too few objects or with too short a preset: the fit finds no
+    group with a right candidate, and the stage says so in one line instead of a traceback."""
+    from types import SimpleNamespace
+
+    from kinmo.errors import KinmoDataError
+
+    graphs = _graphs()
+    monkeypatch.setattr(ranker, "ranker_graphs", lambda data, sp: graphs)
+    monkeypatch.setattr(ranker.Split, "load", classmethod(
+        lambda cls, path: SimpleNamespace(train=[g.shape_id for g in graphs])))
+
+    def no_positive(*a, **k):
+        raise ValueError("fit_ranker: no group with a positive candidate")
+
+    monkeypatch.setattr(ranker, "fit_type_rankers", no_positive)
+    with pytest.raises(KinmoDataError, match="cannot fit the selector .* no group with a positive"):
+        ranker.train_ranker(tmp_path / "cache", tmp_path / "out", tmp_path / "split.json", folds=3,
+                            preset="tiny", epochs=1, progress=False)
+    assert not (tmp_path / "out" / "ranker.json").exists()

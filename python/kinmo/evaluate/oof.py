@@ -25,10 +25,12 @@ did not train on it:
    on the held-out objects, as ``kinmo train all`` grades it on its test split: the fold's
    fine GNN, selector and range prior score every joint
    (:func:`kinmo.pseudo_label.score_graph`), the fold's coarse GNN is the second model that
-   must agree, and every joint of a kept object is graded against the truth. Unlike ``kinmo
-   pseudo-label``, the selector runs without an axis-selection network (as the ``OBB`` rows
-   here). On 235 objects this is about 3.4 times the test split's 69, so a handful of
-   annotation exceptions (rocker buttons, bottom-hinged doors) move it less.
+   must agree, and every joint of a kept object is graded against the truth. No
+   axis-selection network is loaded; the default ranker does not read one
+   (:data:`kinmo.refine.fit_selector.DEFAULT_FEATURES` leave its feasibility out), so the
+   choice is the one ``kinmo pseudo-label`` makes. On 235 objects this is about 3.4 times
+   the test split's 69, so a handful of annotation exceptions (rocker buttons,
+   bottom-hinged doors) move it less.
 
 Caveat, stated in the output: the groups a fold's ranker is fit on were predicted by GNNs
 that trained on that fold's objects (their features, never their labels, depend on them).

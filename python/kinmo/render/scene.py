@@ -14,7 +14,10 @@ uses the angle, a slider the translation, a cylindrical joint both.
 from __future__ import annotations
 
 import math
+import os
+import sys
 import tempfile
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +29,52 @@ from kinmo.errors import KinmoDataError
 from kinmo.render.camera import Camera, metric_depth
 from kinmo.urdf import UrdfJoint, link_frame_origins, urdf_joints, urdf_string
 
-__all__ = ["JointState", "MovingJoint", "Scene", "sample_joint_state"]
+__all__ = ["JointState", "MovingJoint", "Scene", "pybullet_module", "sample_joint_state"]
+
+_IMPORT_LOCK = threading.Lock()
+
+
+def pybullet_module():
+    """The ``pybullet`` module, imported without its banner.
+
+    PyBullet's C module writes ``pybullet build time: ...`` to the process's standard error
+    (file descriptor 2) when it is first imported: one line per process, so a log of
+    ``kinmo train all`` or ``kinmo demo`` got two for every rendering or Table 2 stage (its
+    worker processes). The first import here sends file descriptor 2 to ``os.devnull`` for
+    the import's duration; later calls return the module. Where descriptor 2 cannot be
+    duplicated, the import is a plain one.
+
+    Returns
+    -------
+    module
+        ``pybullet``.
+
+    Raises
+    ------
+    ImportError
+        PyBullet is not installed.
+    """
+    if "pybullet" in sys.modules:
+        return sys.modules["pybullet"]
+    with _IMPORT_LOCK:
+        try:
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError, AttributeError):  # no descriptor 2 (a detached process)
+            import pybullet
+
+            return pybullet
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(null, 2)
+                import pybullet
+            finally:
+                os.close(null)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+    return pybullet
 
 #: ``link id -> (translation, angle)`` (mesh units, radians).
 JointState = dict[int, tuple[float, float]]
@@ -101,8 +149,7 @@ class Scene:
     """
 
     def __init__(self, shape: Shape, links: Sequence[Link] | None = None) -> None:
-        import pybullet as p
-
+        p = pybullet_module()
         self._p = p
         self.shape = shape
         links = list(shape.links if links is None else links)

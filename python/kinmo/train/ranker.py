@@ -316,7 +316,9 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     Raises
     ------
     KinmoDataError
-        No labelled graph of the split's training ids in ``data``, or no moving edge.
+        No labelled graph of the split's training ids in ``data``, no moving edge, or no
+        ranker can be fit (no candidate group with a right candidate: too few objects, or
+        fold GNNs too weak).
     """
     out = Path(out)
     sp = Split.load(split)
@@ -335,8 +337,12 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     groups = EdgeGroups.concat(list(parts.values()))
     if not groups.y:
         raise KinmoDataError(data, "no moving edge predicted moving in the out-of-fold predictions")
-    ranker, by_type = fit_type_rankers(parts, features=DEFAULT_FEATURES, k=folds, seed=seed,
-                                       category_power=category_power)
+    try:
+        ranker, by_type = fit_type_rankers(parts, features=DEFAULT_FEATURES, k=folds, seed=seed,
+                                           category_power=category_power)
+    except ValueError as e:  # e.g. no group with a right candidate: nothing to learn from
+        raise KinmoDataError(data, f"cannot fit the selector on the out-of-fold predictions ({e}); "
+                                   "more training objects or a longer --preset") from None
     ranker.semantic = semantic
     ranker.meta["trained_on"] = {"data": str(data), "split": str(split), "types": list(types),
                                  "preset": preset, "folds": folds, "augment": augment, "members": members,
