@@ -123,11 +123,11 @@ def test_the_pseudo_label_rule_is_graded_out_of_fold_by_each_folds_models(tmp_pa
 
 
 def test_a_fold_whose_selector_cannot_be_fit_is_one_clear_error(tmp_path, monkeypatch):
-    import kinmo.evaluate.oof as oof
+    import kinmo.train.ranker as ranker  # the fit both train all and eval oof go through
 
     def no_positive(*a, **k):
         raise ValueError("fit_ranker: no group with a positive candidate")
 
-    monkeypatch.setattr(oof, "fit_type_rankers", no_positive)
+    monkeypatch.setattr(ranker, "fit_type_rankers", no_positive)
     with pytest.raises(KinmoDataError, match="fold 0: cannot fit the selector .* no group with a positive"):
         oof_table1(_graphs(), tmp_path, folds=3, preset="tiny", epochs=1, progress=False)

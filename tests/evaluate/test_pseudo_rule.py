@@ -98,3 +98,17 @@ def test_reports_of_batches_extend_into_the_report_of_all(predictor, monkeypatch
     with pytest.raises(ValueError, match="threshold 0.5"):
         parts.extend(other)
     assert parts.n_objects == 3  # a refused report adds nothing
+
+
+def test_the_summary_line_reads_a_summary_and_its_json_alike(predictor, monkeypatch, tmp_path):
+    from kinmo.evaluate.pseudo_rule import summary_line
+
+    _gnn(monkeypatch)
+    rep = grade_pseudo_rule(predictor, _graphs(), PseudoLabelConfig(threshold=1.0, refine=RefineConfig()))
+    doc = write_pseudo_rule(rep, tmp_path)
+    line = summary_line(rep.summary())  # NaN where nothing is kept
+    assert line == summary_line(doc["all"])  # null in the JSON
+    assert line == "0 kept, joint precision –, type accuracy – (fine –), axis error –°; per link –, –, –°"
+    _gnn(monkeypatch)
+    kept = grade_pseudo_rule(predictor, _graphs(), PseudoLabelConfig(threshold=0.0, refine=RefineConfig()))
+    assert summary_line(kept.summary()).startswith("3 kept, joint precision 1.000, type accuracy 1.000 (fine 1.000)")

@@ -30,6 +30,7 @@ def oof_cmd(
     OBB_fine) per category over every labelled object."""
     from kinmo.cli._errors import cli_errors
     from kinmo.evaluate.oof import oof_summary, oof_table1
+    from kinmo.evaluate.pseudo_rule import summary_line
     from kinmo.evaluate.tables import print_report
     from kinmo.progress import console as new_console
     from kinmo.progress import literal
@@ -49,14 +50,6 @@ def oof_cmd(
             console.print(f"selector vs GNN_{t}: per-category mean {g['mean']:+.1%}, pooled {g['all']:+.1%}")
     if res.pseudo_rule is not None:
         a = res.pseudo_rule.summary()
-
-        def num(k: str, p: int = 3) -> str:
-            return "–" if a[k] != a[k] else f"{a[k]:.{p}f}"  # NaN: nothing to average
-
-        console.print(
-            f"pseudo-label rule at {res.pseudo_rule.threshold:g} out of fold: {int(a['objects'])} objects, "
-            f"{int(a['kept'])} kept ({num('kept_share')}), joint precision {num('joint_precision')}, "
-            f"type accuracy {num('type_acc')}, axis error {num('axis_mean_deg', 2)}°; per link "
-            f"{num('link_precision')}, {num('link_type_acc')}, {num('link_axis_mean_deg', 2)}° "
-            f"({literal(out / 'pseudo-label-rule' / 'summary.md')})")
+        console.print(f"pseudo-label rule at {res.pseudo_rule.threshold:g} out of fold: {int(a['objects'])} "
+                      f"objects, {summary_line(a)} ({literal(out / 'pseudo-label-rule' / 'summary.md')})")
     console.print(f"wrote {literal(out / 'table1.md')} and {literal(out / 'oof.json')}")

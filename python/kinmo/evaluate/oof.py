@@ -63,11 +63,11 @@ from kinmo.io import write_json
 from kinmo.pseudo_label import PseudoLabelConfig
 from kinmo.ranges import fit_range_prior
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.fit_selector import DEFAULT_FEATURES, collect_groups, fit_type_rankers, fold_ids
+from kinmo.refine.fit_selector import collect_groups, fold_ids
 from kinmo.refine.selector import shape_meshes
 from kinmo.refine.semantic_prior import SemanticPrior
 from kinmo.train.gnn import load_run
-from kinmo.train.ranker import train_folds
+from kinmo.train.ranker import fit_rankers, train_folds
 
 __all__ = ["OOFResult", "SETTINGS", "oof_summary", "oof_table1"]
 
@@ -204,13 +204,9 @@ def oof_table1(
     (out / "ranges").mkdir(parents=True, exist_ok=True)
     for f in range(folds):
         rest = {i for i in ids if fold_of[i] != f}
-        try:
-            ranker, _ = fit_type_rankers({t: g.of_shapes(rest) for t, g in groups.items()},
-                                         features=DEFAULT_FEATURES, k=3, seed=seed)
-        except ValueError as e:  # e.g. no group with a right candidate: nothing to learn from
-            raise KinmoDataError(data if isinstance(data, (str, Path)) else out,
-                                 f"fold {f}: cannot fit the selector on the other folds' predictions "
-                                 f"({e}); more objects or a longer --preset") from None
+        ranker, _ = fit_rankers({t: g.of_shapes(rest) for t, g in groups.items()},
+                                data if isinstance(data, (str, Path)) else out,
+                                "the other folds' predictions", k=3, seed=seed, fold=f)
         ranker.semantic = SemanticPrior.from_graphs([g for g in graphs if g.shape_id in rest])
         path = ranker.save(out / "rankers" / f"ranker_{f}.json")
         prior = fit_range_prior(g for g in graphs if g.shape_id in rest)

@@ -39,7 +39,7 @@ Outputs (:func:`write_pseudo_rule`): ``summary.json`` (every figure, per categor
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -54,7 +54,8 @@ from kinmo.metrics.axis import axis_angle_deg
 from kinmo.metrics.motion_range import joint_kind
 from kinmo.pseudo_label import PseudoLabelConfig, judge, score_graph
 
-__all__ = ["JointGrade", "LinkGrade", "PseudoRuleReport", "grade_pseudo_rule", "write_pseudo_rule"]
+__all__ = ["JointGrade", "LinkGrade", "PseudoRuleReport", "grade_pseudo_rule", "summary_line",
+           "write_pseudo_rule"]
 
 _STILL = ("Fixed", "None")
 
@@ -236,6 +237,23 @@ def grade_pseudo_rule(predictor: Any, graphs: Sequence[PartGraph], config: Pseud
     return rep
 
 
+def _fmt(v: float | None, p: int = 3) -> str:
+    """A figure as text: ``–`` where there is nothing to average (null in the JSON, NaN in
+    :meth:`PseudoRuleReport.summary`)."""
+    return "–" if v is None or v != v else f"{v:.{p}f}"
+
+
+def summary_line(s: Mapping[str, float | None]) -> str:
+    """The kept objects' figures of :meth:`PseudoRuleReport.summary` (or of ``summary.json``'s
+    ``all``, nulls included) as one line of text, as ``kinmo train all`` and ``kinmo eval oof``
+    print them: ``K kept, joint precision P, type accuracy T (fine F), axis error A°; per link
+    P, T, A°``."""
+    return (f"{int(s['kept'])} kept, joint precision {_fmt(s['joint_precision'])}, type accuracy "
+            f"{_fmt(s['type_acc'])} (fine {_fmt(s['fine_type_acc'])}), axis error "
+            f"{_fmt(s['axis_mean_deg'], 2)}°; per link {_fmt(s['link_precision'])}, "
+            f"{_fmt(s['link_type_acc'])}, {_fmt(s['link_axis_mean_deg'], 2)}°")
+
+
 def write_pseudo_rule(rep: PseudoRuleReport, out: str | Path) -> dict[str, Any]:
     """Write ``summary.json`` and ``summary.md`` into ``out`` (atomically).
 
@@ -254,16 +272,13 @@ def write_pseudo_rule(rep: PseudoRuleReport, out: str | Path) -> dict[str, Any]:
            "categories": {c: clean(rep.summary(c)) for c in cats}}
     write_json(out / "summary.json", doc)
 
-    def fmt(v: float | None, p: int = 3) -> str:
-        return "–" if v is None else f"{v:.{p}f}"
-
     head = ("| category | objects | kept | joint precision | type accuracy | fine type accuracy | "
             "axis error (°) | link precision | link type accuracy | link axis error (°) |\n"
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n")
     rows = [(c.replace("|", "\\|"), doc["categories"][c]) for c in cats] + [("**all**", doc["all"])]
-    body = "".join(f"| {c} | {int(s['objects'])} | {int(s['kept'])} | {fmt(s['joint_precision'])} | "
-                   f"{fmt(s['type_acc'])} | {fmt(s['fine_type_acc'])} | {fmt(s['axis_mean_deg'], 2)} | "
-                   f"{fmt(s['link_precision'])} | {fmt(s['link_type_acc'])} | {fmt(s['link_axis_mean_deg'], 2)} |\n"
+    body = "".join(f"| {c} | {int(s['objects'])} | {int(s['kept'])} | {_fmt(s['joint_precision'])} | "
+                   f"{_fmt(s['type_acc'])} | {_fmt(s['fine_type_acc'])} | {_fmt(s['axis_mean_deg'], 2)} | "
+                   f"{_fmt(s['link_precision'])} | {_fmt(s['link_type_acc'])} | {_fmt(s['link_axis_mean_deg'], 2)} |\n"
                    for c, s in rows)
     write_text(out / "summary.md", f"Pseudo-label rule at {rep.threshold:g} on labelled objects\n\n" + head + body)
     return doc

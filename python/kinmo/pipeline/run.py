@@ -20,7 +20,7 @@ from kinmo.data.cache import load_cache
 from kinmo.data.readers import find_shapes
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.evaluate.pre_segmented import run_evaluation
-from kinmo.evaluate.pseudo_rule import grade_pseudo_rule, write_pseudo_rule
+from kinmo.evaluate.pseudo_rule import grade_pseudo_rule, summary_line, write_pseudo_rule
 from kinmo.executor import map_unordered
 from kinmo.inference.bundle import write_bundle
 from kinmo.inference.predictor import Predictor
@@ -252,15 +252,8 @@ class _Context:
         if f.is_file():
             a = json.loads(f.read_text())["all"]
             a = {"link_precision": None, "link_type_acc": None, "link_axis_mean_deg": None, **a}  # older runs
-
-            def num(k: str, p: int = 3) -> str:
-                return "–" if a[k] is None else f"{a[k]:.{p}f}"  # null: nothing to average
-
-            self.console.print(
-                f"{v.prefix}pseudo-label rule at {pcfg.threshold:g} on {int(a['objects'])} labelled test "
-                f"objects: {int(a['kept'])} kept, joint precision {num('joint_precision')}, type accuracy "
-                f"{num('type_acc')} (fine {num('fine_type_acc')}), axis error {num('axis_mean_deg', 2)}°; "
-                f"per link {num('link_precision')}, {num('link_type_acc')}, {num('link_axis_mean_deg', 2)}°")
+            self.console.print(f"{v.prefix}pseudo-label rule at {pcfg.threshold:g} on {int(a['objects'])} "
+                               f"labelled test objects: {summary_line(a)}")
         self.res.stages[f"{v.prefix}pseudo_rule"] = [str(folder)]
         return folder
 

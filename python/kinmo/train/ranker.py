@@ -33,8 +33,8 @@ from kinmo.train.config import NO_AUGMENTATIONS, TrainConfig, preset as make_pre
 from kinmo.train.gnn import load_run, train_gnn, train_members
 from kinmo.train.split import Split
 
-__all__ = ["fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_fold", "train_folds",
-           "train_ranker"]
+__all__ = ["fit_rankers", "fold_config", "fold_plan", "oof_predictions", "ranker_graphs", "train_fold",
+           "train_folds", "train_ranker"]
 
 
 def train_fold(graphs: Sequence[PartGraph], run_dir: Path, config: TrainConfig, split: Split,
@@ -269,6 +269,45 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
     return preds
 
 
+def fit_rankers(groups: dict[str, EdgeGroups], data: str | Path, source: str, *, k: int, seed: int = 0,
+                category_power: float | None = None, fold: int | None = None
+                ) -> tuple[Ranker, dict[str, dict]]:
+    """The default rankers of out-of-fold groups (:func:`kinmo.refine.fit_selector.fit_type_rankers`
+    with :data:`~kinmo.refine.fit_selector.DEFAULT_FEATURES`), as ``kinmo train all`` and
+    ``kinmo eval oof`` fit them.
+
+    Parameters
+    ----------
+    groups : dict of {"fine", "coarse"} to EdgeGroups
+    data : str or Path
+        What the groups come from, named in the error.
+    source : str
+        Which predictions they are, for the error (``"the out-of-fold predictions"``).
+    k, seed, category_power
+        As :func:`~kinmo.refine.fit_selector.fit_type_rankers`.
+    fold : int, optional
+        The outer fold these rankers are for (``kinmo eval oof``), named first in the error.
+
+    Returns
+    -------
+    (Ranker, dict of str to dict)
+        As :func:`~kinmo.refine.fit_selector.fit_type_rankers`.
+
+    Raises
+    ------
+    KinmoDataError
+        No ranker can be fit, e.g. no group has a right candidate (too few objects, or GNNs
+        too weak): one line naming the fix.
+    """
+    try:
+        return fit_type_rankers(groups, features=DEFAULT_FEATURES, k=k, seed=seed,
+                                category_power=category_power)
+    except ValueError as e:  # e.g. no group with a right candidate: nothing to learn from
+        where = "" if fold is None else f"fold {fold}: "
+        raise KinmoDataError(data, f"{where}cannot fit the selector on {source} ({e}); more training "
+                                   "objects or a longer --preset") from None
+
+
 def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds: int = 3,
                  preset: str = "quick", types: Sequence[str] = ("fine", "coarse"), seed: int = 0,
                  threads: int = 1, progress: bool = True, epochs: int | None = None,
@@ -337,12 +376,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     groups = EdgeGroups.concat(list(parts.values()))
     if not groups.y:
         raise KinmoDataError(data, "no moving edge predicted moving in the out-of-fold predictions")
-    try:
-        ranker, by_type = fit_type_rankers(parts, features=DEFAULT_FEATURES, k=folds, seed=seed,
-                                           category_power=category_power)
-    except ValueError as e:  # e.g. no group with a right candidate: nothing to learn from
-        raise KinmoDataError(data, f"cannot fit the selector on the out-of-fold predictions ({e}); "
-                                   "more training objects or a longer --preset") from None
+    ranker, by_type = fit_rankers(parts, data, "the out-of-fold predictions", k=folds, seed=seed,
+                                  category_power=category_power)
     ranker.semantic = semantic
     ranker.meta["trained_on"] = {"data": str(data), "split": str(split), "types": list(types),
                                  "preset": preset, "folds": folds, "augment": augment, "members": members,
