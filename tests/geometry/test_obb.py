@@ -239,3 +239,42 @@ def test_bad_options_and_batches_raise():
         fit_obb_batch([pts, pts, np.array([[0.0, np.inf, 0.0]])])
     with pytest.raises(ValueError, match=r"point_sets\[0\]: expected shape \(N, 3\)"):
         fit_obb_batch([np.zeros((3, 4))])
+
+
+def _round_prism(axis: np.ndarray, n: int, roll: float) -> np.ndarray:
+    """A prism of length 2 along unit ``axis`` whose cross-section is a regular ``n``-gon of
+    radius 0.3, turned by ``roll`` about the axis (a knob, a cap, a nail)."""
+    a = axis / np.linalg.norm(axis)
+    u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(a, u)
+    t = roll + 2 * np.pi * np.arange(n) / n
+    ring = 0.3 * (np.cos(t)[:, None] * u + np.sin(t)[:, None] * v)
+    return np.concatenate([ring - a, ring + a])
+
+
+def _quarter_turn_y(p: np.ndarray, q: int) -> np.ndarray:
+    """``(N, 3)`` turned ``q`` quarter turns about y, exactly: (x, y, z) -> (z, y, -x)."""
+    for _ in range(q):
+        p = np.stack([p[:, 2], p[:, 1], -p[:, 0]], axis=1)
+    return p
+
+
+@pytest.mark.parametrize("axis", [(0.0, 1e-3, 1.0), (1.0, 1e-3, 0.0), (0.0, 1.0, 0.0)])
+@pytest.mark.parametrize("n, roll", [(96, 0.3), (32, 0.77), (12, 0.1)])
+def test_round_parts_get_the_turned_box_when_turned(axis, n, roll):
+    """A round part's near-minimal boxes differ by a roll about its axis; the fit rolls into
+    world alignment and breaks ties by it, so the box of the part turned a quarter turn about
+    the vertical is the turned box (issue 36's rotation criterion), and a fine polygon's box
+    is world-aligned."""
+    pts = _round_prism(np.asarray(axis), n, roll)
+    b0 = fit_obb(pts)
+    if n >= 32:
+        assert np.abs(b0.axes).max(axis=1).sum() > 3 - 1e-5, b0.axes  # up to the 1e-3 tilt
+    for q in (1, 2, 3):
+        b = fit_obb(_quarter_turn_y(pts, q))
+        _check_canonical(b)
+        turned = _quarter_turn_y(b0.axes, q)
+        for k in range(3):  # every row parallel to a turned row of the same half-extent
+            assert any(abs(b.half_extents[k] - b0.half_extents[m]) < 1e-9
+                       and abs(turned[m] @ b.axes[k]) > 1 - 1e-9 for m in range(3)), (q, k, b.axes, turned)

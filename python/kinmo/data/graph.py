@@ -25,7 +25,9 @@ from kinmo.io import atomic_path
 
 #: Bump when the layout or the computation of cached graphs changes: older caches are redone.
 #: 2: ``meta["checksum"]`` (:func:`arrays_checksum`) in every cached graph.
-CACHE_VERSION = 2
+#: 3: OBBs of symmetric parts rolled into world alignment, ties decided the same way in every
+#: quarter turn (:func:`kinmo.geometry.fit_obb`, issue 36's rotation criterion).
+CACHE_VERSION = 3
 
 _OPTIONAL = ("edge_fine", "edge_axis_origin", "edge_axis_direction", "edge_link", "node_link")
 

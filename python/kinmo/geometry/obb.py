@@ -27,10 +27,20 @@ Algorithm
    competitor has an axis exactly along ``up`` (``|axis . up| >= 1 - 1e-12``), only those
    stay. Of the (at most 8) smallest remaining, the winner minimises
    ``E_sym + (V / V* - 1)``, where ``E_sym`` is the mean, over the box's three mid-planes,
-   of the mean nearest-neighbour distance from the reflected points (an order-independent
-   subsample of at most 256) to the points, divided by the box diagonal. With
-   ``symmetry=False`` the smallest remaining volume wins. As ``V*`` is never above
-   trimesh's volume, the result is at most ``1 + volume_tolerance`` times trimesh's.
+   of the mean nearest-neighbour distance from the reflected points (a subsample of about
+   256, independent of the point order and of quarter turns about the world axes) to the
+   points, divided by the box diagonal; scores within ``1e-9`` of the lowest are ties, won
+   by the frame most aligned with the world axes. With ``symmetry=False`` the smallest
+   remaining volume wins. The winner is then *rolled* about one of its axes until another
+   axis is a world axis, when that is more world-aligned and still near-minimal (round
+   parts: knobs, caps, a nail lying on its side). As ``V*`` is never above trimesh's
+   volume, the result is at most ``1 + volume_tolerance`` times trimesh's.
+
+   Ties, roll and subsample make the box of a set turned a quarter turn about a world axis
+   the turned box (issue 36's rotation criterion: before, a round part's box was rolled by
+   another angle in each turn of the asset, and the motion GNN answered differently). A
+   part whose own symmetry maps it onto its mirror image can still tie between the two
+   mirror-image boxes.
 4. *Flat* sets (smallest box thinner than ``1e-4`` of its longest side, e.g. panels whose
    thickness is rounding noise of the OBJ coordinates) keep the normal of the smallest box
    and choose the in-plane rectangle (minimum-area, 2D PCA, or ``up`` projected on the

@@ -48,10 +48,23 @@
 //!      frames are never merged with tilted ones as duplicates);
 //!    * *symmetry*: of the (at most 8) smallest remaining candidates, the winner minimises
 //!      `E_sym + (V / V* - 1)`, where `E_sym` is the mean over the box's three mid-planes
-//!      of the mean nearest-neighbour distance of the reflected points (at most 256, an
-//!      order-independent subsample) to the points, divided by the box diagonal
-//!      (module `symmetry`). The volume excess breaks near-ties in favour of the tighter box.
-//!      With `symmetry = false` the smallest remaining volume wins.
+//!      of the mean nearest-neighbour distance of the reflected points (about 256, a
+//!      subsample independent of the point order and of quarter turns about the world
+//!      axes) to the points, divided by the box diagonal (module `symmetry`). The volume
+//!      excess breaks near-ties in favour of the tighter box. Scores within `1e-9` of the
+//!      lowest (boxes that differ by a symmetry of the part) are ties, won by the frame
+//!      most aligned with the world axes. With `symmetry = false` the smallest remaining
+//!      volume wins;
+//!    * *roll into world alignment*: the winner is turned about one of its axes until
+//!      another axis is a world axis, when that is more world-aligned and still
+//!      near-minimal (a round part: a knob, a cap, a nail lying on its side; a planar set
+//!      turns about its normal only).
+//!
+//!    The ties, the roll and the subsample make the box of a set turned a quarter turn about
+//!    a world axis the turned box, for round parts as for others (issue 36's rotation
+//!    criterion: before, the candidate set and rounding rolled a round part's box by
+//!    another angle in each turn of the asset). A part that its own symmetry maps onto its
+//!    mirror image can still tie between mirror-image boxes.
 //! 5. **Extents** are taken over *all* input points along the chosen axes, so every point is
 //!    inside the box up to rounding.
 //! 6. **Canonical frame** ([`canonicalize`]): rows sorted by half-extent, largest first; a
@@ -253,6 +266,12 @@ const UP_EXACT: f64 = 1e-12;
 pub const FLAT: f64 = 1e-4;
 /// Relative half-extent tie of the canonical order.
 const CANON_TIE: f64 = 1e-6;
+/// Selection scores (`E_sym + V / V* - 1`, dimensionless) within this of the lowest are
+/// ties, decided by world alignment ([`tie_break`]): rounding-level, so only boxes that are
+/// the same up to a symmetry of the part tie.
+const SCORE_TIE: f64 = 1e-9;
+/// World alignments within this of each other are equal ([`tie_break`]).
+const ALIGN_TIE: f64 = 1e-9;
 
 /// Validate `points` (named `what` in errors), then run the module's algorithm.
 fn fit_impl(points: &[Point3<f64>], params: &ObbParams, what: &str) -> Result<Obb> {
@@ -714,7 +733,7 @@ fn solid_frame(
         }
     }
     let centered: Vec<Point3<f64>> = pts.iter().map(|p| p - o).collect();
-    select(cands, &measure, &hv, &centered, up, true, params)
+    select(cands, &measure, &hv, pts, &centered, up, true, params)
 }
 
 /// Candidate frames of a (nearly) planar set of unit normal `m` and the selected one; the
@@ -747,7 +766,7 @@ fn planar_frame(
         });
     }
     // No snapping: it could tilt the plane normal, along which the extent is zeroed.
-    select(cands, &area, &local, &local, up, false, params)
+    select(cands, &area, &local, pts, &local, up, false, params)
 }
 
 /// `n` signed so that its largest-magnitude component is positive (ties: y, x, z).
@@ -771,10 +790,12 @@ fn dominant_axis(n: &Vector3<f64>) -> usize {
 }
 
 /// The selection rule of the module documentation (step 3).
+#[allow(clippy::too_many_arguments)]
 fn select(
     cands: Vec<Cand>,
     measure: &dyn Fn(&Frame) -> f64,
     hv: &[Point3<f64>],
+    raw: &[Point3<f64>],
     pts: &[Point3<f64>],
     up: Option<Vector3<f64>>,
     snap: bool,
@@ -835,11 +856,14 @@ fn select(
     }
     near.sort_by(|a, b| a.measure.total_cmp(&b.measure));
     near.truncate(MAX_NEAR_MINIMAL);
+    // a planar set's frames keep their last row, the plane normal
+    let roll_axes: &[usize] = if snap { &[0, 1, 2] } else { &[2] };
     if near.len() <= 1 || !params.symmetry || params.symmetry_samples == 0 {
-        return near.first().map_or(best.frame, |c| c.frame);
+        let w = near.first().map_or(best.frame, |c| c.frame);
+        return roll_to_world(w, roll_axes, measure, limit);
     }
-    let tree = symmetry::KdTree::new(symmetry::subsample(pts, params.symmetry_samples));
-    let mut winner = (f64::INFINITY, best.frame);
+    let tree = symmetry::KdTree::new(symmetry::subsample(raw, pts, params.symmetry_samples));
+    let mut scored: Vec<(f64, Frame)> = Vec::with_capacity(near.len());
     for c in &near {
         let s = spans(&c.frame, hv);
         let mid = (0..3).fold(Vector3::zeros(), |acc, k| {
@@ -856,12 +880,91 @@ fn select(
         } else {
             0.0
         };
-        let score = e + excess;
-        if score < winner.0 {
-            winner = (score, c.frame);
+        scored.push((e + excess, c.frame));
+    }
+    roll_to_world(
+        tie_break(&scored).unwrap_or(best.frame),
+        roll_axes,
+        measure,
+        limit,
+    )
+}
+
+/// The lowest-scoring frame; scores within [`SCORE_TIE`] of the lowest are ties, won by the
+/// most world-aligned frame ([`world_alignment`]; then the lower score, then the earlier).
+///
+/// The boxes of a symmetric part that differ by one of its symmetries (a regular 12-gon
+/// prism's flush boxes every 30 degrees) score the same up to rounding, and the candidate
+/// order would decide; world alignment decides the same way for the part turned a quarter
+/// turn about a world axis.
+fn tie_break(scored: &[(f64, Frame)]) -> Option<Frame> {
+    let low = scored.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+    let mut winner: Option<(f64, f64, Frame)> = None;
+    for &(score, frame) in scored.iter().filter(|s| s.0 <= low + SCORE_TIE) {
+        let a = world_alignment(&frame);
+        let better = winner
+            .is_none_or(|(wa, ws, _)| a > wa + ALIGN_TIE || (a >= wa - ALIGN_TIE && score < ws));
+        if better {
+            winner = Some((a, score, frame));
         }
     }
-    winner.1
+    winner.map(|w| w.2).or_else(|| scored.first().map(|s| s.1))
+}
+
+/// The selected frame rolled about one of its axes into the most world-aligned frame that
+/// is still near-minimal (`measure <= limit`), or the frame itself.
+///
+/// A rotationally symmetric part (a round knob, a cylinder lying on its side) has
+/// near-minimal boxes at every roll about its symmetry axis, and the candidate set (e.g.
+/// PCA's eigenvectors of a degenerate covariance) and rounding decide among them: the same
+/// part turned a quarter turn got a box rolled by another angle (issue 36's rotation
+/// criterion). For each allowed axis `a_k`, the other two rows are turned about `a_k` until
+/// one of them is the world axis with the largest component normal to `a_k` (ties: `y`,
+/// `x`, `z`); the roll with the largest [`world_alignment`] wins if it beats the frame's.
+/// Rolling a box of a symmetric part into world alignment gives the same box whatever roll
+/// it started from, and world alignment is unchanged by quarter turns about the world axes.
+fn roll_to_world(w: Frame, axes: &[usize], measure: &dyn Fn(&Frame) -> f64, limit: f64) -> Frame {
+    let mut best = (world_alignment(&w), w);
+    for &k in axes {
+        let a = w[k];
+        let mut pick: Option<(f64, Vector3<f64>)> = None;
+        for j in [1usize, 0, 2] {
+            let p = Vector3::ith(j, 1.0) - a * a[j];
+            let n = p.norm();
+            if n > 1e-6 && pick.is_none_or(|(m, _)| n > m + 1e-12) {
+                pick = Some((n, p / n));
+            }
+        }
+        let Some((_, e)) = pick else {
+            continue;
+        };
+        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+        let (u, v) = if w[i].dot(&e).abs() >= w[j].dot(&e).abs() {
+            (i, j)
+        } else {
+            (j, i)
+        };
+        let mut f = w;
+        f[u] = if w[u].dot(&e) < 0.0 { -e } else { e };
+        f[v] = a.cross(&f[u]);
+        if w[v].dot(&f[v]) < 0.0 {
+            f[v] = -f[v];
+        }
+        let score = world_alignment(&f);
+        if score > best.0 + 1e-9 && measure(&f) <= limit {
+            best = (score, f);
+        }
+    }
+    best.1
+}
+
+/// How closely a frame's rows follow the world axes: the sum of each row's largest
+/// absolute component, `3` for an axis-aligned frame. Unchanged by signed permutations of
+/// the world axes (quarter turns about them).
+fn world_alignment(f: &Frame) -> f64 {
+    f.iter()
+        .map(|a| a.x.abs().max(a.y.abs()).max(a.z.abs()))
+        .sum()
 }
 
 /// Extents over all `points` along `frame`, then the canonical order and signs.

@@ -55,21 +55,31 @@ impl KdTree {
     }
 }
 
-/// At most `max` points of `pts`, chosen independently of their order: those with the
-/// smallest hash of their coordinate bits (ties, i.e. duplicates, are interchangeable).
-pub(crate) fn subsample(pts: &[Point3<f64>], max: usize) -> Vec<Point3<f64>> {
+/// At most about `max` points of `pts`, chosen independently of their order and of the
+/// frame's quarter turns: point `i` is keyed by a hash of the sorted absolute coordinates of
+/// `keys[i]` (the input point before centring), and the points whose key is among the `max`
+/// smallest are kept, with every point tied with the last one (mirror images share a key),
+/// so the same points are kept for the set turned by quarter turns about the world axes or
+/// mirrored through them. `keys` and `pts` have the same length.
+pub(crate) fn subsample(keys: &[Point3<f64>], pts: &[Point3<f64>], max: usize) -> Vec<Point3<f64>> {
+    debug_assert_eq!(keys.len(), pts.len());
     if pts.len() <= max {
         return pts.to_vec();
     }
     if max == 0 {
         return Vec::new();
     }
-    let hash = |p: &Point3<f64>| mix(mix(mix(p.x.to_bits()) ^ p.y.to_bits()) ^ p.z.to_bits());
-    let mut keyed: Vec<(u64, Point3<f64>)> = pts.iter().map(|p| (hash(p), *p)).collect();
+    let hash = |p: &Point3<f64>| {
+        let mut c = [p.x.abs(), p.y.abs(), p.z.abs()];
+        c.sort_by(f64::total_cmp);
+        mix(mix(mix(c[0].to_bits()) ^ c[1].to_bits()) ^ c[2].to_bits())
+    };
+    let mut keyed: Vec<(u64, usize)> = keys.iter().enumerate().map(|(i, p)| (hash(p), i)).collect();
     keyed.select_nth_unstable_by_key(max - 1, |k| k.0);
-    keyed.truncate(max);
-    keyed.sort_unstable_by_key(|k| k.0);
-    keyed.into_iter().map(|k| k.1).collect()
+    let last = keyed[max - 1].0;
+    let mut kept: Vec<(u64, usize)> = keyed.into_iter().filter(|k| k.0 <= last).collect();
+    kept.sort_unstable();
+    kept.into_iter().map(|(_, i)| pts[i]).collect()
 }
 
 /// Mean (over the three mid-planes of the frame) of the mean nearest-neighbour distance
@@ -161,8 +171,31 @@ mod tests {
             .collect();
         let mut rev = pts.clone();
         rev.reverse();
-        let a = subsample(&pts, 64);
+        let a = subsample(&pts, &pts, 64);
         assert_eq!(a.len(), 64);
-        assert_eq!(a, subsample(&rev, 64));
+        let mut b = subsample(&rev, &rev, 64);
+        let key = |p: &Point3<f64>| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+        let mut a = a;
+        a.sort_by_key(key);
+        b.sort_by_key(key);
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn subsample_commutes_with_quarter_turns() {
+        let mut s = 5;
+        let pts: Vec<Point3<f64>> = (0..1000)
+            .map(|_| Point3::new(lcg(&mut s) - 0.3, lcg(&mut s), lcg(&mut s) - 0.6))
+            .collect();
+        // a quarter turn about y, exactly: (x, y, z) -> (z, y, -x)
+        let turn = |p: &Point3<f64>| Point3::new(p.z, p.y, -p.x);
+        let turned: Vec<Point3<f64>> = pts.iter().map(turn).collect();
+        let key = |p: &Point3<f64>| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+        let mut a: Vec<Point3<f64>> = subsample(&pts, &pts, 64).iter().map(turn).collect();
+        let mut b = subsample(&turned, &turned, 64);
+        assert!(a.len() >= 64);
+        a.sort_by_key(key);
+        b.sort_by_key(key);
+        assert_eq!(a, b);
     }
 }

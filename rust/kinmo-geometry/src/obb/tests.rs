@@ -471,3 +471,92 @@ fn coplanar_nearly_collinear_points_get_a_thin_box() {
         b.half_extents
     );
 }
+
+/// A prism of length 2 along `axis` (unit) whose cross-section is a regular `n`-gon of
+/// radius 0.3, turned by `roll` about `axis`: a round part such as a knob, a cap or a nail.
+fn round_prism(axis: Vector3<f64>, n: usize, roll: f64) -> Vec<Point3<f64>> {
+    let a = axis.normalize();
+    let (u, v) = plane_basis(&a);
+    let mut pts = Vec::new();
+    for i in 0..n {
+        let t = roll + 2.0 * std::f64::consts::PI * i as f64 / n as f64;
+        let r = (u * t.cos() + v * t.sin()) * 0.3;
+        for s in [-1.0, 1.0] {
+            pts.push(Point3::from(r + a * s));
+        }
+    }
+    pts
+}
+
+/// `p` turned `q` quarter turns about the world axis `k`, exactly (coordinates permuted and
+/// negated, no rounding).
+fn quarter_turned(p: &Point3<f64>, k: usize, q: usize) -> Point3<f64> {
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let mut c = p.coords;
+    for _ in 0..q {
+        let (ci, cj) = (c[i], c[j]);
+        c[i] = -cj;
+        c[j] = ci;
+    }
+    Point3::from(c)
+}
+
+#[test]
+fn round_part_is_rolled_into_world_alignment() {
+    // lying along z and along x, standing along y, each at several rolls: the near-minimal
+    // boxes of every roll compete, and the world-aligned one is chosen
+    for axis in [Vector3::z(), Vector3::x(), Vector3::y()] {
+        for roll in [0.0, 0.3, 0.77, 1.1] {
+            let pts = round_prism(axis, 96, roll);
+            let b = fit_obb(&pts).unwrap();
+            let rows: Frame = [0, 1, 2].map(|k| b.axes.row(k).transpose());
+            assert!(
+                world_alignment(&rows) > 3.0 - 1e-9,
+                "axis {axis:?}, roll {roll}: box not world-aligned: {}",
+                b.axes
+            );
+            assert_frame(&b);
+            assert_contains(&b, &pts);
+        }
+    }
+}
+
+#[test]
+fn quarter_turns_about_world_axes_turn_the_box() {
+    // Round parts slightly tilted (as a nail of a MuJoCo model, 0.001 off horizontal): the
+    // box of the turned points is the turned box, so a quarter turn of an asset changes
+    // no part's box (issue 36's rotation criterion).
+    let tilted = |d: Vector3<f64>| (d + Vector3::new(0.0, 1e-3, 0.0)).normalize();
+    for axis in [tilted(Vector3::z()), tilted(Vector3::x()), Vector3::y()] {
+        for (n, roll) in [(96, 0.3), (32, 0.77), (12, 0.1)] {
+            let pts = round_prism(axis, n, roll);
+            let b0 = fit_obb(&pts).unwrap();
+            for q in 1..4 {
+                let turned: Vec<Point3<f64>> =
+                    pts.iter().map(|p| quarter_turned(p, 1, q)).collect();
+                let b = fit_obb(&turned).unwrap();
+                assert!(
+                    (b.half_extents - b0.half_extents).abs().max() < 1e-9,
+                    "n {n}, turn {q}: extents {} vs {}",
+                    b.half_extents,
+                    b0.half_extents
+                );
+                // the same box: every row parallel to a turned row of equal half-extent
+                // (tied rows may come in another order)
+                for k in 0..3 {
+                    let got = b.axes.row(k).transpose();
+                    let found = (0..3).any(|m| {
+                        let r0 = Point3::from(b0.axes.row(m).transpose());
+                        (b.half_extents[k] - b0.half_extents[m]).abs() < 1e-9
+                            && got.dot(&quarter_turned(&r0, 1, q).coords).abs() > 1.0 - 1e-9
+                    });
+                    assert!(
+                        found,
+                        "n {n}, turn {q}, row {k}: {got:?} is no turned row of {}",
+                        b0.axes
+                    );
+                }
+            }
+        }
+    }
+}
