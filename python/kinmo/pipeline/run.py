@@ -17,6 +17,7 @@ from kinmo.ancsh.generated import can_generate
 from kinmo.ancsh.structure import structure_slug
 from kinmo.ancsh.train import train_ancsh
 from kinmo.data.cache import load_cache
+from kinmo.data.graph import CACHE_VERSION
 from kinmo.data.readers import find_shapes
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.evaluate.pre_segmented import run_evaluation
@@ -419,6 +420,9 @@ class _Context:
         log = console.print
         out = v.out
         base = {"seed": cfg.seed, "preset": cfg.preset, **v.key}
+        # the stages that learn from the part graphs are redone when their computation changes
+        # (CACHE_VERSION: e.g. the OBB fit of issue 36), not only the caches
+        gbase = {**base, "graphs": CACHE_VERSION}
         # the training graphs, loaded once and only if a stage runs (several caches: concatenated)
         graphs = functools.cache(functools.partial(_graphs, v.graphs))
         split_file = v.split
@@ -437,7 +441,7 @@ class _Context:
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
                               **({} if cfg.augment_gnn and types == "fine" else NO_AUGMENTATIONS))
             trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, split_file,
-                                       {**base, "gnn": gcfg.model_dump(), **_members_key(cfg)}, v.graphs,
+                                       {**gbase, "gnn": gcfg.model_dump(), **_members_key(cfg)}, v.graphs,
                                        cfg.gnn_members))
             gnn_runs[types] = run_dir
         axis_dir = v.reuse.get("axis", out / "axis")
@@ -445,18 +449,18 @@ class _Context:
             acfg = axis_preset(cfg.preset, **({"epochs": cfg.axis_epochs} if cfg.axis_epochs else {}),
                                seed=cfg.seed)
             trainings.append(_Training(f"{v.prefix}train axis", "axis", axis_dir, acfg, split_file,
-                                       {**base, "axis": acfg.model_dump()}, v.graphs))
-        self.train_models(v, base, trainings, graphs)
+                                       {**gbase, "axis": acfg.model_dump()}, v.graphs))
+        self.train_models(v, gbase, trainings, graphs)
         res.stages[f"{v.prefix}gnn"] = [str(p) for p in gnn_runs.values()]
         if cfg.refine:
             res.stages[f"{v.prefix}axis"] = [str(axis_dir)]
             res.selector = cfg.selector
 
         # 5. the learned candidate selector (kinmo extension)
-        ranker = self.ranker(v, base)
+        ranker = self.ranker(v, gbase)
 
         # 5a. the range-of-motion prior (issue 35): learned ranges, clipped by a sweep at prediction
-        ranges = self.range_prior(v, base, graphs, split_file)
+        ranges = self.range_prior(v, gbase, graphs, split_file)
         refine = (RefineConfig(selector="ranker", ranker=str(ranker), ranges=str(ranges)) if ranker is not None
                   else RefineConfig(ranges=str(ranges)))
 
@@ -666,7 +670,7 @@ class _Context:
         split_file = vout / "split.json"
         Split(sorted(cats), [], cats, cfg.seed, 0.0).save(split_file)
         base = {"seed": cfg.seed, "preset": cfg.preset,
-                "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16]}
+                "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16], "graphs": CACHE_VERSION}
         # the fine GNN (the bundle's), the coarse GNN (its check/: pseudo-labelling with the
         # bundle requires it to agree, issue 34) and the axis network: independent trainings,
         # -j N at a time (train_models), each as the baseline trains it
