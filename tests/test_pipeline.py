@@ -187,14 +187,16 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium, monkeypatc
     assert "include 2 generated objects" in (run / "report/report.md").read_text()
 
     # the part graphs computed another way (CACHE_VERSION, e.g. issue 36's OBB fit): the
-    # stages that learn from them train again, though their configuration is unchanged; the
-    # ANCSH supervised run, which reads meshes and not graphs, stays
+    # caches are prepared again and the stages that learn from them train again, though
+    # their configuration is unchanged; the ANCSH supervised run, which reads meshes and not
+    # graphs, stays
     import kinmo.pipeline.run as pipeline_run
 
     monkeypatch.setattr(pipeline_run, "CACHE_VERSION", pipeline_run.CACHE_VERSION + 1)
     res7 = run_pipeline(cfg.model_copy(update={"ancsh_synth": 2, "ancsh_synth_as": "pretrain"}), progress=False)
     ran = {k for k, t in res7.timings.items() if t.ran}
-    assert {"train gnn (fine)", "train gnn (coarse)", "train axis", "fit range prior"} <= ran, ran
+    assert {"prepare labelled", "prepare unlabelled", "train gnn (fine)", "train gnn (coarse)", "train axis",
+            "fit range prior"} <= ran, ran
     assert any(k.startswith("train ranker") for k in ran), ran
     assert "train ancsh Laptop (supervised)" not in ran, ran
 

@@ -196,7 +196,10 @@ class _Context:
         return _stage(folder, key, run, self.console.print, name, self.clock, after=after)
 
     def prepare(self, src: Path, cache: Path, prep: Any, name: str) -> None:
-        self.stage(cache, {"src": str(src), **dataclasses.asdict(prep)}, lambda: prepare_dataset(
+        # CACHE_VERSION in the key: graphs computed another way (issue 36's OBB fit) are redone
+        # in a run folder made before, as by `kinmo prepare`
+        self.stage(cache, {"src": str(src), **dataclasses.asdict(prep), "cache_version": CACHE_VERSION},
+                   lambda: prepare_dataset(
             src, cache, prep, workers=self.cfg.workers, progress=self.progress), name)
 
     def split(self) -> tuple[Path, str]:

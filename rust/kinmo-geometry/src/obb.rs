@@ -270,7 +270,7 @@ const CANON_TIE: f64 = 1e-6;
 /// ties, decided by world alignment ([`tie_break`]): rounding-level, so only boxes that are
 /// the same up to a symmetry of the part tie.
 const SCORE_TIE: f64 = 1e-9;
-/// World alignments within this of each other are equal ([`tie_break`]).
+/// World alignments within this of each other are equal ([`tie_break`], [`roll_to_world`]).
 const ALIGN_TIE: f64 = 1e-9;
 
 /// Validate `points` (named `what` in errors), then run the module's algorithm.
@@ -892,6 +892,7 @@ fn select(
 
 /// The lowest-scoring frame; scores within [`SCORE_TIE`] of the lowest are ties, won by the
 /// most world-aligned frame ([`world_alignment`]; then the lower score, then the earlier).
+/// None when there is no score that is a number.
 ///
 /// The boxes of a symmetric part that differ by one of its symmetries (a regular 12-gon
 /// prism's flush boxes every 30 degrees) score the same up to rounding, and the candidate
@@ -908,7 +909,7 @@ fn tie_break(scored: &[(f64, Frame)]) -> Option<Frame> {
             winner = Some((a, score, frame));
         }
     }
-    winner.map(|w| w.2).or_else(|| scored.first().map(|s| s.1))
+    winner.map(|w| w.2)
 }
 
 /// The selected frame rolled about one of its axes into the most world-aligned frame that
@@ -951,7 +952,7 @@ fn roll_to_world(w: Frame, axes: &[usize], measure: &dyn Fn(&Frame) -> f64, limi
             f[v] = -f[v];
         }
         let score = world_alignment(&f);
-        if score > best.0 + 1e-9 && measure(&f) <= limit {
+        if score > best.0 + ALIGN_TIE && measure(&f) <= limit {
             best = (score, f);
         }
     }

@@ -171,11 +171,10 @@ mod tests {
             .collect();
         let mut rev = pts.clone();
         rev.reverse();
-        let a = subsample(&pts, &pts, 64);
+        let mut a = subsample(&pts, &pts, 64);
         assert_eq!(a.len(), 64);
         let mut b = subsample(&rev, &rev, 64);
         let key = |p: &Point3<f64>| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
-        let mut a = a;
         a.sort_by_key(key);
         b.sort_by_key(key);
         assert_eq!(a, b);
