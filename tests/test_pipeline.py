@@ -197,7 +197,11 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium, monkeypatc
     ran = {k for k, t in res7.timings.items() if t.ran}
     assert {"prepare labelled", "prepare unlabelled", "train gnn (fine)", "train gnn (coarse)", "train axis",
             "fit range prior"} <= ran, ran
-    assert any(k.startswith("train ranker") for k in ran), ran
+    assert "train ranker" in ran, ran
+    # and the ranker's fold GNNs, every one (their folds.json names the graphs' version)
+    folds = {f"train ranker: fold GNN {d.name}" for d in (run / "ranker/folds").iterdir()}
+    assert folds and folds <= ran, ran
+    assert json.loads((run / "ranker/folds.json").read_text())["graphs"] == pipeline_run.CACHE_VERSION
     assert "train ancsh Laptop (supervised)" not in ran, ran
 
 

@@ -883,10 +883,13 @@ def _members_key(cfg: PipelineConfig) -> dict[str, Any]:
 
 
 def _fold_stamp(cfg: PipelineConfig) -> dict[str, Any]:
-    """The ranker's fold GNNs' configurations by type set, as JSON values."""
+    """The ranker's fold GNNs' configurations by type set, as JSON values, and the part graphs'
+    ``CACHE_VERSION`` under ``"graphs"``: fold GNNs trained on graphs computed another way (issue
+    36's OBB fit) are stale like the motion GNNs (:meth:`_Context.models_and_tables`)."""
     configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
                               augment=cfg.augment_gnn) for t in RANKER_TYPES}
-    return json.loads(json.dumps({t: c.model_dump(mode="json") for t, c in configs.items()}))
+    stamp = {"graphs": CACHE_VERSION, **{t: c.model_dump(mode="json") for t, c in configs.items()}}
+    return json.loads(json.dumps(stamp))
 
 
 def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path) -> None:
