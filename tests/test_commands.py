@@ -164,3 +164,30 @@ def test_split_by_structure_gives_refrigerator_a_model(mobility_root, tmp_path):
     assert "Refrigerator" in plan and "Refrigerator" not in skipped
     assert all(len(g.train) >= 2 and g.test for gs in plan.values() for g in gs)
     assert all("fit" in why or "no object" in why for why in skipped.values())
+
+
+def test_train_all_release_synth_reaches_the_pipeline(tmp_path, monkeypatch):
+    """``--release-synth N`` sets the release fine GNN's generated objects; without it, the
+    configuration's default (RELEASE_SYNTH)."""
+    import kinmo.pipeline
+    from kinmo.pipeline.config import RELEASE_SYNTH
+
+    seen = []
+
+    class _Res:
+        report = tmp_path / "report"
+
+    def fake_run(cfg, console=None):
+        seen.append(cfg)
+        return _Res()
+
+    monkeypatch.setattr(kinmo.pipeline, "run_pipeline", fake_run)
+    (tmp_path / "pm").mkdir()
+    base = ["train", "all", "--labeled", str(tmp_path / "pm"), "--out", str(tmp_path / "run"), "--release"]
+    for extra, want in (([], RELEASE_SYNTH), (["--release-synth", "7"], 7), (["--release-synth", "0"], 0)):
+        res = CliRunner().invoke(app, base + extra)
+        assert res.exit_code == 0, res.output
+        assert seen[-1].release and seen[-1].release_synth == want
+    assert RELEASE_SYNTH > 0
+    res = CliRunner().invoke(app, base + ["--release-synth", "-1"])
+    assert res.exit_code == 2 and len(seen) == 3

@@ -111,10 +111,12 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium, monkeypatc
     from kinmo.pipeline import PipelineConfig, run_pipeline
 
     cfg = PipelineConfig.model_validate_json((run / "pipeline.json").read_text())
-    res3 = run_pipeline(cfg.model_copy(update={"release": True}), progress=False)
+    # (with 4 generated objects for its fine GNN, where the default is 120)
+    res3 = run_pipeline(cfg.model_copy(update={"release": True, "release_synth": 4}), progress=False)
     ran = {k for k, t in res3.timings.items() if t.ran and not k.startswith("release: train 3 models")}  # the pool
     assert ran == {
-        "release: prepare pseudo-labels", "release: train gnn (fine)", "release: train gnn (coarse)",
+        "release: prepare pseudo-labels", "release: generate", "release: prepare generated",
+        "release: train gnn (fine)", "release: train gnn (coarse)",
         "release: train axis", "release: fit range prior", "release: model bundle", "report"}
     rb = json.loads((run / "release/model/bundle.json").read_text())
     # its check/ is the release coarse GNN, so pseudo-labelling with the bundle needs agreement
@@ -122,9 +124,17 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium, monkeypatc
         run / "release/gnn_coarse/model.pt").read_bytes()
     assert json.loads((run / "release/gnn_coarse/config.json").read_text())["model"]["types"] == "coarse"
     pseudo_ids = {p.parent.name for p in (run / "pseudo").glob("*/mobility_v2.json")}
-    assert pseudo_ids and set(rb["trained_on"]) == set(split["train"]) | set(split["test"]) | pseudo_ids
+    real_ids = set(split["train"]) | set(split["test"]) | pseudo_ids
+    generated = {p.parent.name for p in (run / "release/generated").glob("*/mobility_v2.json")}
+    assert len(generated) == 4 and not generated & real_ids
+    assert pseudo_ids and set(rb["trained_on"]) == real_ids | generated
     assert (rb["selector"], rb["axis"], rb["ranges"]) == ("ranker", "axis", "ranges.json")
+    # the generated objects train the fine GNN only
     assert json.loads((run / "release/gnn_fine/split.json").read_text())["test"] == []
+    assert set(json.loads((run / "release/gnn_fine/split.json").read_text())["train"]) == real_ids | generated
+    assert set(json.loads((run / "release/gnn_coarse/split.json").read_text())["train"]) == real_ids
+    axis_split = json.loads((run / "release/axis/config.json").read_text())["split"]
+    assert not set(axis_split["train"] + axis_split["val"]) & generated
     # eval leaves a bundle's training objects out: here all of them, so it refuses in one line
     ev = runner.invoke(app, ["eval", "pre-segmented", "--model", str(run / "release/model"), "--data",
                              str(run / "cache/labeled"), "--out", str(tmp_path / "ev"), "--quiet"])

@@ -44,6 +44,8 @@ def train_all(
                                       "or paper (0.5/0.3/0.2): how refinement picks an axis."),
     gnn_members: int = typer.Option(0, "--gnn-members", min=0, max=16, help="Ensemble members of every motion GNN (seeds seed+1, ...): each GNN, the ranker's fold GNNs included, predicts as the average of 1 + N models (kinmo extension; N+1 times the GNN training time)."),
     release: bool = typer.Option(False, "--release", help="Also train the release bundle OUT/release/model: the fine GNN, the coarse GNN (its check/ for pseudo-labelling) and the axis network again on every labelled object and the kept pseudo-labels (the pretrained model's recipe)."),
+    release_synth: int | None = typer.Option(None, "--release-synth", min=0, max=100000, show_default=False,
+                                             help="With --release: N generated objects (kinmo synth, seed --synth-seed) added to the release fine GNN's training (default 120; 0: none)."),
 ) -> None:
     """Prepare, train the motion GNN, the axis network and the ranker, pseudo-label, render and train
     ANCSH in three settings, evaluate (Tables 1 and 2) and write the report.
@@ -60,7 +62,9 @@ def train_all(
     shapes" says whether they helped.
 
     With --release, the release bundle is trained after the baseline (nothing held out; the
-    baseline's Table 1 measures its recipe): what ships as kinmo's pretrained model."""
+    baseline's Table 1 measures its recipe): what ships as kinmo's pretrained model. Its fine
+    GNN also trains on --release-synth generated objects (default 120, kinmo synth of the
+    labelled categories it makes; docs/results/foreign_assets.md)."""
     from kinmo.progress import console as new_console
 
     from kinmo.cli._errors import cli_errors, fail
@@ -81,6 +85,7 @@ def train_all(
             ancsh_synth=ancsh_synth, ancsh_synth_as=ancsh_synth_as, workers=workers, skip_ancsh=skip_ancsh,
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
             selector=selector, release=release, gnn_members=gnn_members,
+            **({} if release_synth is None else {"release_synth": release_synth}),
             **(TINY if preset == "tiny" else {}),
         )
         res = run_pipeline(cfg, console=console)

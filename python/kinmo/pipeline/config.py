@@ -7,9 +7,14 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-__all__ = ["SETTINGS", "TINY", "PipelineConfig"]
+__all__ = ["RELEASE_SYNTH", "SETTINGS", "TINY", "PipelineConfig"]
 
 SETTINGS = ("supervised", "semi", "semi-weakly")
+
+
+#: ``kinmo train all --release``'s default ``--release-synth``: generated objects added to the
+#: release fine motion GNN's training (``docs/results/foreign_assets.md``, session 43).
+RELEASE_SYNTH = 120
 
 
 class PipelineConfig(BaseModel):
@@ -108,6 +113,12 @@ class PipelineConfig(BaseModel):
         the coarse GNN (the bundle's ``check/``) and the axis network again on every
         labelled object and the kept pseudo-labels, with the baseline's ranker (:meth:`kinmo.pipeline.run._Context.release`; the
         pretrained model of ``kinmo.pretrained`` is made so, issue 22).
+    release_synth : int
+        Generated objects (:func:`kinmo.synth.generate_dataset`, seed ``synth_seed`` or
+        ``seed + 500``, of the labelled categories :mod:`kinmo.synth` makes) added to the
+        release's fine motion GNN's training objects (issue 36: objects from elsewhere;
+        ``docs/results/foreign_assets.md``). The coarse GNN and the axis network train without
+        them. 0: none, as before. No effect without ``release``.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -141,6 +152,7 @@ class PipelineConfig(BaseModel):
     augment_gnn: bool = True
     gnn_members: int = Field(0, ge=0, le=16)
     release: bool = False
+    release_synth: int = Field(RELEASE_SYNTH, ge=0, le=100000)
 
     @model_validator(mode="after")
     def _check(self) -> PipelineConfig:

@@ -674,6 +674,21 @@ class _Context:
         Split(sorted(cats), [], cats, cfg.seed, 0.0).save(split_file)
         base = {"seed": cfg.seed, "preset": cfg.preset,
                 "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16], "graphs": CACHE_VERSION}
+        # generated objects for the fine GNN only (cfg.release_synth; issue 36): its own split,
+        # the real objects' plus theirs; the other trainings' split leaves them out
+        fine_split, fine_key = split_file, {}
+        generated = self.release_generated(vout, cache_l, prep) if cfg.release_synth > 0 else None
+        if generated is not None:
+            gcache, info = generated
+            gen = {g.shape_id: g.category for g in load_cache(gcache)}
+            both = {**cats, **gen}
+            if len(both) != len(cats) + len(gen):
+                raise KinmoDataError(gcache, "a generated shape id is also a labelled or pseudo-labelled one")
+            fine_split = vout / "split_fine.json"
+            Split(sorted(both), [], both, cfg.seed, 0.0).save(fine_split)
+            caches.append(gcache)
+            graphs = functools.cache(functools.partial(_graphs, list(caches)))
+            fine_key = {"synth": info, "fine_split": hashlib.sha256(fine_split.read_bytes()).hexdigest()[:16]}
         # the fine GNN (the bundle's), the coarse GNN (its check/: pseudo-labelling with the
         # bundle requires it to agree, issue 34) and the axis network: independent trainings,
         # -j N at a time (train_models), each as the baseline trains it
@@ -681,8 +696,10 @@ class _Context:
         for types in ("fine", "coarse"):
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
                               **({} if cfg.augment_gnn and types == "fine" else NO_AUGMENTATIONS))
+            fine = types == "fine"
             trainings.append(_Training(f"release: train gnn ({types})", "gnn", vout / f"gnn_{types}", gcfg,
-                                       split_file, {**base, "gnn": gcfg.model_dump(), **_members_key(cfg)},
+                                       fine_split if fine else split_file,
+                                       {**base, "gnn": gcfg.model_dump(), **_members_key(cfg), **(fine_key if fine else {})},
                                        caches, cfg.gnn_members))
         gnn_dir, check_dir = trainings[0].folder, trainings[1].folder
         axis_dir = None
@@ -698,8 +715,35 @@ class _Context:
         self.train_models(v, base, trainings, graphs)
         ranker = cfg.out / "ranker" / "ranker.json"
         ranges = self.range_prior(v, base, lambda: cache_l, split_file)  # labelled objects only
-        return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, split_file,
+        return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, fine_split,
                            ranges, check_dir)
+
+    def release_generated(self, vout: Path, cache_l: Path, prep: Any) -> tuple[Path, dict[str, Any]] | None:
+        """Generate and prepare the release's ``cfg.release_synth`` objects (of the labelled
+        categories :mod:`kinmo.synth` makes, seed ``cfg.synth_seed`` or ``cfg.seed + 500``) into
+        ``vout/generated/`` and ``vout/cache/generated/``.
+
+        Returns
+        -------
+        (Path, dict) or None
+            The cache folder, and what was generated (the fine GNN's stage key); None, with
+            one log line, when no labelled category can be generated.
+        """
+        cfg = self.cfg
+        seed = cfg.synth_seed if cfg.synth_seed is not None else cfg.seed + 500
+        try:
+            cats = _synth_categories(cache_l)
+        except KinmoError:
+            self.console.print("[dim]release: kinmo synth makes none of the labelled categories; the fine GNN "
+                               "trains without generated objects[/]", highlight=False)
+            return None
+        info = {"n": cfg.release_synth, "seed": seed, "categories": cats, "synth_version": SYNTH_VERSION}
+        gen = vout / "generated"
+        self.stage(gen, info, lambda: generate_dataset(gen, cfg.release_synth, seed, categories=cats,
+                                                       progress=self.progress), "release: generate")
+        gcache = vout / "cache" / "generated"
+        self.prepare(gen, gcache, prep, "release: prepare generated")
+        return gcache, info
 
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
@@ -792,7 +836,13 @@ class _Training:
         """Train (``console`` and ``in_pool`` are not used: each is single-threaded already).
         A fold GNN of the ranker stage (``key`` None) is :func:`~kinmo.train.ranker.train_fold`."""
         if self.kind == "axis":
-            train_axis_model(self.graphs, self.folder, self.config, split=self.split, progress=progress)
+            graphs = self.graphs
+            if not isinstance(graphs, (str, Path)):
+                # the split's objects only: the release's generated objects train its fine GNN alone
+                sp = self.split if isinstance(self.split, Split) else Split.load(self.split)
+                ids = set(sp.train) | set(sp.test)
+                graphs = [g for g in graphs if g.shape_id in ids]
+            train_axis_model(graphs, self.folder, self.config, split=self.split, progress=progress)
         elif self.key is None:
             train_fold(self.graphs, self.folder, self.config, self.split, self.members, progress)
         else:
