@@ -53,15 +53,16 @@ def run_demo(
     :func:`run_pipeline` with the ``quick`` preset shortened for 2 CPU cores: motion GNNs 25
     epochs, axis network 8, ANCSH 40 epochs of 15 steps (+8 semi-supervised) on 12 scans per
     object, Table 1 renders for the gallery, and the report. The categories ANCSH trains on
-    are generated in one structure each (:data:`DEMO_STRUCTURES`). With the defaults: 776
-    CPU-seconds, 8 min 17 s wall on 2 idle cores, 1.50 GB peak memory (ranker stage and the
-    paper selector's Table 1 included); ANCSH's mean part rotation errors are 9.5–27.9° for
-    Laptop and Microwave and 32.0–38.8° for the two-door Refrigerator. (A one-door
-    refrigerator, a near-symmetric box, gave 60–80°; 3 scans per object and 240 steps gave
-    24–102° over the three categories.)
+    are generated in one structure each (:data:`DEMO_STRUCTURES`). With the defaults, on a
+    clean clone and 2 otherwise idle cores (session 43): ``total: 148.1 s wall, 262.9 s CPU``
+    (145.4 s in a second run), 1.31 GB peak resident memory of its largest process (ranker
+    stage and the paper selector's Table 1 included); ANCSH's mean part rotation errors are
+    11.6–25.3° for Laptop and Microwave and 32.6–35.6° for the two-door Refrigerator. (A
+    one-door refrigerator, a near-symmetric box, gave 60–80°; 3 scans per object and 240
+    steps gave 24–102° over the three categories.)
 
-    With the learned selector (the default) 7 of the 12 generated shapes reach the 0.6
-    calibrated confidence.
+    With the learned selector (the default) 4 of the 12 generated shapes reach the 0.6
+    calibrated confidence and become pseudo-labels.
 
     Parameters
     ----------
