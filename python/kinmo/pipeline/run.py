@@ -17,7 +17,7 @@ from kinmo.ancsh.generated import can_generate
 from kinmo.ancsh.structure import structure_slug
 from kinmo.ancsh.train import train_ancsh
 from kinmo.data.cache import load_cache
-from kinmo.data.graph import CACHE_VERSION
+from kinmo.data.graph import CACHE_VERSION, PartGraph
 from kinmo.data.readers import find_shapes
 from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.evaluate.pre_segmented import run_evaluation
@@ -663,9 +663,9 @@ class _Context:
             pcache = vout / "cache" / "pseudo"
             self.prepare(pseudo, pcache, prep, "release: prepare pseudo-labels")
             caches.append(pcache)
-        graphs = functools.cache(functools.partial(_graphs, caches))
+        real = _graphs(caches)  # loaded once: the splits below, then every training
         cats: dict[str, str] = {}
-        for g in graphs():
+        for g in real:
             if g.shape_id in cats:
                 raise KinmoDataError(pseudo, f"shape id {g.shape_id!r} is both labelled and pseudo-labelled")
             cats[g.shape_id] = g.category
@@ -676,19 +676,24 @@ class _Context:
                 "release": hashlib.sha256(split_file.read_bytes()).hexdigest()[:16], "graphs": CACHE_VERSION}
         # generated objects for the fine GNN only (cfg.release_synth; issue 36): its own split,
         # the real objects' plus theirs; the other trainings' split leaves them out
-        fine_split, fine_key = split_file, {}
+        fine_split, fine_key, trained = split_file, {}, real
         generated = self.release_generated(vout, cache_l, prep) if cfg.release_synth > 0 else None
         if generated is not None:
             gcache, info = generated
-            gen = {g.shape_id: g.category for g in load_cache(gcache)}
+            gen_graphs = list(load_cache(gcache))
+            gen = {g.shape_id: g.category for g in gen_graphs}
             both = {**cats, **gen}
             if len(both) != len(cats) + len(gen):
                 raise KinmoDataError(gcache, "a generated shape id is also a labelled or pseudo-labelled one")
             fine_split = vout / "split_fine.json"
             Split(sorted(both), [], both, cfg.seed, 0.0).save(fine_split)
             caches.append(gcache)
-            graphs = functools.cache(functools.partial(_graphs, list(caches)))
+            trained = real + gen_graphs
             fine_key = {"synth": info, "fine_split": hashlib.sha256(fine_split.read_bytes()).hexdigest()[:16]}
+
+        def graphs() -> list[PartGraph]:
+            return trained
+
         # the fine GNN (the bundle's), the coarse GNN (its check/: pseudo-labelling with the
         # bundle requires it to agree, issue 34) and the axis network: independent trainings,
         # -j N at a time (train_models), each as the baseline trains it
@@ -730,7 +735,7 @@ class _Context:
             one log line, when no labelled category can be generated.
         """
         cfg = self.cfg
-        seed = cfg.synth_seed if cfg.synth_seed is not None else cfg.seed + 500
+        seed = _synth_seed(cfg)
         try:
             cats = _synth_categories(cache_l)
         except KinmoError:
@@ -751,7 +756,7 @@ class _Context:
 
         cfg, res = self.cfg, self.res
         vout = cfg.out / f"synth-extra-{cfg.synth_as}-{cfg.synth_extra}"
-        seed = cfg.synth_seed if cfg.synth_seed is not None else cfg.seed + 500
+        seed = _synth_seed(cfg)
         labeled = cfg.synth_as == "labeled"
         info = {"n": cfg.synth_extra, "as": cfg.synth_as, "seed": seed, "categories": cats,
                 "synth_version": SYNTH_VERSION}
@@ -930,6 +935,12 @@ def _members_key(cfg: PipelineConfig) -> dict[str, Any]:
     """The stage-key entry of the motion GNNs' ensemble members: none for single models, so
     that runs without members keep their keys."""
     return {"gnn_members": cfg.gnn_members} if cfg.gnn_members else {}
+
+
+def _synth_seed(cfg: PipelineConfig) -> int:
+    """Seed of the generated objects (``--synth-extra`` and the release's ``--release-synth``):
+    ``cfg.synth_seed``, else ``cfg.seed + 500``."""
+    return cfg.synth_seed if cfg.synth_seed is not None else cfg.seed + 500
 
 
 def _fold_stamp(cfg: PipelineConfig) -> dict[str, Any]:
