@@ -191,3 +191,48 @@ def test_train_all_release_synth_reaches_the_pipeline(tmp_path, monkeypatch):
     assert RELEASE_SYNTH > 0
     res = CliRunner().invoke(app, base + ["--release-synth", "-1"])
     assert res.exit_code == 2 and len(seen) == 3
+
+
+def test_eval_oof_extra_reaches_the_evaluation(tmp_path, monkeypatch):
+    """``kinmo eval oof --extra CACHE`` passes the cache on (None without it)."""
+    import kinmo.evaluate.oof
+    from kinmo.evaluate.shape_metrics import EvalReport
+
+    seen = []
+
+    def fake(data, out, **kw):
+        seen.append(kw["extra"])
+        return kinmo.evaluate.oof.OOFResult(EvalReport([], [], {}, {}), None)
+
+    monkeypatch.setattr(kinmo.evaluate.oof, "oof_table1", fake)
+    base = ["eval", "oof", "--data", str(tmp_path / "c"), "--out", str(tmp_path / "o"), "-q"]
+    for more, want in (([], None), (["--extra", str(tmp_path / "gen")], tmp_path / "gen")):
+        res = CliRunner().invoke(app, base + more)
+        assert res.exit_code == 0, res.output
+        assert seen[-1] == want
+
+
+def test_train_all_train_synth_reaches_the_pipeline(tmp_path, monkeypatch):
+    """``--train-synth N`` sets the main run's generated training objects; without it, the
+    configuration's default (TRAIN_SYNTH)."""
+    import kinmo.pipeline
+    from kinmo.pipeline.config import TRAIN_SYNTH
+
+    seen = []
+
+    class _Res:
+        report = tmp_path / "report"
+
+    def fake_run(cfg, console=None):
+        seen.append(cfg)
+        return _Res()
+
+    monkeypatch.setattr(kinmo.pipeline, "run_pipeline", fake_run)
+    (tmp_path / "pm").mkdir()
+    base = ["train", "all", "--labeled", str(tmp_path / "pm"), "--out", str(tmp_path / "run")]
+    for extra, want in (([], TRAIN_SYNTH), (["--train-synth", "7"], 7), (["--train-synth", "0"], 0)):
+        res = CliRunner().invoke(app, base + extra)
+        assert res.exit_code == 0, res.output
+        assert seen[-1].train_synth == want
+    res = CliRunner().invoke(app, base + ["--train-synth", "-1"])
+    assert res.exit_code == 2 and len(seen) == 3

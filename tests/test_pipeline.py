@@ -226,3 +226,28 @@ def test_demo_passes_the_selector_to_the_pipeline(tmp_path, monkeypatch):
     demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False)
     assert seen["cfg"].selector == "learned"
 
+
+    # generated objects in the motion GNNs' and the ranker's fold GNNs' training (issue 34,
+    # --train-synth): their own split, the real test objects; the axis network and the range
+    # prior stay as they were
+    res8 = run_pipeline(cfg.model_copy(update={"ancsh_synth": 2, "ancsh_synth_as": "pretrain", "train_synth": 3,
+                                               "skip_ancsh": True}), progress=False)
+    ran = {k for k, t in res8.timings.items() if t.ran}
+    assert {"generate", "prepare generated", "train gnn (fine)", "train gnn (coarse)", "train ranker",
+            "model bundle", "eval pre-segmented (Table 1)", "pseudo-label"} <= ran, ran
+    assert not {"train axis", "fit range prior", "prepare labelled"} & ran, ran
+    gen = {p.parent.name for p in (run / "generated").glob("*/mobility_v2.json")}
+    assert len(gen) == 3 and not gen & (set(split["train"]) | set(split["test"]))
+    gsplit = json.loads((run / "split_gnn.json").read_text())
+    assert gsplit["train"] == sorted(split["train"] + list(gen)) and gsplit["test"] == split["test"]
+    for t in ("fine", "coarse"):
+        assert json.loads((run / f"gnn_{t}/split.json").read_text())["train"] == gsplit["train"]
+    for d in (run / "ranker/folds").iterdir():  # in every fold's training, never held out
+        fs = json.loads((d / "split.json").read_text())
+        assert gen <= set(fs["train"]) and set(fs["test"]) <= set(split["train"]), d.name
+    assert json.loads((run / "ranker/folds.json").read_text())["synth"]["n"] == 3
+    assert json.loads((run / "model/bundle.json").read_text())["trained_on"] == gsplit["train"]
+    with open(run / "eval/pre-segmented/shapes.csv") as f:
+        assert {r["shape_id"] for r in csv.DictReader(f)} == set(split["test"])
+    axis_split = json.loads((run / "axis/config.json").read_text())["split"]
+    assert not set(axis_split["train"] + axis_split["val"]) & gen

@@ -131,3 +131,52 @@ def test_a_fold_whose_selector_cannot_be_fit_is_one_clear_error(tmp_path, monkey
     monkeypatch.setattr(ranker, "fit_type_rankers", no_positive)
     with pytest.raises(KinmoDataError, match="fold 0: cannot fit the selector .* no group with a positive"):
         oof_table1(_graphs(), tmp_path, folds=3, preset="tiny", epochs=1, progress=False)
+
+
+def test_extra_objects_join_every_folds_training_and_are_never_evaluated(tmp_path):
+    graphs = _graphs()
+    extra = [cabinet_graph(n_points=32, seed=10 + s, jitter=0.15, shape_id=f"gen{s}") for s in range(3)]
+    for g in extra:
+        g.category = "A"
+    res = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False,
+                     pseudo_rule=False, extra=extra)
+    gen = {g.shape_id for g in extra}
+    for t in ("fine", "coarse"):
+        for f in range(3):
+            split = json.loads((tmp_path / "folds" / f"{t}_{f}" / "split.json").read_text())
+            assert gen <= set(split["train"]) and not gen & set(split["test"])
+    assert sorted(sum(_held_out(tmp_path, 3), [])) == sorted(g.shape_id for g in graphs)
+    for m in SETTINGS:  # only the real objects are scored
+        assert sorted(r.shape_id for r in res.report.shapes[m]) == sorted(g.shape_id for g in graphs)
+    # the range priors are fit on the other folds' real objects, not on the extra ones
+    for f, held in enumerate(_held_out(tmp_path, 3)):
+        prior = RangePrior.load(tmp_path / "ranges" / f"ranges_{f}.json")
+        assert prior.lookup("hinge", None, None).n == len(graphs) - len(held)
+    assert json.loads((tmp_path / "oof.json").read_text())["extra_training_objects"] == 3
+    assert json.loads((tmp_path / "folds" / "extra.json").read_text()) == {"extra": sorted(gen)}
+    # the same extra objects resume; other ones (or none) never mix with the trained folds
+    again = oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False,
+                       pseudo_rule=False, extra=extra)
+    assert _no_nan(again.report.table) == _no_nan(res.report.table)
+    for other in (None, extra[:2]):
+        with pytest.raises(KinmoDataError, match="extra objects"):
+            oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False,
+                       pseudo_rule=False, extra=other)
+
+
+def test_folds_trained_without_extra_objects_refuse_them(tmp_path):
+    graphs = _graphs()
+    oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False, pseudo_rule=False)
+    (tmp_path / "folds" / "extra.json").unlink()  # an output of the time before --extra
+    extra = [cabinet_graph(n_points=32, seed=20, shape_id="gen0")]
+    with pytest.raises(KinmoDataError, match="trained with 0 extra objects, not these 1"):
+        oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False,
+                   pseudo_rule=False, extra=extra)
+
+
+def test_an_extra_object_that_is_also_evaluated_is_one_clear_error(tmp_path):
+    graphs = _graphs()
+    with pytest.raises(KinmoDataError, match="also evaluated ones, e.g. 'cab1'"):
+        oof_table1(graphs, tmp_path, folds=3, preset="tiny", epochs=1, progress=False,
+                   extra=[cabinet_graph(n_points=32, seed=1, shape_id="cab1")])
+    assert not (tmp_path / "folds").exists() or not any((tmp_path / "folds").glob("*/model.pt"))

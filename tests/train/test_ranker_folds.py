@@ -134,3 +134,19 @@ def test_a_ranker_that_cannot_be_fit_is_one_clear_error(tmp_path, monkeypatch):
         ranker.train_ranker(tmp_path / "cache", tmp_path / "out", tmp_path / "split.json", folds=3,
                             preset="tiny", epochs=1, progress=False)
     assert not (tmp_path / "out" / "ranker.json").exists()
+
+
+def test_extra_objects_are_in_every_folds_training_and_never_held_out(tmp_path):
+    ids = [f"cab{s}" for s in range(6)]
+    cats = ["A", "B"] * 3
+    plain = ranker.fold_plan(ids, cats, tmp_path, k=3, preset="tiny")
+    plan = ranker.fold_plan(ids, cats, tmp_path, k=3, preset="tiny", extra={"gen0": "A", "gen1": "C"})
+    assert [s.test for _, _, s in plan] == [s.test for _, _, s in plain]  # the folds are the same
+    for (_, _, s), (_, _, s0) in zip(plan, plain):
+        assert s.train == sorted(s0.train + ["gen0", "gen1"])
+        assert s.categories["gen1"] == "C"
+    with pytest.raises(ValueError, match="also fold objects"):
+        ranker.fold_plan(ids, cats, tmp_path, k=3, preset="tiny", extra={"cab2": "A"})
+    with pytest.raises(KinmoError, match="also fold objects"):
+        ranker.train_folds(_graphs(), ids, tmp_path, k=3, preset="tiny", epochs=1,
+                           extra=[cabinet_graph(n_points=32, seed=9, shape_id="cab2")])

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -22,6 +23,7 @@ def oof_cmd(
     workers: int = typer.Option(1, "--workers", "-j", min=0, help="GNNs trained at once (0: one per CPU)."),
     members: int = typer.Option(0, "--members", min=0, help="Ensemble members of every fold GNN (seeds SEED+1 ...): each fold predicted by the average of 1 + N GNNs (as `kinmo train gnn --members`)."),
     pseudo_rule: bool = typer.Option(True, "--pseudo-rule/--no-pseudo-rule", help="Also grade the pseudo-label rule out of fold (its defaults, the fold's coarse GNN as the second model) into OUT/pseudo-label-rule/."),
+    extra: Optional[Path] = typer.Option(None, "--extra", help="Part-graph cache of more labelled objects (e.g. `kinmo synth`, then `kinmo prepare`) added to every fold GNN's training; never evaluated, never in the selectors' or range priors' fits."),  # noqa: UP007
     executor: str = EXECUTOR,
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
@@ -41,7 +43,7 @@ def oof_cmd(
     with cli_errors(1):
         res = oof_table1(data, out, folds=folds, preset=preset, seed=seed, workers=workers,
                          augment=augment, executor=executor, progress=not quiet, members=members,
-                         pseudo_rule=pseudo_rule)
+                         pseudo_rule=pseudo_rule, extra=extra)
     print_report(res.report, console)
     s = oof_summary(res.report)
     for t in ("fine", "coarse"):

@@ -46,6 +46,8 @@ def train_all(
     release: bool = typer.Option(False, "--release", help="Also train the release bundle OUT/release/model: the fine GNN, the coarse GNN (its check/ for pseudo-labelling) and the axis network again on every labelled object and the kept pseudo-labels (the pretrained model's recipe)."),
     release_synth: int | None = typer.Option(None, "--release-synth", min=0, max=100000, show_default=False,
                                              help="With --release: N generated objects (kinmo synth, seed --synth-seed) added to the release fine GNN's training (default 120; 0: none)."),
+    train_synth: int | None = typer.Option(None, "--train-synth", min=0, max=100000, show_default=False,
+                                           help="N generated objects (kinmo synth, seed --synth-seed) added to the training of the motion GNNs and the ranker's fold GNNs (never to the test objects, the axis network or ANCSH); default TRAIN_SYNTH, 0: none."),
 ) -> None:
     """Prepare, train the motion GNN, the axis network and the ranker, pseudo-label, render and train
     ANCSH in three settings, evaluate (Tables 1 and 2) and write the report.
@@ -86,6 +88,7 @@ def train_all(
             render=render, refine=refine, synth_extra=synth_extra, synth_as=synth_as, synth_seed=synth_seed,
             selector=selector, release=release, gnn_members=gnn_members,
             **({} if release_synth is None else {"release_synth": release_synth}),
+            **({} if train_synth is None else {"train_synth": train_synth}),
             **(TINY if preset == "tiny" else {}),
         )
         res = run_pipeline(cfg, console=console)

@@ -32,6 +32,12 @@ did not train on it:
    the test split's 69, so a handful of annotation exceptions (rocker buttons,
    bottom-hinged doors) move it less.
 
+With ``extra`` (``kinmo eval oof --extra CACHE``), the labelled graphs of another cache, e.g.
+objects of ``kinmo synth`` prepared by ``kinmo prepare``, join **every** fold GNN's training;
+they are never held out, predicted or graded, and the selectors, range priors and semantic
+priors are fit on the real objects only, as without them. ``folds/extra.json`` names them: a
+folder whose fold GNNs trained with other extra objects is refused, never mixed.
+
 Caveat, stated in the output: the groups a fold's ranker is fit on were predicted by GNNs
 that trained on that fold's objects (their features, never their labels, depend on them).
 
@@ -46,6 +52,7 @@ per-category mean and pooled joint axis error of the four settings and the selec
 
 from __future__ import annotations
 
+import json
 import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -133,6 +140,7 @@ def oof_table1(
     members: int = 0,
     pseudo_rule: bool = True,
     pseudo: PseudoLabelConfig | None = None,
+    extra: str | Path | Sequence[PartGraph] | None = None,
 ) -> OOFResult:
     """Table 1's four settings out of fold on every labelled object (module docstring).
 
@@ -161,6 +169,9 @@ def oof_table1(
         Its options (``threshold``, ``score``, ``sign``, ``agree_prob``, ``agree_deg`` ...;
         ``refine`` is not used: the fold's selector is); None: ``kinmo pseudo-label``'s
         defaults.
+    extra : str, Path, sequence of PartGraph or None
+        A cache (or its graphs) whose labelled graphs join every fold GNN's training (module
+        docstring); None: none.
 
     Returns
     -------
@@ -172,7 +183,9 @@ def oof_table1(
     ------
     KinmoDataError
         Fewer labelled graphs than folds, or a fold's selector cannot be fit (no candidate
-        group of the other folds has a right candidate: too few objects, or GNNs too weak).
+        group of the other folds has a right candidate: too few objects, or GNNs too weak);
+        an ``extra`` object whose id is also an evaluated one, or an ``out`` whose fold GNNs
+        trained with other extra objects.
     """
     out = Path(out)
     graphs = [g for g in (load_cache(data) if isinstance(data, (str, Path)) else data)
@@ -182,10 +195,11 @@ def oof_table1(
                              f"{len(graphs)} labelled graphs: fewer than --folds {folds}")
     graphs.sort(key=lambda g: g.shape_id)
     ids = [g.shape_id for g in graphs]
+    more = _extra_graphs(extra, set(ids), out)
     fold_of = dict(zip(ids, fold_ids(ids, [g.category for g in graphs], folds, seed)))
     train_folds(graphs, ids, out, k=folds, preset=preset, types=("fine", "coarse"), seed=seed,
                 threads=1, epochs=epochs, workers=workers, executor=executor, progress=progress,
-                augment=augment, members=members)
+                augment=augment, members=members, extra=more)
     gnn: dict[str, dict[str, Any]] = {"fine": {}, "coarse": {}}
     runs: dict[tuple[str, int], Any] = {}
     for t in gnn:
@@ -227,11 +241,48 @@ def oof_table1(
              "OBB_fine": [refined["fine"][i] for i in ids]}
     report = evaluate_graphs(graphs, preds)
     write_report(report, out)
-    extra: dict[str, Any] = {}
+    extra_out: dict[str, Any] = {}
     if rule is not None:
-        extra["pseudo_rule"] = write_pseudo_rule(rule, out / "pseudo-label-rule")
+        extra_out["pseudo_rule"] = write_pseudo_rule(rule, out / "pseudo-label-rule")
     else:  # an earlier run's grading would sit beside a table it was not made with
         shutil.rmtree(out / "pseudo-label-rule", ignore_errors=True)
     write_json(out / "oof.json", {"folds": folds, "preset": preset, "seed": seed, "members": members,
-                                  "objects": len(graphs), **oof_summary(report), **extra})
+                                  "objects": len(graphs), "extra_training_objects": len(more),
+                                  **oof_summary(report), **extra_out})
     return OOFResult(report, rule)
+
+
+def _extra_graphs(extra: str | Path | Sequence[PartGraph] | None, ids: set[str], out: Path) -> list[PartGraph]:
+    """The labelled graphs of ``extra`` (:func:`oof_table1`), checked against the evaluated
+    ``ids`` and against ``out/folds/extra.json`` (written here: the ids the fold GNNs train on
+    beside the folds; a folder with trained folds and no such file trained with none).
+
+    Raises
+    ------
+    KinmoDataError
+        ``extra`` without a labelled graph, an extra id also evaluated, or ``out``'s fold GNNs trained with other extra objects.
+    """
+    if extra is None:
+        more: list[PartGraph] = []
+    else:
+        more = sorted((g for g in (load_cache(extra) if isinstance(extra, (str, Path)) else extra)
+                       if g.has_labels and len(g.sibling_edges)), key=lambda g: g.shape_id)
+    where = extra if isinstance(extra, (str, Path)) else out
+    if extra is not None and not more:
+        raise KinmoDataError(where, "no labelled part graph with a joint to add to the folds' training")
+    both = sorted({g.shape_id for g in more} & ids)
+    if both:
+        raise KinmoDataError(where, f"{len(both)} extra training objects are also evaluated ones, e.g. {both[0]!r}")
+    stamp = {"extra": [g.shape_id for g in more]}
+    path = out / "folds" / "extra.json"
+    if not any((out / "folds").glob("**/model.pt")):
+        before = stamp  # nothing trained yet
+    elif path.is_file():
+        before = json.loads(path.read_text())
+    else:
+        before = {"extra": []}
+    if before != stamp:
+        raise KinmoDataError(out, f"its fold GNNs trained with {len(before.get('extra', []))} extra objects, "
+                                  f"not these {len(more)}; give another --out")
+    write_json(path, stamp)
+    return more

@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-__all__ = ["RELEASE_SYNTH", "SETTINGS", "TINY", "PipelineConfig"]
+__all__ = ["RELEASE_SYNTH", "SETTINGS", "TINY", "TRAIN_SYNTH", "PipelineConfig"]
 
 SETTINGS = ("supervised", "semi", "semi-weakly")
 
@@ -15,6 +15,10 @@ SETTINGS = ("supervised", "semi", "semi-weakly")
 #: ``kinmo train all --release``'s default ``--release-synth``: generated objects added to the
 #: release fine motion GNN's training (``docs/results/foreign_assets.md``, session 43).
 RELEASE_SYNTH = 120
+
+#: Default of :attr:`PipelineConfig.train_synth`: generated objects in the main run's motion
+#: GNNs and the ranker's fold GNNs (issue 34; ``docs/results/synth_extra.md``).
+TRAIN_SYNTH = 0
 
 
 class PipelineConfig(BaseModel):
@@ -119,6 +123,15 @@ class PipelineConfig(BaseModel):
         release's fine motion GNN's training objects (issue 36: objects from elsewhere;
         ``docs/results/foreign_assets.md``). The coarse GNN and the axis network train without
         them. 0: none, as before. No effect without ``release``.
+    train_synth : int
+        Generated objects (as ``release_synth``: seed ``synth_seed`` or ``seed + 500``, into
+        ``out/generated/`` and ``out/cache/generated/``) added to the training objects of the
+        main run's fine and coarse motion GNNs and of every fold GNN of the ranker stage
+        (issue 34: out of fold, they lowered the selector's error per category,
+        ``docs/results/synth_extra.md``). They have their own split, ``out/split_gnn.json``
+        (the test objects stay the real held-out ones); the axis network, the range prior,
+        the ranker's fit (its candidate groups and semantic prior), Table 1, the pseudo-label
+        rule and ANCSH see the real objects only. 0: none (stage keys as before).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -153,6 +166,7 @@ class PipelineConfig(BaseModel):
     gnn_members: int = Field(0, ge=0, le=16)
     release: bool = False
     release_synth: int = Field(RELEASE_SYNTH, ge=0, le=100000)
+    train_synth: int = Field(TRAIN_SYNTH, ge=0, le=100000)
 
     @model_validator(mode="after")
     def _check(self) -> PipelineConfig:

@@ -108,11 +108,14 @@ def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True
         ctx.prepare(cfg.unlabeled, cache_u, prep, "prepare unlabelled")
     res.stages["prepare"] = [str(cache_l)] + ([str(cache_u)] if cfg.unlabeled else [])
     synth_cats = _synth_categories(cache_l) if cfg.synth_extra > 0 else []  # fails before training
+    # 2a. generated objects for the motion GNNs and the ranker's fold GNNs (issue 34)
+    extra = ctx.generated(out, cfg.train_synth, cache_l, prep, "", "the motion GNNs train") if cfg.train_synth else None
 
     # 3.-8. models and tables on the labelled (and unlabelled) data
     baseline = _Variant(
         out=out, graphs=cache_l, split=split_file, labeled=cfg.labeled, unlabeled=cfg.unlabeled,
-        unlabeled_cache=cache_u if cfg.unlabeled is not None else None, key={"split": split_digest}, prefix="")
+        unlabeled_cache=cache_u if cfg.unlabeled is not None else None, key={"split": split_digest}, prefix="",
+        extra=extra)
     ctx.models_and_tables(baseline, cache_l)
 
     # 8b. the release bundle: the same recipe on every labelled object and the kept
@@ -159,6 +162,9 @@ class _Variant:
     reuse : dict of str to Path
         Finished runs of the baseline to use instead of training (``gnn_fine``,
         ``gnn_coarse``, ``axis``, ``ranker``, ``ancsh/<Category>/supervised``).
+    extra : _Generated or None
+        Generated objects added to the motion GNNs' and the ranker's fold GNNs' training
+        (``train_synth``), with their own split ``out/split_gnn.json``.
     """
 
     out: Path
@@ -170,6 +176,17 @@ class _Variant:
     key: dict[str, Any]
     prefix: str
     reuse: dict[str, Path] = dataclasses.field(default_factory=dict)
+    extra: _Generated | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class _Generated:
+    """Generated objects of :meth:`_Context.generated`: their cache, what was generated (a
+    stage key) and their graphs (loaded once, passed down)."""
+
+    cache: Path
+    info: dict[str, Any]
+    graphs: list[PartGraph]
 
 
 @dataclasses.dataclass
@@ -329,13 +346,14 @@ class _Context:
         stage = self._ranker_stage(v, base)
         if stage is not None and not stage_done(*stage):
             folder = stage[0]
-            _ranker_fold_stamp(cfg, folder)
+            _ranker_fold_stamp(cfg, folder, v.extra)
             rg = ranker_graphs(v.graphs, Split.load(v.split))
             ids = sorted({g.shape_id for g in rg})
             cats = {g.shape_id: g.category for g in rg}
+            extra = {g.shape_id: g.category for g in v.extra.graphs} if v.extra is not None else None
             plan = fold_plan(ids, [cats[i] for i in ids], folder, k=RANKER_FOLDS, preset=cfg.preset,
                              types=RANKER_TYPES, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
-                             augment=cfg.augment_gnn, members=cfg.gnn_members)
+                             augment=cfg.augment_gnn, members=cfg.gnn_members, extra=extra)
             pending += [_Training(f"{v.prefix}train ranker: fold GNN {run_dir.name}", "gnn", run_dir, fcfg, split,
                                   None, None, cfg.gnn_members) for run_dir, fcfg, split in plan]
         # longest first (the axis network, then the augmented GNNs), so that the last one to
@@ -395,7 +413,7 @@ class _Context:
         return v.out / "ranker", {**base, "ranker": {"folds": RANKER_FOLDS, "types": list(RANKER_TYPES),
                                                      "epochs": epochs, "augment": cfg.augment_gnn,
                                                      "fit": fit,
-                                                     "fold_gnns": _fold_stamp(cfg), **_members_key(cfg)}}
+                                                     "fold_gnns": _fold_stamp(cfg, v.extra), **_members_key(cfg)}}
 
     def ranker(self, v: _Variant, base: dict[str, Any]) -> Path | None:
         """The ``ranker`` stage: the learned candidate selector (kinmo extension, issue 11),
@@ -429,6 +447,12 @@ class _Context:
         # the training graphs, loaded once and only if a stage runs (several caches: concatenated)
         graphs = functools.cache(functools.partial(_graphs, v.graphs))
         split_file = v.split
+        # train_synth: the motion GNNs' split adds the generated objects to training; the
+        # other stages keep the real split (and filter the graphs by it)
+        gnn_split, gnn_key = split_file, {}
+        if v.extra is not None:
+            gnn_split, gnn_key = self.extra_split(v)
+            graphs = functools.cache(functools.partial(_with_extra, graphs, v.extra.graphs))
 
         # 3. motion GNN, fine and coarse types (Sec. 3.1-3.2), and 4. the axis-selection
         # network (Sec. 3.3): independent trainings, which with -j N train N at a time beside
@@ -443,9 +467,9 @@ class _Context:
             run_dir = out / f"gnn_{types}"
             gcfg = gnn_preset(cfg.preset, types=types, seed=cfg.seed, epochs=cfg.gnn_epochs,
                               **({} if cfg.augment_gnn and types == "fine" else NO_AUGMENTATIONS))
-            trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, split_file,
-                                       {**gbase, "gnn": gcfg.model_dump(), **_members_key(cfg)}, v.graphs,
-                                       cfg.gnn_members))
+            trainings.append(_Training(f"{v.prefix}train gnn ({types})", "gnn", run_dir, gcfg, gnn_split,
+                                       {**gbase, "gnn": gcfg.model_dump(), **_members_key(cfg), **gnn_key},
+                                       v.graphs, cfg.gnn_members))
             gnn_runs[types] = run_dir
         axis_dir = v.reuse.get("axis", out / "axis")
         if "axis" not in v.reuse and cfg.refine:
@@ -469,7 +493,7 @@ class _Context:
 
         # 5b. the model bundle (issue 22): GNN (fine), axis network, ranker, range prior and the
         # training ids in one folder that `--model` accepts whole (learned selector by default)
-        self.bundle(v, base, gnn_runs["fine"], axis_dir if cfg.refine else None, ranker, split_file, ranges,
+        self.bundle(v, base, gnn_runs["fine"], axis_dir if cfg.refine else None, ranker, gnn_split, ranges,
                     gnn_runs["coarse"])
 
         # 6. Table 1 on the held-out pre-segmented shapes (always the real labelled ones),
@@ -677,10 +701,10 @@ class _Context:
         # generated objects for the fine GNN only (cfg.release_synth; issue 36): its own split,
         # the real objects' plus theirs; the other trainings' split leaves them out
         fine_split, fine_key, trained = split_file, {}, real
-        generated = self.release_generated(vout, cache_l, prep) if cfg.release_synth > 0 else None
+        generated = (self.generated(vout, cfg.release_synth, cache_l, prep, "release: ", "the fine GNN trains")
+                     if cfg.release_synth > 0 else None)
         if generated is not None:
-            gcache, info = generated
-            gen_graphs = list(load_cache(gcache))
+            gcache, info, gen_graphs = generated.cache, generated.info, generated.graphs
             gen = {g.shape_id: g.category for g in gen_graphs}
             both = {**cats, **gen}
             if len(both) != len(cats) + len(gen):
@@ -723,32 +747,55 @@ class _Context:
         return self.bundle(v, base, gnn_dir, axis_dir, ranker if ranker.is_file() else None, fine_split,
                            ranges, check_dir)
 
-    def release_generated(self, vout: Path, cache_l: Path, prep: Any) -> tuple[Path, dict[str, Any]] | None:
-        """Generate and prepare the release's ``cfg.release_synth`` objects (of the labelled
-        categories :mod:`kinmo.synth` makes, seed ``cfg.synth_seed`` or ``cfg.seed + 500``) into
-        ``vout/generated/`` and ``vout/cache/generated/``.
+    def generated(self, vout: Path, n: int, cache_l: Path, prep: Any, prefix: str, who: str) -> _Generated | None:
+        """Generate and prepare ``n`` objects (of the labelled categories :mod:`kinmo.synth`
+        makes, seed ``cfg.synth_seed`` or ``cfg.seed + 500``) into ``vout/generated/`` and
+        ``vout/cache/generated/`` (stages named with ``prefix``): the release's
+        ``release_synth`` and the main run's ``train_synth``.
 
         Returns
         -------
-        (Path, dict) or None
-            The cache folder, and what was generated (the fine GNN's stage key); None, with
-            one log line, when no labelled category can be generated.
+        _Generated or None
+            The cache, what was generated (the stage key of what trains on them) and their
+            graphs; None, with one log line (``who``: what then trains without them), when no
+            labelled category can be generated.
         """
         cfg = self.cfg
         seed = _synth_seed(cfg)
         try:
             cats = _synth_categories(cache_l)
         except KinmoError:
-            self.console.print("[dim]release: kinmo synth makes none of the labelled categories; the fine GNN "
-                               "trains without generated objects[/]", highlight=False)
+            self.console.print(f"[dim]{prefix}kinmo synth makes none of the labelled categories; {who} "
+                               "without generated objects[/]", highlight=False)
             return None
-        info = {"n": cfg.release_synth, "seed": seed, "categories": cats, "synth_version": SYNTH_VERSION}
+        info = {"n": n, "seed": seed, "categories": cats, "synth_version": SYNTH_VERSION}
         gen = vout / "generated"
-        self.stage(gen, info, lambda: generate_dataset(gen, cfg.release_synth, seed, categories=cats,
-                                                       progress=self.progress), "release: generate")
+        self.stage(gen, info, lambda: generate_dataset(gen, n, seed, categories=cats, progress=self.progress),
+                   f"{prefix}generate")
         gcache = vout / "cache" / "generated"
-        self.prepare(gen, gcache, prep, "release: prepare generated")
-        return gcache, info
+        self.prepare(gen, gcache, prep, f"{prefix}prepare generated")
+        return _Generated(gcache, info, list(load_cache(gcache)))
+
+    def extra_split(self, v: _Variant) -> tuple[Path, dict[str, Any]]:
+        """``v.out/split_gnn.json``: ``v``'s split with its generated objects (``v.extra``)
+        added to training, and the motion GNNs' stage-key entry for them.
+
+        Raises
+        ------
+        KinmoDataError
+            A generated id is also one of the split's.
+        """
+        import hashlib
+
+        assert v.extra is not None
+        base = Split.load(v.split)
+        gen = {g.shape_id: g.category for g in v.extra.graphs}
+        if set(gen) & (set(base.train) | set(base.test)):
+            raise KinmoDataError(v.extra.cache, "a generated shape id is also a labelled one")
+        path = v.out / "split_gnn.json"
+        Split(sorted(base.train + list(gen)), base.test, {**base.categories, **gen}, base.seed,
+              base.test_fraction).save(path)
+        return path, {"synth": v.extra.info, "gnn_split": hashlib.sha256(path.read_bytes()).hexdigest()[:16]}
 
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
@@ -943,22 +990,24 @@ def _synth_seed(cfg: PipelineConfig) -> int:
     return cfg.synth_seed if cfg.synth_seed is not None else cfg.seed + 500
 
 
-def _fold_stamp(cfg: PipelineConfig) -> dict[str, Any]:
+def _fold_stamp(cfg: PipelineConfig, extra: _Generated | None = None) -> dict[str, Any]:
     """The ranker's fold GNNs' configurations by type set, as JSON values, and the part graphs'
     ``CACHE_VERSION`` under ``"graphs"``: fold GNNs trained on graphs computed another way (issue
-    36's OBB fit) are stale like the motion GNNs (:meth:`_Context.models_and_tables`)."""
+    36's OBB fit) are stale like the motion GNNs (:meth:`_Context.models_and_tables`). With
+    generated objects in their training (``extra``), what was generated under ``"synth"``."""
     configs = {t: fold_config(cfg.preset, t, seed=cfg.seed, threads=1, epochs=cfg.gnn_epochs,
                               augment=cfg.augment_gnn) for t in RANKER_TYPES}
-    stamp = {"graphs": CACHE_VERSION, **{t: c.model_dump(mode="json") for t, c in configs.items()}}
+    stamp = {"graphs": CACHE_VERSION, **{t: c.model_dump(mode="json") for t, c in configs.items()},
+             **({"synth": extra.info} if extra is not None else {})}
     return json.loads(json.dumps(stamp))
 
 
-def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path) -> None:
+def _ranker_fold_stamp(cfg: PipelineConfig, folder: Path, extra: _Generated | None = None) -> None:
     """Write ``folder/folds.json``, the fold GNNs' configuration, removing folds trained with
     another one (they are trained again)."""
     import shutil
 
-    stamp = _fold_stamp(cfg)
+    stamp = _fold_stamp(cfg, extra)
     if (folder / "folds.json").is_file() and json.loads((folder / "folds.json").read_text()) != stamp:
         shutil.rmtree(folder / "folds", ignore_errors=True)
     folder.mkdir(parents=True, exist_ok=True)
@@ -973,7 +1022,14 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
     :meth:`_Context.train_in_parallel`, or by an interrupted run); ``folds.json`` holds the
     fold GNNs' configuration, and folds of another one are trained again.
     """
-    _ranker_fold_stamp(cfg, folder)
+    _ranker_fold_stamp(cfg, folder, v.extra)
     train_ranker(v.graphs, folder, v.split, folds=RANKER_FOLDS, preset=cfg.preset, types=RANKER_TYPES,
                  seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs,
-                 workers=cfg.workers, augment=cfg.augment_gnn, members=cfg.gnn_members)
+                 workers=cfg.workers, augment=cfg.augment_gnn, members=cfg.gnn_members,
+                 extra=v.extra.graphs if v.extra is not None else ())
+
+
+def _with_extra(real: Callable[[], Any], extra: list[PartGraph]) -> list[PartGraph]:
+    """The graphs of ``real()`` (a cache folder or graphs) followed by ``extra``."""
+    data = real()
+    return [*(load_cache(data) if isinstance(data, (str, Path)) else data), *extra]

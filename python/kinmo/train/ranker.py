@@ -11,7 +11,7 @@ Outputs (``OUT/``): ``ranker.json``, ``cv.json``, ``oof_groups.npz``, ``folds/<t
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -132,7 +132,8 @@ def ranker_graphs(data: str | Path, split: Split) -> list[PartGraph]:
 def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: int = 3,
               preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
               threads: int = 1, epochs: int | None = None,
-              augment: bool = True, members: int = 0) -> list[tuple[Path, TrainConfig, Split]]:
+              augment: bool = True, members: int = 0,
+              extra: Mapping[str, str] | None = None) -> list[tuple[Path, TrainConfig, Split]]:
     """The fold GNNs of :func:`train_folds` still to train: run folder, configuration, split.
 
     Parameters
@@ -143,6 +144,9 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
         Their categories (the folds are stratified by category, :func:`fold_ids`).
     out, k, preset, types, seed, threads, epochs, augment, members
         As :func:`train_folds`.
+    extra : mapping of str to str or None
+        Category of each extra training object (:func:`train_folds`' ``extra``): in every
+        fold's training, never held out, never in the folds' stratification.
 
     Returns
     -------
@@ -156,6 +160,10 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
     ids = list(ids)
     folds = fold_ids(ids, list(categories), k, seed)
     cats = dict(zip(ids, categories))
+    extra = dict(extra or {})
+    if set(extra) & set(cats):
+        raise ValueError(f"extra training objects that are also fold objects: {sorted(set(extra) & set(cats))[:3]}")
+    cats.update(extra)
     plan = []
     for t in types:
         for f in range(k):
@@ -165,7 +173,7 @@ def fold_plan(ids: Sequence[str], categories: Sequence[str], out: Path, *, k: in
             held = [i for i, ff in zip(ids, folds) if ff == f]
             rest = [i for i, ff in zip(ids, folds) if ff != f]
             cfg = fold_config(preset, t, seed=seed, threads=threads, epochs=epochs, augment=augment)
-            plan.append((run_dir, cfg, Split(rest, held, cats, seed, 1.0 / k)))
+            plan.append((run_dir, cfg, Split(sorted(rest + list(extra)), held, cats, seed, 1.0 / k)))
     return plan
 
 
@@ -173,7 +181,7 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
                 k: int = 3, preset: str = "quick", types: Sequence[str] = ("fine",), seed: int = 0,
                 threads: int = 1, epochs: int | None = None, workers: int = 1,
                 executor: str = "local", progress: bool = False, augment: bool = True,
-                members: int = 0) -> int:
+                members: int = 0, extra: Sequence[PartGraph] = ()) -> int:
     """Train the fold GNNs of :func:`oof_predictions` for every type set, ``workers`` at a
     time on the project's executor (:func:`kinmo.executor.map_unordered`: the local process
     pool or Ray); each is one item, trained single-threaded (``threads``) as a sequential
@@ -194,6 +202,10 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
         Ensemble members of each fold GNN (:func:`kinmo.train.gnn.train_members`, trained in
         the fold's item after it), so that the out-of-fold predictions are the same ensemble's
         as the model they stand for at inference.
+    extra : sequence of PartGraph
+        Labelled graphs added to **every** fold's training and never predicted, e.g. objects
+        of ``kinmo synth`` (``kinmo eval oof --extra``): the folds are cut over ``train_ids``
+        alone. Their ids must not be among ``train_ids``.
 
     Returns
     -------
@@ -207,9 +219,13 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
     """
     by_id = {g.shape_id: g for g in graphs}
     ids = [i for i in sorted(train_ids) if i in by_id]
-    plan = fold_plan(ids, [by_id[i].category for i in ids], out, k=k, preset=preset, types=types,
-                     seed=seed, threads=threads, epochs=epochs, augment=augment, members=members)
-    jobs = [([by_id[i] for i in ids], run_dir, cfg, split) for run_dir, cfg, split in plan]
+    try:
+        plan = fold_plan(ids, [by_id[i].category for i in ids], out, k=k, preset=preset, types=types,
+                         seed=seed, threads=threads, epochs=epochs, augment=augment, members=members,
+                         extra={g.shape_id: g.category for g in extra})
+    except ValueError as exc:
+        raise KinmoError(f"{out}: {exc}") from exc
+    jobs = [([by_id[i] for i in ids] + list(extra), run_dir, cfg, split) for run_dir, cfg, split in plan]
     if not jobs:
         return 0
     workers = resolve_workers(workers, len(jobs))
@@ -222,7 +238,8 @@ def train_folds(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path
 def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: Path, *,
                     k: int = 3, preset: str = "quick", types: str = "fine", seed: int = 0,
                     threads: int = 1, progress: bool = False, epochs: int | None = None,
-                    augment: bool = True, members: int = 0) -> dict[str, object]:
+                    augment: bool = True, members: int = 0,
+                    extra: Sequence[PartGraph] = ()) -> dict[str, object]:
     """Out-of-fold predictions of the training objects (module docstring).
 
     Parameters
@@ -243,6 +260,8 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         The fine fold GNNs' hierarchy and name augmentations (:func:`fold_config`).
     members : int
         Ensemble members of each fold GNN (:func:`train_folds`).
+    extra : sequence of PartGraph
+        More training objects of every fold GNN (:func:`train_folds`); never predicted.
 
     Returns
     -------
@@ -260,7 +279,7 @@ def oof_predictions(graphs: Sequence[PartGraph], train_ids: Sequence[str], out: 
         if not _fold_trained(run_dir, members):
             train_folds(graphs, train_ids, out, k=k, preset=preset, types=(types,), seed=seed,
                         threads=threads, epochs=epochs, progress=progress, augment=augment,
-                        members=members)
+                        members=members, extra=extra)
         # the fold GNN alone (no selector: the ranker is what this fits), through the one
         # prediction path every command uses
         fold = Predictor(load_run(run_dir, "cpu"))
@@ -312,7 +331,8 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
                  preset: str = "quick", types: Sequence[str] = ("fine", "coarse"), seed: int = 0,
                  threads: int = 1, progress: bool = True, epochs: int | None = None,
                  workers: int = 1, executor: str = "local", augment: bool = True,
-                 category_power: float | None = None, members: int = 0) -> tuple[Ranker, dict]:
+                 category_power: float | None = None, members: int = 0,
+                 extra: Sequence[PartGraph] = ()) -> tuple[Ranker, dict]:
     """``kinmo train ranker``: OOF GNNs on the split's training objects, then the ranker.
 
     Parameters
@@ -345,6 +365,10 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
         Ensemble members of each fold GNN (:func:`train_folds`): the ranker learns how far to
         trust the same ensemble as the motion GNN it refines (``kinmo train all
         --gnn-members``).
+    extra : sequence of PartGraph
+        More labelled objects in every fold GNN's training (:func:`train_folds`), e.g. the
+        generated objects of ``kinmo train all --train-synth``; the ranker is fit on the
+        split's objects only (their out-of-fold candidate groups and semantic prior).
 
     Returns
     -------
@@ -366,12 +390,12 @@ def train_ranker(data: str | Path, out: str | Path, split: str | Path, *, folds:
     semantic = SemanticPrior.from_graphs(graphs)
     train_folds(graphs, sorted(train), out, k=folds, preset=preset, types=types, seed=seed,
                 threads=threads, epochs=epochs, workers=workers, executor=executor, progress=progress,
-                augment=augment, members=members)
+                augment=augment, members=members, extra=extra)
     parts = {}
     for t in types:
         preds = oof_predictions(graphs, sorted(train), out, k=folds, preset=preset, types=t,
                                 seed=seed, threads=threads, progress=progress, epochs=epochs,
-                                augment=augment, members=members)
+                                augment=augment, members=members, extra=extra)
         parts[t] = collect_groups(list(preds.values()), seed=seed, semantic=semantic)
     groups = EdgeGroups.concat(list(parts.values()))
     if not groups.y:
