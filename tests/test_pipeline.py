@@ -214,19 +214,6 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium, monkeypatc
     assert json.loads((run / "ranker/folds.json").read_text())["graphs"] == pipeline_run.CACHE_VERSION
     assert "train ancsh Laptop (supervised)" not in ran, ran
 
-
-def test_demo_passes_the_selector_to_the_pipeline(tmp_path, monkeypatch):
-    import kinmo.pipeline.demo as demo
-
-    seen = {}
-    monkeypatch.setattr(demo, "run_pipeline", lambda cfg, **kw: seen.setdefault("cfg", cfg))
-    demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False, selector="paper")
-    assert seen["cfg"].selector == "paper"
-    seen.clear()
-    demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False)
-    assert seen["cfg"].selector == "learned"
-
-
     # generated objects in the motion GNNs' and the ranker's fold GNNs' training (issue 34,
     # --train-synth): their own split, the real test objects; the axis network and the range
     # prior stay as they were
@@ -251,3 +238,20 @@ def test_demo_passes_the_selector_to_the_pipeline(tmp_path, monkeypatch):
         assert {r["shape_id"] for r in csv.DictReader(f)} == set(split["test"])
     axis_split = json.loads((run / "axis/config.json").read_text())["split"]
     assert not set(axis_split["train"] + axis_split["val"]) & gen
+
+
+def test_demo_passes_the_selector_to_the_pipeline(tmp_path, monkeypatch):
+    import kinmo.pipeline.demo as demo
+
+    seen = {}
+    monkeypatch.setattr(demo, "run_pipeline", lambda cfg, **kw: seen.setdefault("cfg", cfg))
+    demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False, selector="paper")
+    assert seen["cfg"].selector == "paper"
+    seen.clear()
+    demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=True, progress=False)
+    assert seen["cfg"].selector == "learned"
+    # its labelled objects are generated already: no more for its motion GNNs, tiny or not
+    assert seen["cfg"].train_synth == 0
+    seen.clear()
+    demo.run_demo(tmp_path, n_labeled=2, n_unlabeled=2, tiny=False, progress=False)
+    assert seen["cfg"].train_synth == 0

@@ -14,7 +14,7 @@ GNNS = ["gnn_fine", "gnn_coarse", *(f"ranker/folds/{t}_{f}" for t in ("fine", "c
 def test_every_gnn_gets_its_members_and_a_second_run_is_up_to_date(tmp_path):
     data = tmp_path / "partnet-mobility"
     generate_dataset(data, 10, 3, categories=["Laptop", "Refrigerator"], progress=False)
-    cfg = PipelineConfig(labeled=data, out=tmp_path / "run", gnn_epochs=2, axis_epochs=1, skip_ancsh=True,
+    cfg = PipelineConfig(labeled=data, out=tmp_path / "run", gnn_epochs=2, axis_epochs=1, skip_ancsh=True, train_synth=0,
                          render=False, workers=2, gnn_members=1)
     run_pipeline(cfg, progress=False)
     out = cfg.out

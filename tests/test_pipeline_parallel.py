@@ -24,7 +24,7 @@ def runs(tmp_path_factory):
     generate_dataset(data, 10, 3, categories=["Laptop", "Refrigerator"], progress=False)
     out = {}
     for j in (2, 1):
-        cfg = PipelineConfig(labeled=data, out=root / f"j{j}", gnn_epochs=2, axis_epochs=1, skip_ancsh=True,
+        cfg = PipelineConfig(labeled=data, out=root / f"j{j}", gnn_epochs=2, axis_epochs=1, skip_ancsh=True, train_synth=0,
                              render=False, workers=j)
         out[j] = run_pipeline(cfg, progress=False)
     return root, out
@@ -73,7 +73,7 @@ def ancsh_runs(tmp_path_factory):
     generate_dataset(data, 12, 5, categories=["Laptop", "Microwave"], progress=False)
     out = {}
     for j in (2, 1):
-        cfg = PipelineConfig(labeled=data, out=root / f"j{j}", gnn_epochs=1, refine=False, render=False,
+        cfg = PipelineConfig(labeled=data, out=root / f"j{j}", gnn_epochs=1, refine=False, render=False, train_synth=0,
                              categories=["Laptop", "Microwave"], ancsh_epochs=1, ancsh_steps_per_epoch=2,
                              frames_per_object=2, workers=j)
         out[j] = run_pipeline(cfg, progress=False)

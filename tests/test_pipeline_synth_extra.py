@@ -20,7 +20,7 @@ def _rows(path):
 
 def _tiny(data, out, **kw) -> PipelineConfig:
     return PipelineConfig(labeled=data / "partnet-mobility", unlabeled=data / "partnet", out=out, gnn_epochs=1,
-                          axis_epochs=1, skip_ancsh=True, render=False, workers=1, **kw)
+                          axis_epochs=1, skip_ancsh=True, render=False, workers=1, train_synth=0, **kw)
 
 
 @pytest.fixture(scope="module")

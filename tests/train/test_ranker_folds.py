@@ -78,7 +78,7 @@ def test_a_preset_change_refits_the_ranker_of_train_all(tmp_path, monkeypatch):
 
     cfg = PipelineConfig(labeled=tmp_path / "data", out=tmp_path / "run")
     before = pipeline_run._fold_stamp(cfg)
-    _, key = pipeline_run._Context._ranker_stage(SimpleNamespace(cfg=cfg), SimpleNamespace(reuse={}, out=tmp_path), {})
+    _, key = pipeline_run._Context._ranker_stage(SimpleNamespace(cfg=cfg), SimpleNamespace(reuse={}, out=tmp_path, extra=None), {})
     assert key["ranker"]["fold_gnns"] == before
     assert before["fine"]["augment_turn"] == train_config.AUGMENT_TURN
     monkeypatch.setattr(train_config, "AUGMENT_TURN", 0.0)

@@ -97,7 +97,8 @@ def run_demo(
     cfg = PipelineConfig(
         labeled=data, unlabeled=unlabeled, out=out / "run", preset="quick", seed=seed,
         **(TINY if tiny else {"augment_gnn": False, "gnn_epochs": 25, "axis_epochs": 8, "ancsh_epochs": 40, "semi_epochs": 8,
-                              "ancsh_steps_per_epoch": 15, "frames_per_object": 12}),
+                              "ancsh_steps_per_epoch": 15, "frames_per_object": 12,
+                              "train_synth": 0}),  # its labelled objects are generated already
         categories=(["Laptop"] if tiny else None), selector=selector,
     )
     return run_pipeline(cfg, console=console, progress=progress, timings=timings)
