@@ -166,11 +166,10 @@ def test_split_by_structure_gives_refrigerator_a_model(mobility_root, tmp_path):
     assert all("fit" in why or "no object" in why for why in skipped.values())
 
 
-def test_train_all_release_synth_reaches_the_pipeline(tmp_path, monkeypatch):
-    """``--release-synth N`` sets the release fine GNN's generated objects; without it, the
-    configuration's default (RELEASE_SYNTH)."""
+def _fake_pipeline(tmp_path, monkeypatch):
+    """``run_pipeline`` replaced by one that records each configuration it gets (returned list);
+    ``tmp_path/pm`` an empty labelled folder."""
     import kinmo.pipeline
-    from kinmo.pipeline.config import RELEASE_SYNTH
 
     seen = []
 
@@ -183,6 +182,15 @@ def test_train_all_release_synth_reaches_the_pipeline(tmp_path, monkeypatch):
 
     monkeypatch.setattr(kinmo.pipeline, "run_pipeline", fake_run)
     (tmp_path / "pm").mkdir()
+    return seen
+
+
+def test_train_all_release_synth_reaches_the_pipeline(tmp_path, monkeypatch):
+    """``--release-synth N`` sets the release fine GNN's generated objects; without it, the
+    configuration's default (RELEASE_SYNTH)."""
+    from kinmo.pipeline.config import RELEASE_SYNTH
+
+    seen = _fake_pipeline(tmp_path, monkeypatch)
     base = ["train", "all", "--labeled", str(tmp_path / "pm"), "--out", str(tmp_path / "run"), "--release"]
     for extra, want in (([], RELEASE_SYNTH), (["--release-synth", "7"], 7), (["--release-synth", "0"], 0)):
         res = CliRunner().invoke(app, base + extra)
@@ -215,20 +223,9 @@ def test_eval_oof_extra_reaches_the_evaluation(tmp_path, monkeypatch):
 def test_train_all_train_synth_reaches_the_pipeline(tmp_path, monkeypatch):
     """``--train-synth N`` sets the main run's generated training objects; without it, the
     configuration's default (TRAIN_SYNTH)."""
-    import kinmo.pipeline
     from kinmo.pipeline.config import TRAIN_SYNTH
 
-    seen = []
-
-    class _Res:
-        report = tmp_path / "report"
-
-    def fake_run(cfg, console=None):
-        seen.append(cfg)
-        return _Res()
-
-    monkeypatch.setattr(kinmo.pipeline, "run_pipeline", fake_run)
-    (tmp_path / "pm").mkdir()
+    seen = _fake_pipeline(tmp_path, monkeypatch)
     base = ["train", "all", "--labeled", str(tmp_path / "pm"), "--out", str(tmp_path / "run")]
     for extra, want in (([], TRAIN_SYNTH), (["--train-synth", "7"], 7), (["--train-synth", "0"], 0)):
         res = CliRunner().invoke(app, base + extra)
