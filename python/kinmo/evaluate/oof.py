@@ -260,7 +260,8 @@ def _extra_graphs(extra: str | Path | Sequence[PartGraph] | None, ids: set[str],
     Raises
     ------
     KinmoDataError
-        ``extra`` without a labelled graph, an extra id also evaluated, or ``out``'s fold GNNs trained with other extra objects.
+        ``extra`` without a labelled graph, an extra id also evaluated, or ``out``'s fold GNNs
+        trained with other extra objects.
     """
     if extra is None:
         more: list[PartGraph] = []
