@@ -451,7 +451,8 @@ class _Context:
         # other stages keep the real split (and filter the graphs by it)
         gnn_split, gnn_key = split_file, {}
         if v.extra is not None:
-            gnn_split, gnn_key = self.extra_split(v)
+            gnn_split = out / "split_gnn.json"
+            gnn_key = _add_generated(split_file, v.extra, gnn_split, "gnn_split")
             graphs = functools.cache(functools.partial(_with_extra, graphs, v.extra.graphs))
 
         # 3. motion GNN, fine and coarse types (Sec. 3.1-3.2), and 4. the axis-selection
@@ -704,16 +705,10 @@ class _Context:
         generated = (self.generated(vout, cfg.release_synth, cache_l, prep, "release: ", "the fine GNN trains")
                      if cfg.release_synth > 0 else None)
         if generated is not None:
-            gcache, info, gen_graphs = generated.cache, generated.info, generated.graphs
-            gen = {g.shape_id: g.category for g in gen_graphs}
-            both = {**cats, **gen}
-            if len(both) != len(cats) + len(gen):
-                raise KinmoDataError(gcache, "a generated shape id is also a labelled or pseudo-labelled one")
             fine_split = vout / "split_fine.json"
-            Split(sorted(both), [], both, cfg.seed, 0.0).save(fine_split)
-            caches.append(gcache)
-            trained = real + gen_graphs
-            fine_key = {"synth": info, "fine_split": hashlib.sha256(fine_split.read_bytes()).hexdigest()[:16]}
+            fine_key = _add_generated(split_file, generated, fine_split, "fine_split")
+            caches.append(generated.cache)
+            trained = real + generated.graphs
 
         def graphs() -> list[PartGraph]:
             return trained
@@ -776,27 +771,6 @@ class _Context:
         self.prepare(gen, gcache, prep, f"{prefix}prepare generated")
         return _Generated(gcache, info, list(load_cache(gcache)))
 
-    def extra_split(self, v: _Variant) -> tuple[Path, dict[str, Any]]:
-        """``v.out/split_gnn.json``: ``v``'s split with its generated objects (``v.extra``)
-        added to training, and the motion GNNs' stage-key entry for them.
-
-        Raises
-        ------
-        KinmoDataError
-            A generated id is also one of the split's.
-        """
-        import hashlib
-
-        assert v.extra is not None
-        base = Split.load(v.split)
-        gen = {g.shape_id: g.category for g in v.extra.graphs}
-        if set(gen) & (set(base.train) | set(base.test)):
-            raise KinmoDataError(v.extra.cache, "a generated shape id is also a labelled one")
-        path = v.out / "split_gnn.json"
-        Split(sorted(base.train + list(gen)), base.test, {**base.categories, **gen}, base.seed,
-              base.test_fraction).save(path)
-        return path, {"synth": v.extra.info, "gnn_split": hashlib.sha256(path.read_bytes()).hexdigest()[:16]}
-
     def synth_extra(self, baseline: _Variant, cache_l: Path, prep: Any, cats: list[str]) -> None:
         """Train and evaluate again with ``cfg.synth_extra`` generated shapes added, into
         ``out/synth-extra-<labeled|unlabeled>-<N>/`` (:data:`SYNTH_EXTRA_FILE` says how)."""
@@ -816,14 +790,11 @@ class _Context:
         if labeled:
             gcache = vout / "cache" / "generated"
             self.prepare(gen, gcache, prep, "synth-extra: prepare generated")
-            gen_graphs = load_cache(gcache)
             # the baseline's split with every generated object added to training: the test
             # objects stay the real held-out ones
-            split = Split(sorted(base_split.train + [g.shape_id for g in gen_graphs]), base_split.test,
-                          {**base_split.categories, **{g.shape_id: g.category for g in gen_graphs}},
-                          base_split.seed, base_split.test_fraction)
             split_file = vout / "split.json"
-            split.save(split_file)
+            _add_generated(cfg.out / "split.json", _Generated(gcache, info, list(load_cache(gcache))), split_file,
+                           "split")
             merged = _link_folder(vout / "data" / "labeled", [cfg.labeled, gen])
             # the baseline's ranker (fit on the real training objects) selects the axes
             v = _Variant(out=vout, graphs=[cache_l, gcache], split=split_file, labeled=merged,
@@ -890,7 +861,8 @@ class _Training:
         if self.kind == "axis":
             graphs = self.graphs
             if not isinstance(graphs, (str, Path)):
-                # the split's objects only: the release's generated objects train its fine GNN alone
+                # the split's objects only: generated objects (the release's, --train-synth) train
+                # the motion GNNs alone
                 sp = self.split if isinstance(self.split, Split) else Split.load(self.split)
                 ids = set(sp.train) | set(sp.test)
                 graphs = [g for g in graphs if g.shape_id in ids]
@@ -1027,6 +999,28 @@ def _train_ranker(cfg: PipelineConfig, v: _Variant, folder: Path, progress: bool
                  seed=cfg.seed, threads=1, progress=progress, epochs=cfg.gnn_epochs,
                  workers=cfg.workers, augment=cfg.augment_gnn, members=cfg.gnn_members,
                  extra=v.extra.graphs if v.extra is not None else ())
+
+
+def _add_generated(split_file: Path, gen: _Generated, path: Path, name: str) -> dict[str, Any]:
+    """Write ``path``: the split of ``split_file`` with ``gen``'s objects added to its training
+    ids (the release's ``split_fine.json``, the main run's ``split_gnn.json``, ``--synth-extra``'s
+    ``split.json``), and return the stage-key entry of the models trained on it: what was
+    generated, and under ``name`` a digest of the new split.
+
+    Raises
+    ------
+    KinmoDataError
+        A generated id is also one of the split's (a labelled or pseudo-labelled object).
+    """
+    import hashlib
+
+    base = Split.load(split_file)
+    cats = {g.shape_id: g.category for g in gen.graphs}
+    if set(cats) & (set(base.train) | set(base.test)):
+        raise KinmoDataError(gen.cache, "a generated shape id is also a labelled or pseudo-labelled one")
+    Split(sorted(base.train + list(cats)), base.test, {**base.categories, **cats}, base.seed,
+          base.test_fraction).save(path)
+    return {"synth": gen.info, name: hashlib.sha256(path.read_bytes()).hexdigest()[:16]}
 
 
 def _with_extra(real: Callable[[], Any], extra: list[PartGraph]) -> list[PartGraph]:
