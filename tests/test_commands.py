@@ -235,4 +235,4 @@ def test_train_all_train_synth_reaches_the_pipeline(tmp_path, monkeypatch):
     assert res.exit_code == 2 and len(seen) == 3
     # the help gives the default the configuration has
     res = CliRunner().invoke(app, ["train", "all", "--help"], terminal_width=400)
-    assert f"default {TRAIN_SYNTH}, 0: none" in " ".join(res.output.split())
+    assert f"default {TRAIN_SYNTH}: none" in " ".join(res.output.split())

@@ -47,7 +47,7 @@ def train_all(
     release_synth: int | None = typer.Option(None, "--release-synth", min=0, max=100000, show_default=False,
                                              help="With --release: N generated objects (kinmo synth, seed --synth-seed) added to the release fine GNN's training (default 120; 0: none)."),
     train_synth: int | None = typer.Option(None, "--train-synth", min=0, max=100000, show_default=False,
-                                           help="N generated objects (kinmo synth, seed --synth-seed) added to the training of the motion GNNs and the ranker's fold GNNs (never to the test objects, the axis network or ANCSH; default 120, 0: none)."),
+                                           help="N generated objects (kinmo synth, seed --synth-seed) added to the training of the motion GNNs and the ranker's fold GNNs (never to the test objects, the axis network or ANCSH; default 0: none; 120 helped Table 1 out of fold but cut Table 2's semi-weakly gain, docs/results/table2.md)."),
 ) -> None:
     """Prepare, train the motion GNN, the axis network and the ranker, pseudo-label, render and train
     ANCSH in three settings, evaluate (Tables 1 and 2) and write the report.
