@@ -278,6 +278,32 @@ def test_reproducible_and_resumable(tmp_path: Path, mobility_root: Path) -> None
 
 
 @pytest.mark.exactdata
+def test_a_held_cylindrical_joint_keeps_its_rest_angle(tmp_path: Path, mobility_root: Path) -> None:
+    """``turn_cylindrical=False`` (ANCSH's scans): the bottle's screw cap slides as before but
+    never turns; the random stream, so the translations and view directions, are unchanged."""
+    src = mobility_root / "3596"  # bottle: its lid is a slider that rotates
+    turned = render_one(src, tmp_path / "t", CONFIG, 3)
+    held_config = RenderConfig(width=160, height=120, seed=7, turn_cylindrical=False)
+    held = render_one(src, tmp_path / "h", held_config, 3)
+    assert [r.status for r in turned + held] == ["ok"] * 6
+    for f in ("00000.npz", "00001.npz", "00002.npz"):
+        ft, fh = load_frame(tmp_path / "t" / "3596" / f), load_frame(tmp_path / "h" / "3596" / f)
+        assert list(fh["joint_type"]) == [2]  # still recorded as cylindrical
+        (tt, at), = ft["meta"]["view"]["state"].values()
+        (th, ah), = fh["meta"]["view"]["state"].values()
+        assert at != 0.0 and ah == 0.0 and th == tt
+        assert fh["joint_angle"][0] == 0.0
+        for k in ("azimuth_deg", "elevation_deg"):  # the distance fits the posed object
+            assert ft["meta"]["view"][k] == fh["meta"]["view"][k]
+        # the cap's pose is its translation alone: the base's rotation, moved along the axis
+        R = fh["part_rotation"]
+        assert np.allclose(R[0], R[1], atol=1e-5)
+        assert not np.allclose(ft["part_rotation"][0], ft["part_rotation"][1], atol=1e-3)
+    # frames of the other setting are not taken as up to date
+    assert render_one(src, tmp_path / "t", held_config, 1)[0].status == "ok"
+
+
+@pytest.mark.exactdata
 def test_cli_parallel_matches_serial(tmp_path: Path, mobility_root: Path) -> None:
     from typer.testing import CliRunner
 

@@ -166,8 +166,8 @@ def normalize_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]
 def _check_parts(path: Path, key: str, parts: ObjectParts | None, structure: KinematicStructure) -> ObjectParts:
     if parts is None:
         raise KinmoDataError(
-            path, f"object {key} cannot be expressed by ANCSH (no moving part, or a cylindrical "
-                  f"joint): it does not fit the category structure {structure.signature()}")
+            path, f"object {key} cannot be expressed by ANCSH (no moving part, or a joint "
+                  f"neither revolute nor prismatic): it does not fit the category structure {structure.signature()}")
     if parts.structure != structure:
         raise KinmoDataError(
             path, f"object {key} has the kinematic structure {parts.structure.signature()}, not "

@@ -138,8 +138,8 @@ def object_parts_of(folder: str | Path) -> tuple[Any, ObjectParts | None]:
     -------
     shape : kinmo.data.model.Shape
     parts : ObjectParts or None
-        None when the object cannot be expressed by ANCSH (no moving joint, a cylindrical
-        joint, a free moving part).
+        None when the object cannot be expressed by ANCSH (no moving joint, a free moving
+        part). A cylindrical joint is taken as prismatic (:func:`kinmo.ancsh.structure.object_parts`).
 
     Raises
     ------
@@ -191,7 +191,7 @@ class CategoryObjects:
         if oid in self.failed:
             return f"{oid}: unreadable ({self.failed[oid]})"
         if p is None:
-            return f"{oid}: cannot be expressed by ANCSH (no moving part, or a cylindrical joint)"
+            return f"{oid}: cannot be expressed by ANCSH (no moving part, or a joint neither revolute nor prismatic)"
         if oid in self.fitting:
             return f"{oid}: fits {want}"
         return f"{oid}: structure {p.structure.signature()}, not the category's {want}"
@@ -211,7 +211,7 @@ def synth_structure(obj: SynthObject) -> KinematicStructure | None:
     Returns
     -------
     KinematicStructure or None
-        None when ANCSH cannot express the object (e.g. a cylindrical joint).
+        None when ANCSH cannot express the object (no moving joint).
     """
     with tempfile.TemporaryDirectory(prefix="kinmo-structure-") as tmp:
         folder = write_object(obj, Path(tmp) / "object", "0")

@@ -17,7 +17,14 @@ from kinmo.data.readers import find_shapes, read_meta
 from kinmo.errors import KinmoDataError
 from kinmo.render.dataset import RenderConfig, render_dataset
 
-__all__ = ["all_categories", "category_folders", "render_objects"]
+__all__ = ["SCAN_RULES", "all_categories", "category_folders", "render_objects"]
+
+#: How ANCSH's scans are rendered beyond :class:`~kinmo.ancsh.config.ANCSHConfig` (image
+#: size, seed): fields of :class:`~kinmo.render.dataset.RenderConfig`. A cylindrical joint is
+#: a prismatic one to ANCSH (:func:`kinmo.ancsh.structure.object_parts`), so its scans hold it
+#: at its rest angle. Part of ``kinmo train all``'s ANCSH stage keys: a run folder of other
+#: rules trains and evaluates again.
+SCAN_RULES: dict[str, bool] = {"turn_cylindrical": False}
 
 
 def _link_objects(folders: dict[str, Path], objects_dir: Path) -> None:
@@ -59,7 +66,7 @@ def render_objects(
         Output of :func:`kinmo.render.dataset.render_dataset` (``<key>/<frame>.npz``).
     frames : int
     config : ANCSHConfig
-        ``image_size``, ``seed``, ``render_workers``.
+        ``image_size``, ``seed``, ``render_workers``; the rest is :data:`SCAN_RULES`.
     progress : bool
     seed_offset : int
         Added to ``config.seed`` for the render seed.
@@ -76,7 +83,8 @@ def render_objects(
     if not folders:
         return [], {}
     _link_objects(folders, objects_dir)
-    rc = RenderConfig(width=config.image_size, height=config.image_size, seed=config.seed + seed_offset)
+    rc = RenderConfig(width=config.image_size, height=config.image_size, seed=config.seed + seed_offset,
+                      **SCAN_RULES)
     res = render_dataset(objects_dir, scans_dir, frames, rc, workers=config.render_workers,
                          progress=progress)
     files: list[Path] = []

@@ -98,8 +98,13 @@ def object_parts(links: list, centroids: dict[int, "object"] | None = None) -> O
 
     Returns
     -------
-    ObjectParts, or None when the object has a cylindrical joint (slider that rotates), which
-    ANCSH's revolute/prismatic structures cannot express, or no moving joint.
+    ObjectParts, or None when the object has no moving joint (or a moving joint that is
+    neither a hinge nor a slider). A cylindrical joint (a slider that also rotates about its
+    axis: a bottle's screw cap, a swivel chair's lift, a pump head) is a prismatic joint
+    here: ANCSH's structures have no cylindrical type, so its scans hold the turn at rest
+    (:func:`kinmo.ancsh.scans.render_objects`) and the part's pose and state are its
+    translation alone. Before session 46 such objects were left out (11 of the 14 labelled
+    bottles).
     """
 
     groups = rigid_groups(links)
@@ -109,7 +114,7 @@ def object_parts(links: list, centroids: dict[int, "object"] | None = None) -> O
     if root is None:
         return None
     moving = [by_id[h] for h in heads if h != root]
-    if not moving or any(lk.joint.type == JointType.SLIDER and lk.joint.rotates for lk in moving):
+    if not moving:
         return None
     if any(lk.joint.type not in (JointType.HINGE, JointType.SLIDER) for lk in moving):
         return None

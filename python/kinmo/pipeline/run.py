@@ -14,6 +14,7 @@ from typing import Any
 from kinmo.ancsh.config import preset as ancsh_preset
 from kinmo.ancsh.evaluate import evaluate_category
 from kinmo.ancsh.generated import can_generate
+from kinmo.ancsh.scans import SCAN_RULES
 from kinmo.ancsh.structure import structure_slug
 from kinmo.ancsh.train import train_ancsh
 from kinmo.data.cache import load_cache
@@ -624,7 +625,7 @@ class _Context:
                         after = ([init] if init is not None else []) + ([pseudo] if setting == "semi-weakly" else [])
                         chain.append(_AncshStage(
                             f"{v.prefix}train ancsh {label} ({setting}{tag})", run_dir,
-                            {**base, "ancsh": acg.key(), "cat": cat, "setting": setting,
+                            {**base, "ancsh": acg.key(), "scans": SCAN_RULES, "cat": cat, "setting": setting,
                              **({"structure": st} if sub else {}), **({"init": str(init)} if init is not None else {})},
                             cat, setting, g.structure, init, shared_g, after))
                         group_runs.append(run_dir)
@@ -647,7 +648,8 @@ class _Context:
                 continue
             ev = roots[seed] / "eval" / cat
             # the test scans and their seed are the main run's: every seed is scored on the same frames
-            self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object},
+            self.stage(ev, {**base, "runs": [str(r) for r in runs], "frames": cfg.frames_per_object,
+                            "scans": SCAN_RULES},
                        lambda runs=runs, ev=ev, cat=cat: evaluate_category(
                            cat, runs, data=cfg.labeled, out=ev, scans=cfg.out / "scans" / cat,
                            frames=cfg.frames_per_object, seed=cfg.seed, progress=progress, console=console),

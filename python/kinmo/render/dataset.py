@@ -10,7 +10,8 @@ al. CVPR 2020; Liu et al. CVPR 2023 Sec. 4.3 evaluate on such scans).
 Per frame (:func:`render_frame`), drawn from a generator seeded by ``(seed, crc32(key),
 frame)`` (reproducible whatever the worker count, order or resumption):
 
-1. the joint state, uniform within the URDF limits (:func:`~kinmo.render.scene.sample_joint_state`);
+1. the joint state, uniform within the URDF limits (:func:`~kinmo.render.scene.sample_joint_state`;
+   a cylindrical joint's angle held at rest when ``RenderConfig.turn_cylindrical`` is false);
 2. the viewpoint: azimuth all around the vertical +y axis, elevation in ``elevation_deg``
    above the horizontal plane, distance ``distance_factor`` times the distance at which the
    posed object's bounding sphere fits the field of view
@@ -118,6 +119,10 @@ class RenderConfig:
         Camera distance range in units of the fitting distance (>= 1: whole object in view).
     seed : int
         Base seed.
+    turn_cylindrical : bool
+        Draw a cylindrical joint's angle as well as its translation (True), or hold it at its
+        rest angle (False: the prismatic view ANCSH takes of such a joint, a bottle's screw
+        cap; :func:`kinmo.render.scene.sample_joint_state`).
     """
 
     width: int = 256
@@ -126,6 +131,7 @@ class RenderConfig:
     elevation_deg: tuple[float, float] = (10.0, 50.0)
     distance_factor: tuple[float, float] = (1.1, 1.6)
     seed: int = 0
+    turn_cylindrical: bool = True
 
     def __post_init__(self) -> None:
         if not (1 <= self.width <= 65535 and 1 <= self.height <= 65535):
@@ -234,7 +240,7 @@ def render_frame(
         ``state`` (link id -> [translation, angle]).
     """
 
-    state = sample_joint_state(scene.joints, rng)
+    state = sample_joint_state(scene.joints, rng, config.turn_cylindrical)
     scene.set_state(state)
     poses = scene.link_poses()
     center, radius = _posed_sphere(scene, geometry, poses)

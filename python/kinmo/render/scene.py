@@ -329,7 +329,8 @@ class Scene:
             pass
 
 
-def sample_joint_state(joints: Sequence[MovingJoint], rng: np.random.Generator) -> JointState:
+def sample_joint_state(joints: Sequence[MovingJoint], rng: np.random.Generator,
+                       turn_cylindrical: bool = True) -> JointState:
     """A random joint state, uniform within each joint's limits.
 
     Parameters
@@ -337,6 +338,11 @@ def sample_joint_state(joints: Sequence[MovingJoint], rng: np.random.Generator) 
     joints : sequence of MovingJoint
         In the order the random numbers are drawn (translation then angle per joint).
     rng : numpy.random.Generator
+    turn_cylindrical : bool
+        False holds every cylindrical joint at its rest angle (0) and draws only its
+        translation, the prismatic view of it that ANCSH takes
+        (:func:`kinmo.ancsh.structure.object_parts`). The angle is still drawn and dropped,
+        so the random stream, and every other joint's state, are the same either way.
 
     Returns
     -------
@@ -348,5 +354,7 @@ def sample_joint_state(joints: Sequence[MovingJoint], rng: np.random.Generator) 
     for j in joints:
         t = float(rng.uniform(*j.translation_limits)) if j.translation_limits else 0.0
         a = float(rng.uniform(*j.angle_limits)) if j.angle_limits else 0.0
+        if j.kind == "cylindrical" and not turn_cylindrical:
+            a = 0.0
         out[j.link_id] = (t, a)
     return out
