@@ -43,7 +43,7 @@ from kinmo.ancsh.objects import (
     resolve_category,
     scan_category,
 )
-from kinmo.ancsh.structure import KinematicStructure, ObjectParts
+from kinmo.ancsh.structure import NOT_EXPRESSIBLE, KinematicStructure, ObjectParts
 from kinmo.ancsh.targets import joint_targets
 from kinmo.errors import KinmoDataError
 from kinmo.render.dataset import load_frame
@@ -166,8 +166,7 @@ def normalize_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]
 def _check_parts(path: Path, key: str, parts: ObjectParts | None, structure: KinematicStructure) -> ObjectParts:
     if parts is None:
         raise KinmoDataError(
-            path, f"object {key} cannot be expressed by ANCSH (no moving part, or a joint "
-                  f"neither revolute nor prismatic): it does not fit the category structure {structure.signature()}")
+            path, f"object {key} {NOT_EXPRESSIBLE}: it does not fit the category structure {structure.signature()}")
     if parts.structure != structure:
         raise KinmoDataError(
             path, f"object {key} has the kinematic structure {parts.structure.signature()}, not "

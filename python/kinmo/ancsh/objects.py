@@ -24,7 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from kinmo.ancsh.structure import KinematicStructure, ObjectParts, category_structure, object_parts
+from kinmo.ancsh.structure import (
+    NOT_EXPRESSIBLE,
+    KinematicStructure,
+    ObjectParts,
+    category_structure,
+    object_parts,
+)
 from kinmo.data.labels import rigid_groups
 from kinmo.data.readers import find_shapes, read_meta, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
@@ -191,7 +197,7 @@ class CategoryObjects:
         if oid in self.failed:
             return f"{oid}: unreadable ({self.failed[oid]})"
         if p is None:
-            return f"{oid}: cannot be expressed by ANCSH (no moving part, or a joint neither revolute nor prismatic)"
+            return f"{oid}: {NOT_EXPRESSIBLE}"
         if oid in self.fitting:
             return f"{oid}: fits {want}"
         return f"{oid}: structure {p.structure.signature()}, not the category's {want}"

@@ -18,6 +18,10 @@ from kinmo.data.labels import rigid_groups
 from kinmo.data.model import JointType
 
 
+#: Why :func:`object_parts` returns None, for messages (``kinmo.ancsh.objects``, ``kinmo.ancsh.dataset``).
+NOT_EXPRESSIBLE = "cannot be expressed by ANCSH (no moving part, or a joint neither revolute nor prismatic)"
+
+
 @dataclass(frozen=True)
 class KinematicStructure:
     """A category's kinematic structure.
