@@ -26,6 +26,12 @@ features (the part against the rest of the object, contact at rest not counted):
   side walls, and a drawer typed a vertical slider (a lid, a button) is pushed into the
   carcass's floor and top. A blocked line of either orientation is replaced by a horizontal
   one only: a vertical line never replaces another (a drawer's own rails free its lift);
+- a **slide blocked by the fixed parts** (:func:`fixed_parts_slide_veto`): the same veto,
+  when every horizontal line is blocked against the rest of the object, judged against the
+  parts predicted not to move. A drawer behind a closed door cannot slide out in the swept
+  test (the door is in the way along its real line too), so the blocked-slide veto cannot
+  act; against the carcass alone its front line is free and a sideways line still blocked
+  (a ROS cabinet facing +x, issue 36);
 - a **blocked hinge** (:func:`hinge_blocked`): when no candidate line of a revolute edge
   lets the part turn either way, :func:`kinmo.refine.refine.refine_predictions` tries the
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
@@ -52,7 +58,7 @@ Frames and units: mesh frame (y-up), mesh units.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -79,10 +85,10 @@ from kinmo.refine.scoring import (
     line_feasibility,
     score_candidates,
 )
-from kinmo.refine.selector import candidate_features, edge_candidates
+from kinmo.refine.selector import candidate_features, edge_candidates, line_sweeps
 
 __all__ = ["BLOCKED_FREE", "OPEN_FREE", "SLIDE_ALONG_DEG", "EdgeRefinement", "blocked_slide_veto",
-           "chosen_line", "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
+           "chosen_line", "fixed_parts_slide_veto", "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -345,6 +351,66 @@ def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray
         return best
     ok = np.flatnonzero(_free_horizontal(cands, free))
     return int(ok[np.argmax(np.asarray(prob)[ok])])
+
+
+def fixed_parts_slide_veto(graph: PartGraph, edge: int, refinement: EdgeRefinement, meshes,
+                           fixed_leaves: np.ndarray, confidence=None) -> EdgeRefinement:
+    """A slider's choice with a slide the fixed parts block replaced (module docs).
+
+    The blocked-slide veto (:func:`blocked_slide_veto`) sweeps the part against everything
+    outside its subtree, so a drawer behind a closed door finds no free line and keeps the
+    ranker's choice, even one into the carcass's walls. Here the lines are swept again
+    against ``fixed_leaves`` alone (the parts predicted not to move), and the veto's rule
+    applies to that test: a chosen line blocked (``<`` :data:`BLOCKED_FREE`) gives way to the
+    most probable horizontal line free one way (``>=`` :data:`OPEN_FREE`).
+
+    Parameters
+    ----------
+    graph : PartGraph
+    edge : int
+        Row of ``graph.sibling_edges``; its first node is the moving part.
+    refinement : EdgeRefinement
+        The learned selector's choice (:func:`select_edge`) for a prismatic edge.
+    meshes : kinmo.refine.selector.ShapeMeshes
+        The shape's leaf meshes.
+    fixed_leaves : (L,) int
+        Graph leaves of the parts predicted not to move (outside every moving part's subtree).
+    confidence : callable, optional
+        ``(p, dir_prior) -> float``, the ranker's calibration
+        (:meth:`kinmo.refine.ranker.Ranker.confidence`), for the new line's confidence.
+
+    Returns
+    -------
+    EdgeRefinement
+        ``refinement`` itself unless the veto acts: it acts only on a prismatic edge
+        (``"P"``) whose every horizontal line is blocked or not free enough against the whole
+        object (else :func:`blocked_slide_veto` has decided), whose chosen line is blocked
+        against the fixed parts, and that has a horizontal line free one way against them.
+        Then the new line, signed by the freer side of the new sweep, with ``free`` the new
+        sweep's (so :func:`vetoed_slides` judges it by the test that chose it).
+    """
+    r = refinement
+    cands, b = r.candidates, r.scores.best
+    if cands.motion != "P" or r.free is None or b < 0 or float(r.free[b]) >= BLOCKED_FREE \
+            or _free_horizontal(cands, r.free).any():
+        return r
+    moving = int(graph.sibling_edges[edge][0])
+    free, coll = line_sweeps(graph, moving, cands, meshes, np.asarray(fixed_leaves, np.int64))
+    fmax = free.max(axis=1)
+    ok = np.flatnonzero(_free_horizontal(cands, fmax))
+    if float(fmax[b]) >= BLOCKED_FREE or not ok.size:
+        return r
+    p = np.asarray(r.scores.total, dtype=np.float64)
+    nb = int(ok[np.argmax(p[ok])])
+    better = np.where(free[:, 1] != free[:, 0], free[:, 1] > free[:, 0], coll[:, 1] < coll[:, 0])
+    sign = np.where(better, -1, 1).astype(np.int64)
+    o, d = chosen_line(graph, moving, cands, nb, int(sign[nb]))
+    calibrated = r.calibrated
+    if confidence is not None:
+        prior = 1.0 if r.dir_prior is None else float(r.dir_prior[nb])
+        calibrated = confidence(float(p[nb]), prior)
+    scores = replace(r.scores, sign=sign, best=nb)
+    return replace(r, scores=scores, origin=o, direction=d, calibrated=calibrated, free=fmax)
 
 
 def select_edge(

@@ -56,11 +56,12 @@ from kinmo.mobility_tree import (
     consistent_fine,
 )
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.edge import (OPEN_FREE, SLIDE_ALONG_DEG, EdgeRefinement, hinge_blocked, refine_edge,
-                               select_edge, spin_blocked)
+from kinmo.refine.edge import (OPEN_FREE, SLIDE_ALONG_DEG, EdgeRefinement, fixed_parts_slide_veto,
+                               hinge_blocked, refine_edge, select_edge, spin_blocked)
 from kinmo.refine.paired import open_from_the_middle
 from kinmo.refine.repeated import vote_repeated
 from kinmo.refine.ranker import DIRECTION_TOL_DEG
+from kinmo.refine.selector import fixed_leaves
 
 logger = logging.getLogger(__name__)
 
@@ -364,6 +365,12 @@ def refine_predictions(
                 logger.warning("%s: no meshes (source folder %s unreadable or not matching the "
                                "graph): the ranker's sweep features use the point proxy",
                                graph.shape_id, graph.meta.get("source", "unknown"))
+    fixed = None
+    if ranker is not None and cfg.sweep_vetoes and meshes is not None:
+        # every edge predicted to move, not only those refined (``only``): a door stays in
+        # the way of its drawer whether or not its own edge is refined
+        fixed = fixed_leaves(graph, [int(pred.edges[k][0]) for k, t in enumerate(pred.types)
+                                     if t not in ("Fixed", "None")])
     for k in np.flatnonzero(moving):
         i, j = (int(x) for x in pred.edges[k])
         if ranker is not None:
@@ -386,6 +393,8 @@ def refine_predictions(
                 r = rp
                 switched.add(int(k))
                 types[k] = "P_H"
+        if fixed is not None:
+            r = fixed_parts_slide_veto(graph, int(k), r, meshes, fixed, ranker.confidence)
         details[int(k)] = r
     if ranker is not None and cfg.vote_repeated and details:
         details.update(vote_repeated(graph, pred.edges, types, details, ranker.confidence,

@@ -81,6 +81,8 @@ __all__ = [
     "candidate_labels",
     "edge_candidates",
     "fit_ranker",
+    "fixed_leaves",
+    "line_sweeps",
     "load_ranker",
     "rotate_about",
     "shape_meshes",
@@ -261,6 +263,15 @@ def _subtree(graph: PartGraph, node: int) -> np.ndarray:
     return inside
 
 
+def fixed_leaves(graph: PartGraph, moving_nodes) -> np.ndarray:
+    """``(L,) int64``: the graph's leaves outside the subtree of every node of
+    ``moving_nodes`` (graph node indices: the parts predicted to move), sorted."""
+    out = np.zeros(graph.n_nodes, dtype=bool)
+    for n in set(int(x) for x in moving_nodes):
+        out |= _subtree(graph, n)
+    return np.flatnonzero(np.asarray(graph.is_leaf, dtype=bool) & ~out).astype(np.int64)
+
+
 def _static_points(graph: PartGraph, moving: int, cap: int, rng: np.random.Generator) -> np.ndarray:
     leaves = np.asarray(graph.is_leaf, dtype=bool) & ~_subtree(graph, moving)
     pts = np.asarray(graph.points)[leaves].reshape(-1, 3)
@@ -418,6 +429,45 @@ def _point_line(points: np.ndarray, origins: np.ndarray, directions: np.ndarray)
     return np.sqrt((c0 * c0 + c1 * c1 + c2 * c2).min(axis=1))
 
 
+def line_sweeps(graph: PartGraph, moving: int, cands: Candidates, meshes: ShapeMeshes,
+                static_leaves: np.ndarray, *, sweep_angle_deg: float = 90.0,
+                sweep_fraction: float = 0.5, sweep_points: int = 256
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The swept test of every candidate line of ``moving`` against ``static_leaves``: the
+    ``sweep_*`` terms of :func:`candidate_features` (which sweeps against every leaf outside
+    ``moving``'s subtree) and of the fixed-parts slide veto
+    (:func:`kinmo.refine.edge.fixed_parts_slide_veto`, against the parts predicted not to move).
+
+    Parameters
+    ----------
+    graph : PartGraph
+    moving : int
+        Graph node of the moving part; its first ``sweep_points`` samples are swept.
+    cands : Candidates
+        Its candidate lines (mesh frame); revolute ones turn ``sweep_angle_deg`` degrees,
+        prismatic ones (``cands.motion == "P"``) slide ``sweep_fraction`` of the part's extent
+        along the line.
+    meshes : ShapeMeshes
+    static_leaves : (L,) int
+        Graph leaves that stay put (the obstacle).
+
+    Returns
+    -------
+    free, colliding : (C, 2) float64
+        As :func:`kinmo.geometry.sweep_collisions`, for the + and - direction of each line.
+    """
+    c = len(cands)
+    o, d = np.ascontiguousarray(cands.origins), np.ascontiguousarray(cands.directions)
+    mp = np.asarray(graph.points[moving], dtype=np.float64)[:sweep_points]
+    if cands.motion != "P":
+        kinds = np.zeros(c, np.int64)
+        ranges = np.full(c, np.radians(sweep_angle_deg))
+    else:
+        kinds = np.ones(c, np.int64)
+        ranges = np.maximum(sweep_fraction * np.ptp(mp @ d.T, axis=0), 1e-9)
+    return meshes.sweep(moving, static_leaves, mp, o, d, kinds, ranges, n_steps=8)
+
+
 def candidate_features(
     graph: PartGraph,
     moving: int,
@@ -554,17 +604,10 @@ def candidate_features(
     x[:, _F["sweep_free_min"]] = x[:, _F["sweep_free_max"]] = 1.0
     x[:, _F["attach_mesh"]] = x[:, _F["attach_ref"]]
     if meshes is not None:
-        sub = _subtree(graph, moving)
-        static_leaves = np.flatnonzero(np.asarray(graph.is_leaf, bool) & ~sub)
-        mp = np.asarray(graph.points[moving], dtype=np.float64)[:sweep_points]
-        if revolute:
-            kinds = np.zeros(c, np.int64)
-            ranges = np.full(c, np.radians(sweep_angle_deg))
-        else:
-            kinds = np.ones(c, np.int64)
-            ranges = np.maximum(sweep_fraction * np.ptp(mp @ d.T, axis=0), 1e-9)
-        free, coll = meshes.sweep(moving, static_leaves, mp, np.ascontiguousarray(o),
-                                  np.ascontiguousarray(d), kinds, ranges, n_steps=8)
+        static_leaves = np.flatnonzero(np.asarray(graph.is_leaf, bool) & ~_subtree(graph, moving))
+        free, coll = line_sweeps(graph, moving, cands, meshes, static_leaves,
+                                 sweep_angle_deg=sweep_angle_deg, sweep_fraction=sweep_fraction,
+                                 sweep_points=sweep_points)
         x[:, _F["sweep_free_min"]] = free.min(axis=1)
         x[:, _F["sweep_free_max"]] = free.max(axis=1)
         x[:, _F["sweep_coll_min"]] = coll.min(axis=1)
