@@ -135,6 +135,8 @@ def test_the_command_scores_one_object_and_names_its_outputs_on_one_line(objects
     assert r.exit_code == 0, r.output
     assert f"wrote {out / 'user_format.json'} and {out / 'user_format.md'}" in r.output
     assert (out / "user_format.md").is_file() and "| generic | 1 |" in r.output
+    # the model is named by its folder, not by the loaded Predictor's repr
+    assert json.loads((out / "user_format.json").read_text())["run"] == str(gnn)
 
 
 def test_matched_joints_are_scored_on_their_ranges_too():
