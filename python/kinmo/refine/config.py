@@ -93,7 +93,9 @@ class RefineConfig(BaseModel):
         lines can turn becomes a slider when one of its slider lines is free
         (:func:`kinmo.refine.edge.hinge_blocked`, :func:`kinmo.refine.refine.as_slider`), as
         does a continuous one whose chosen horizontal line cannot turn it, when it slides
-        along that line (:func:`kinmo.refine.edge.spin_blocked`).
+        along that line (:func:`kinmo.refine.edge.spin_blocked`); a slider blocked every way
+        by the whole object is judged again against the parts predicted not to move (a drawer
+        behind a closed door, :func:`kinmo.refine.edge.fixed_parts_slide_veto`).
     ranges : str or None
         kinmo extension (issue 35): path of the range-of-motion prior (``ranges.json``,
         :class:`kinmo.ranges.RangePrior`); after the selector, every moving joint gets its
