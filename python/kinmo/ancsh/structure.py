@@ -118,9 +118,7 @@ def object_parts(links: list, centroids: dict[int, "object"] | None = None) -> O
     if root is None:
         return None
     moving = [by_id[h] for h in heads if h != root]
-    if not moving:
-        return None
-    if any(lk.joint.type not in (JointType.HINGE, JointType.SLIDER) for lk in moving):
+    if not moving or any(lk.joint.type not in (JointType.HINGE, JointType.SLIDER) for lk in moving):
         return None
 
     def key(lk):

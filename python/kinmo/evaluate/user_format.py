@@ -475,8 +475,7 @@ def evaluate_user_format(
         results[variant] = score(rows)
         all_rows[variant] = rows
     # the model as a folder, not a Predictor's repr (a page of modules, with memory addresses)
-    model = (r.bundle.root or r.bundle.gnn) if r.bundle is not None else r.run.path
-    write_json(out / "user_format.json", {"run": str(run if not isinstance(run, Predictor) else model),
+    write_json(out / "user_format.json", {"run": str(run.source if isinstance(run, Predictor) else run),
                                           "axis_model": None if axis_model is None
                                           else str(axis_model), "turn": int(turn) % 4, "write_up": write_up,
                                           "scores": results, "rows": all_rows})

@@ -192,9 +192,14 @@ class Predictor:
         """``"ranker"``, ``"paper"`` or ``"none"``."""
         return "none" if self.refine is None else self.refine.selector
 
+    @property
+    def source(self) -> Path:
+        """The model's folder: the bundle's (or its GNN's), else the GNN run's."""
+        return (self.bundle.root or self.bundle.gnn) if self.bundle is not None else self.run.path
+
     def describe(self) -> str:
         """One line: which model and selector are used."""
-        src = (self.bundle.root or self.bundle.gnn) if self.bundle is not None else self.run.path
+        src = self.source
         sel = {"ranker": f"learned selector ({self.refine.ranker})" if self.refine else "",
                "paper": "paper selector (0.5/0.3/0.2, axis network)",
                "none": "no refinement (GNN axes)"}[self.selector]

@@ -85,7 +85,7 @@ from kinmo.refine.scoring import (
     line_feasibility,
     score_candidates,
 )
-from kinmo.refine.selector import candidate_features, edge_candidates, line_sweeps
+from kinmo.refine.selector import candidate_features, edge_candidates, freer_sign, line_sweeps
 
 __all__ = ["BLOCKED_FREE", "OPEN_FREE", "SLIDE_ALONG_DEG", "EdgeRefinement", "blocked_slide_veto",
            "chosen_line", "fixed_parts_slide_veto", "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
@@ -402,8 +402,7 @@ def fixed_parts_slide_veto(graph: PartGraph, edge: int, refinement: EdgeRefineme
         return r
     p = np.asarray(r.scores.total, dtype=np.float64)
     nb = int(ok[np.argmax(p[ok])])
-    better = np.where(free[:, 1] != free[:, 0], free[:, 1] > free[:, 0], coll[:, 1] < coll[:, 0])
-    sign = np.where(better, -1, 1).astype(np.int64)
+    sign = freer_sign(free, coll)
     o, d = chosen_line(graph, moving, cands, nb, int(sign[nb]))
     calibrated = r.calibrated
     if confidence is not None:

@@ -337,6 +337,7 @@ def refine_predictions(
         raise ValueError(f"edge_predictions.edges: node index out of range 0..{graph.n_nodes - 1}")
     types = list(pred.types)
     moving = np.array([t not in ("Fixed", "None") for t in types], dtype=bool)
+    movers = pred.edges[moving, 0]  # every part predicted to move, refined (``only``) or not
     if only is not None:
         sel = np.zeros(e, dtype=bool)
         sel[np.asarray(list(only), dtype=np.int64)] = True
@@ -365,12 +366,10 @@ def refine_predictions(
                 logger.warning("%s: no meshes (source folder %s unreadable or not matching the "
                                "graph): the ranker's sweep features use the point proxy",
                                graph.shape_id, graph.meta.get("source", "unknown"))
-    fixed = None
-    if ranker is not None and cfg.sweep_vetoes and meshes is not None:
-        # every edge predicted to move, not only those refined (``only``): a door stays in
-        # the way of its drawer whether or not its own edge is refined
-        fixed = fixed_leaves(graph, [int(pred.edges[k][0]) for k, t in enumerate(pred.types)
-                                     if t not in ("Fixed", "None")])
+    # the fixed-parts slide veto's obstacle: a door predicted to open is no obstacle to its
+    # drawer, whether or not the door's own edge is refined
+    fixed = fixed_leaves(graph, movers) if ranker is not None and cfg.sweep_vetoes and meshes is not None \
+        else None
     for k in np.flatnonzero(moving):
         i, j = (int(x) for x in pred.edges[k])
         if ranker is not None:

@@ -82,6 +82,7 @@ __all__ = [
     "edge_candidates",
     "fit_ranker",
     "fixed_leaves",
+    "freer_sign",
     "line_sweeps",
     "load_ranker",
     "rotate_about",
@@ -468,6 +469,14 @@ def line_sweeps(graph: PartGraph, moving: int, cands: Candidates, meshes: ShapeM
     return meshes.sweep(moving, static_leaves, mp, o, d, kinds, ranges, n_steps=8)
 
 
+def freer_sign(free: np.ndarray, colliding: np.ndarray) -> np.ndarray:
+    """``(C,) int64`` ±1: the freer direction of each swept line (:func:`line_sweeps`' ``(C, 2)``
+    free and colliding fractions, + then -): the larger free fraction, then the smaller
+    colliding one; +1 on ties."""
+    better = np.where(free[:, 1] != free[:, 0], free[:, 1] > free[:, 0], colliding[:, 1] < colliding[:, 0])
+    return np.where(better, -1, 1).astype(np.int64)
+
+
 def candidate_features(
     graph: PartGraph,
     moving: int,
@@ -612,8 +621,7 @@ def candidate_features(
         x[:, _F["sweep_free_max"]] = free.max(axis=1)
         x[:, _F["sweep_coll_min"]] = coll.min(axis=1)
         x[:, _F["sweep_coll_max"]] = coll.max(axis=1)
-        better = np.where(free[:, 1] != free[:, 0], free[:, 1] > free[:, 0], coll[:, 1] < coll[:, 0])
-        sign = np.where(better, -1, 1).astype(np.int64)
+        sign = freer_sign(free, coll)
         rv, rf = meshes.union(np.flatnonzero(np.asarray(graph.is_leaf, bool) & _subtree(graph, reference)))
         if revolute and rf.shape[0]:
             x[:, _F["attach_mesh"]] = np.minimum(
