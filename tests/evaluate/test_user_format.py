@@ -115,6 +115,23 @@ def test_matching_is_one_to_one_at_iou_half():
     assert s["fully_right"] == 0.25 and s["false_movers_per_object"] == 0.5
 
 
+def test_a_compound_joint_is_matched_by_type_then_axis():
+    """Two true joints on one body (a slide and a hinge, as IAI's cabinets write them): a
+    predicted hinge is scored against the true hinge, whatever their order in the file."""
+    x, z = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    body = frozenset({1})
+    slide, hinge = TrueJoint(1, "slider", x, body), TrueJoint(1, "hinge", z, body)
+    for true, want in (([slide, hinge], 1), ([hinge, slide], 0)):
+        assert [(i, j) for i, j, _ in match_joints(true, [PredJoint(5, "hinge", -z, body)])] == [(want, 0)]
+    # two true hinges on one body: the nearer axis wins, in either order
+    h2 = TrueJoint(1, "hinge", x, body)
+    for true, want in (([h2, hinge], 1), ([hinge, h2], 0)):
+        assert [(i, j) for i, j, _ in match_joints(true, [PredJoint(5, "hinge", z, body)])] == [(want, 0)]
+    # a higher IoU still wins over the type
+    assert [(i, j) for i, j, _ in match_joints([slide, TrueJoint(2, "hinge", z, frozenset({1, 2}))],
+                                               [PredJoint(5, "hinge", z, body)])] == [(0, 0)]
+
+
 def test_the_command_scores_one_object_and_names_its_outputs_on_one_line(objects, tmp_path):
     """`kinmo eval user-format` end to end on one real object (an untrained GNN: the
     command's plumbing, not the network, is under test); its report is not wrapped at 80

@@ -100,7 +100,7 @@ def test_the_vetoes_are_on_by_default_and_can_be_turned_off():
 
 
 def test_a_spin_blocked_on_its_chosen_line_is_flagged_only_for_a_horizontal_continuous_hinge():
-    from kinmo.refine.edge import spin_blocked
+    from kinmo.refine.edge import SPIN_BLOCKED_FREE, spin_blocked
 
     cands, x, p = _case([0.04, 0.5, 0.9], "R_H_C")  # the chosen line (z) is blocked, others turn
     scores = CandidateScores(np.full(3, 0.5), np.zeros(3), np.zeros(3), p, np.ones(3, np.int64), 0)
@@ -108,7 +108,11 @@ def test_a_spin_blocked_on_its_chosen_line_is_flagged_only_for_a_horizontal_cont
     assert not hinge_blocked(r) and spin_blocked(r, "R_H_C")
     assert not spin_blocked(r, "R_H_S")  # a door or a lid: PartNet holds them interlocked
     assert not spin_blocked(r, "P_H")
-    assert not spin_blocked(dataclasses.replace(r, free=np.array([BLOCKED_FREE, 0.5, 0.9])), "R_H_C")
+    # a spin that turns 9 degrees either way (IAI cabinet 11's drawer) is no free spin; one that
+    # turns 18 degrees is left alone (a laptop screen freeing 0.248 must stay a hinge)
+    assert spin_blocked(dataclasses.replace(r, free=np.array([BLOCKED_FREE, 0.5, 0.9])), "R_H_C")
+    assert not spin_blocked(dataclasses.replace(r, free=np.array([SPIN_BLOCKED_FREE, 0.5, 0.9])), "R_H_C")
+    assert not spin_blocked(dataclasses.replace(r, free=np.array([0.248, 0.5, 0.9])), "R_H_C")
     assert not spin_blocked(dataclasses.replace(r, free=None), "R_H_C")  # no meshes: no veto
     vertical = dataclasses.replace(r, scores=dataclasses.replace(scores, best=2), direction=_DIRS[2],
                                    free=np.array([0.5, 0.5, 0.04]))

@@ -282,17 +282,22 @@ def match_joints(true: Sequence[TrueJoint], pred: Sequence[PredJoint],
                  min_iou: float = 0.5) -> list[tuple[int, int, float]]:
     """Greedy one-to-one matching of true and predicted joints by moved-node IoU.
 
+    Ties in IoU arise when two true joints move the same parts (a compound joint written as a
+    slide and a hinge on one body, as some MJCF and URDF assets do): a predicted joint is then
+    matched to the one it agrees with, of the same type first, then the smaller axis angle.
+
     Returns
     -------
     list of (true index, predicted index, IoU)
-        Pairs with IoU ``>= min_iou``, highest IoU first (ties: lower indices first).
+        Pairs with IoU ``>= min_iou``, highest IoU first (ties: same type first, then the
+        smaller acute axis angle, then lower indices).
     """
-    cand = sorted(((-_iou(t.moved, p.moved), i, j) for i, t in enumerate(true)
-                   for j, p in enumerate(pred)))
+    cand = sorted(((-_iou(t.moved, p.moved), t.type != p.type, acute_angle(t.direction, p.direction), i, j)
+                   for i, t in enumerate(true) for j, p in enumerate(pred)))
     used_t: set[int] = set()
     used_p: set[int] = set()
     out = []
-    for neg, i, j in cand:
+    for neg, _, _, i, j in cand:
         if -neg < min_iou:
             break
         if i in used_t or j in used_p:

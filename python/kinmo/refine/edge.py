@@ -37,8 +37,8 @@ features (the part against the rest of the object, contact at rest not counted):
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
   or shaped like a flap);
 - a **blocked spin** (:func:`spin_blocked`): a continuous revolute edge (``R_*_C``, a knob's
-  or a wheel's free turn) whose chosen line is horizontal and cannot turn the part either
-  way is tried as a slider too, and kept when the chosen slider line runs along the blocked
+  or a wheel's free turn) whose chosen line is horizontal and cannot turn the part 18° either
+  way (:data:`SPIN_BLOCKED_FREE`) is tried as a slider too, and kept when the chosen slider line runs along the blocked
   one (within :data:`SLIDE_ALONG_DEG`) and is free one way:
   the GNN found the line a drawer pulls out along and took it for a spin about it (ROS
   cabinets, issue 36). Hinges that are not continuous are left alone: PartNet meshes hold
@@ -87,8 +87,8 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates, freer_sign, line_sweeps
 
-__all__ = ["BLOCKED_FREE", "OPEN_FREE", "SLIDE_ALONG_DEG", "EdgeRefinement", "blocked_slide_veto",
-           "chosen_line", "fixed_parts_slide_veto", "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
+__all__ = ["BLOCKED_FREE", "OPEN_FREE", "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE", "EdgeRefinement",
+           "blocked_slide_veto", "chosen_line", "fixed_parts_slide_veto", "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -98,6 +98,10 @@ OPEN_FREE = 0.9
 #: A blocked spin (:func:`spin_blocked`) becomes a slider only along its own line: the chosen
 #: slider line at most this many degrees from it (and free one way, :data:`OPEN_FREE`).
 SLIDE_ALONG_DEG = 20.0
+#: A continuous turn (fine type ``R_*_C``: a knob, a wheel) is blocked (:func:`spin_blocked`)
+#: when its chosen line frees less than this fraction of the swept test's quarter turn either
+#: way: a part that cannot turn 18° either way is no free spin.
+SPIN_BLOCKED_FREE = 0.2
 #: Largest ``|y|`` of a unit direction counted as horizontal (y-up; 60° from vertical).
 _HORIZONTAL_Y = 0.5
 
@@ -282,10 +286,10 @@ def hinge_blocked(refinement: EdgeRefinement) -> bool:
 def spin_blocked(refinement: EdgeRefinement, fine_type: str) -> bool:
     """True for a continuous revolute edge (fine type ``R_*_C``: a knob, a wheel) whose chosen
     line is horizontal and does not let the part turn: its swept test frees less than
-    :data:`BLOCKED_FREE` either way (False without the sweep or a choice)."""
+    :data:`SPIN_BLOCKED_FREE` either way (False without the sweep or a choice)."""
     f, best = refinement.free, refinement.scores.best
     return fine_type.startswith("R_") and fine_type.endswith("_C") and f is not None and \
-        0 <= best < len(f) and float(f[best]) < BLOCKED_FREE and \
+        0 <= best < len(f) and float(f[best]) < SPIN_BLOCKED_FREE and \
         abs(float(refinement.direction[1])) < _HORIZONTAL_Y
 
 
