@@ -90,6 +90,13 @@ __all__ = [
 ]
 
 _PARALLEL_COS = float(np.cos(np.radians(5.0)))
+#: The swept test's defaults (:func:`line_sweeps`), shared by the selector's ``sweep_*``
+#: features and the fixed-parts slide veto so that both judge a line by the same test: a
+#: quarter turn of revolute lines, half the part's extent along prismatic ones, the first 256
+#: samples of the moving part.
+SWEEP_ANGLE_DEG = 90.0
+SWEEP_FRACTION = 0.5
+SWEEP_POINTS = 256
 
 
 @dataclass
@@ -431,8 +438,8 @@ def _point_line(points: np.ndarray, origins: np.ndarray, directions: np.ndarray)
 
 
 def line_sweeps(graph: PartGraph, moving: int, cands: Candidates, meshes: ShapeMeshes,
-                static_leaves: np.ndarray, *, sweep_angle_deg: float = 90.0,
-                sweep_fraction: float = 0.5, sweep_points: int = 256
+                static_leaves: np.ndarray, *, sweep_angle_deg: float = SWEEP_ANGLE_DEG,
+                sweep_fraction: float = SWEEP_FRACTION, sweep_points: int = SWEEP_POINTS
                 ) -> tuple[np.ndarray, np.ndarray]:
     """The swept test of every candidate line of ``moving`` against ``static_leaves``: the
     ``sweep_*`` terms of :func:`candidate_features` (which sweeps against every leaf outside
@@ -490,9 +497,9 @@ def candidate_features(
     feasibility: np.ndarray | None = None,
     meshes: ShapeMeshes | None = None,
     *,
-    sweep_angle_deg: float = 90.0,
-    sweep_fraction: float = 0.5,
-    sweep_points: int = 256,
+    sweep_angle_deg: float = SWEEP_ANGLE_DEG,
+    sweep_fraction: float = SWEEP_FRACTION,
+    sweep_points: int = SWEEP_POINTS,
     angles_deg: tuple[float, ...] = (30.0, 60.0),
     fractions: tuple[float, ...] = (0.25, 0.5),
     static_cap: int = 2048,
