@@ -167,3 +167,124 @@ def test_a_blocked_spin_stays_a_hinge_when_it_slides_only_across_its_line(monkey
     # a hinge that is not continuous keeps its type even where it could slide along its line
     t, _ = _switch(monkeypatch, tmp_path, "R_H_S", [0.0, 0.0, 1.0])
     assert t == "R_H_S"
+
+
+def _button(share: float = 1.1, half=(0.05, 0.05, 0.02)):
+    """The test cabinet with its door (node 2) made a button on the body's front face (+z):
+    its centre ``share`` of the body's half depth in front of the body's centre."""
+    from motion_cabinet import cabinet_graph
+
+    from .test_selector import _door_edge
+
+    g = cabinet_graph(n_points=64)
+    k = _door_edge(g)
+    centre, halfs = g.obb_center.copy(), g.obb_half_extents.copy()
+    halfs[2] = half
+    centre[2] = centre[1] + [0.0, 0.0, share * halfs[1][2]]
+    return dataclasses.replace(g, obb_center=centre, obb_half_extents=halfs), k
+
+
+def _slide(chosen: int, free=(1.0, 1.0, 1.0), motion_type="P_V") -> EdgeRefinement:
+    cands, _, p = _case([0.0, 0.0, 0.0], motion_type)
+    scores = CandidateScores(np.full(3, 0.5), np.zeros(3), np.zeros(3), p, np.ones(3, np.int64), chosen)
+    return EdgeRefinement(cands, scores, np.zeros(3), _DIRS[chosen], free=np.asarray(free, float))
+
+
+def test_a_button_slid_across_its_face_is_pressed_along_the_normal():
+    """Meta-World's button box: the button, on the box's front face, typed a vertical slider."""
+    from kinmo.refine.edge import pressed_into_face
+
+    g, k = _button()
+    assert bool(g.sibling_contact[k])
+    out = pressed_into_face(g, k, _slide(2))
+    assert out.scores.best == 0 and abs(out.direction[2]) == pytest.approx(1.0)
+    # the calibration is asked for the new line
+    out = pressed_into_face(g, k, _slide(2), confidence=lambda p, prior: 0.42)
+    assert out.calibrated == pytest.approx(0.42)
+    # a sideways slide (x) across the face is pressed in too
+    assert pressed_into_face(g, k, _slide(1)).scores.best == 0
+    # without meshes (free None) every line counts as free
+    r = dataclasses.replace(_slide(2), free=None)
+    assert pressed_into_face(g, k, r).scores.best == 0
+
+
+def test_a_slide_that_is_no_button_across_its_face_is_kept():
+    from kinmo.refine.edge import PRESS_VOLUME_RATIO, pressed_into_face
+
+    g, k = _button()
+    # already along the normal
+    assert pressed_into_face(g, k, _slide(0)).scores.best == 0
+    # the normal line is not free either way (pressed into a solid body, nothing to pull out)
+    assert pressed_into_face(g, k, _slide(2, free=(OPEN_FREE - 0.01, 1.0, 1.0))).scores.best == 2
+    # hinges and cylindrical joints are left alone
+    for t in ("R_H_S", "PR_V"):
+        assert pressed_into_face(g, k, _slide(2, motion_type=t)).scores.best == 2
+    # centre inside the body's box (a drawer in its carcass): no face to press into
+    g_in, _ = _button(share=0.9)
+    assert pressed_into_face(g_in, k, _slide(2)).scores.best == 2
+    # not small beside the body (a door, a drawer front)
+    body = np.prod(2.0 * g.obb_half_extents[1])
+    side = (1.01 * PRESS_VOLUME_RATIO * body / 8.0 / 0.02) ** 0.5
+    g_big, _ = _button(half=(side, side, 0.02))
+    assert pressed_into_face(g_big, k, _slide(2)).scores.best == 2
+    # not in contact
+    contact = g.sibling_contact.copy()
+    contact[k] = False
+    assert pressed_into_face(dataclasses.replace(g, sibling_contact=contact), k, _slide(2)).scores.best == 2
+
+
+def _press(monkeypatch, tmp_path, reference_moves: bool, neighbour_moves: bool = False,
+           unnamed: bool = True) -> np.ndarray:
+    """refine_predictions on the button edge, its chosen line vertical (across its face): the
+    button's axis afterwards, with its reference (the body) predicted static or moving, the
+    drawer it touches predicted static or moving, in an object with or without known part
+    names."""
+    import kinmo.refine.refine as rr
+    from kinmo.mobility_tree import EdgePrediction
+    from kinmo.refine.ranker import _load_ranker_cached
+
+    from .test_position import _linear
+    from .test_selector import _priors
+
+    monkeypatch.setattr(rr, "select_edge", lambda *a, **kw: _slide(2))
+    g, k = _button()
+    e = len(g.sibling_edges)
+    pri = dataclasses.replace(_priors(g, k, "P_V"), turned=unnamed)
+    if reference_moves:  # the body typed a slider against the drawer (another edge)
+        b = int(np.flatnonzero((g.sibling_edges[:, 0] == 1) & (g.sibling_edges[:, 1] == 3))[0])
+        pri.probs[b] = 0.01
+        pri.probs[b, FINE_TYPES.index("P_H")] = 0.91
+    if neighbour_moves:  # the drawer beside the button slides out of the body
+        b = int(np.flatnonzero((g.sibling_edges[:, 0] == 3) & (g.sibling_edges[:, 1] == 1))[0])
+        pri.probs[b] = 0.01
+        pri.probs[b, FINE_TYPES.index("P_H")] = 0.91
+    pred = EdgePrediction(pri.probs.copy(), np.tile([0.0, 1.0, 0.0], (e, 1)), np.tile(g.obb_center[2], (e, 1)))
+    path = _linear(log_dir_prior=1.0).save(tmp_path / "ranker.json")
+    _load_ranker_cached.cache_clear()
+    out = rr.refine_predictions(g, pred, None, RefineConfig(selector="ranker", ranker=str(path)), only=[k],
+                                priors=pri)
+    return out.axis_direction[k]
+
+
+def test_only_a_button_on_a_part_predicted_static_is_pressed_in(monkeypatch, tmp_path):
+    assert abs(_press(monkeypatch, tmp_path, reference_moves=False)[2]) == pytest.approx(1.0)
+    # on a moving part the slide is the mobility tree's to judge (rule 2b fixes a handle
+    # sliding across its drawer to the drawer)
+    assert abs(_press(monkeypatch, tmp_path, reference_moves=True)[1]) == pytest.approx(1.0)
+    # a part touching a moving part (a handle on a drawer) slides with it, across the body's
+    # face (a chest's handle, out of fold)
+    assert abs(_press(monkeypatch, tmp_path, reference_moves=False, neighbour_moves=True)[1]) == \
+        pytest.approx(1.0)
+    # known part names tell a button from a slider or a lever (a PartNet toaster's lever has
+    # a button's square section): the GNN's line stays
+    assert abs(_press(monkeypatch, tmp_path, reference_moves=False, unnamed=False)[1]) == pytest.approx(1.0)
+
+
+def test_a_lever_tab_slid_across_its_face_is_kept():
+    """A toaster's lever: a long narrow tab sliding across the face in its slot."""
+    from kinmo.refine.edge import PRESS_SECTION_RATIO, pressed_into_face
+
+    g, k = _button(half=(0.1, 0.1 * PRESS_SECTION_RATIO * 0.9, 0.05))
+    assert pressed_into_face(g, k, _slide(2)).scores.best == 2
+    g, k = _button(half=(0.1, 0.1 * PRESS_SECTION_RATIO * 1.1, 0.05))
+    assert pressed_into_face(g, k, _slide(2)).scores.best == 0

@@ -43,7 +43,23 @@ features (the part against the rest of the object, contact at rest not counted):
   the GNN found the line a drawer pulls out along and took it for a spin about it (ROS
   cabinets, issue 36). Hinges that are not continuous are left alone: PartNet meshes hold
   lids, doors and stapler arms interlocked, and a slide along their line would make them
-  sliders (tried: out of fold, staplers, a safe door and a toilet lid became sliders).
+  sliders (tried: out of fold, staplers, a safe door and a toilet lid became sliders);
+- a **button slid across its face** (:func:`pressed_into_face`), in an object without known
+  part names (the GNN's answer averaged over quarter turns, :attr:`GNNPriors.turned
+  <kinmo.refine.selector.GNNPriors.turned>`; a name tells a button from a slider or a
+  lever): a small part (at most :data:`PRESS_VOLUME_RATIO` of its reference's OBB volume) in
+  contact with a reference predicted not to move, touching no part predicted to move, its
+  centre beyond one face of the reference's OBB, its section along that face a cap's
+  (:data:`PRESS_SECTION_RATIO`), typed a slider along a line across the face (at least
+  :data:`PRESS_ACROSS_DEG` from its normal), is pressed along the normal instead, when a
+  candidate line runs there (within :data:`PRESS_ALONG_DEG`) and is free one way. Of the
+  labelled slider joints of such parts, 246 of 247 run along the face's normal (remote and
+  keyboard keys, camera, phone, oven and safe buttons); the one across is a slide switch. A
+  toaster's lever, a long narrow tab sliding across the face, is what the section ratio
+  leaves alone. Robot-learning button boxes and nail blocks were typed vertical sliders
+  across the face they stick out of (issue 36). A PartNet toaster whose lever (named
+  ``slider``) has a button's square section is why names keep the rule off. The rule needs
+  no meshes.
 
 Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: the fine
 ranker to a sure GNN, :func:`~kinmo.refine.defer.sure_prior`; the coarse ranker to the GNN and
@@ -87,8 +103,11 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates, freer_sign, line_sweeps
 
-__all__ = ["BLOCKED_FREE", "OPEN_FREE", "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE", "EdgeRefinement",
-           "blocked_slide_veto", "chosen_line", "fixed_parts_slide_veto", "hinge_blocked", "refine_edge", "select_edge", "spin_blocked", "vetoed_slides"]
+__all__ = ["BLOCKED_FREE", "OPEN_FREE", "PRESS_ACROSS_DEG", "PRESS_ALONG_DEG",
+           "PRESS_SECTION_RATIO", "PRESS_VOLUME_RATIO", "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE",
+           "EdgeRefinement", "blocked_slide_veto", "chosen_line", "fixed_parts_slide_veto",
+           "hinge_blocked", "pressed_into_face", "refine_edge", "select_edge", "spin_blocked",
+           "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -102,6 +121,17 @@ SLIDE_ALONG_DEG = 20.0
 #: when its chosen line frees less than this fraction of the swept test's quarter turn either
 #: way: a part that cannot turn 18° either way is no free spin.
 SPIN_BLOCKED_FREE = 0.2
+#: A button (:func:`pressed_into_face`) has at most this fraction of its reference's OBB
+#: volume ...
+PRESS_VOLUME_RATIO = 0.1
+#: ... its section along the face at least this ratio of its narrower to its wider side (a
+#: button's cap, round or square; a toaster's lever or a slide switch's tab is a long, narrow
+#: section that slides across the face in its slot) ...
+PRESS_SECTION_RATIO = 0.5
+#: ... a slide across its face is at least this many degrees from the face's normal ...
+PRESS_ACROSS_DEG = 60.0
+#: ... and the line it is pressed along instead at most this many.
+PRESS_ALONG_DEG = 10.0
 #: Largest ``|y|`` of a unit direction counted as horizontal (y-up; 60° from vertical).
 _HORIZONTAL_Y = 0.5
 
@@ -414,6 +444,85 @@ def fixed_parts_slide_veto(graph: PartGraph, edge: int, refinement: EdgeRefineme
         calibrated = confidence(float(p[nb]), prior)
     scores = replace(r.scores, sign=sign, best=nb)
     return replace(r, scores=scores, origin=o, direction=d, calibrated=calibrated, free=fmax)
+
+
+def pressed_into_face(graph: PartGraph, edge: int, refinement: EdgeRefinement,
+                      confidence=None) -> EdgeRefinement:
+    """A small slider's choice with a slide across the face it sits on replaced by a press
+    along that face's normal (module docs).
+
+    The face is the one of the reference's OBB whose axis holds the largest share of the
+    moving part's centre offset (offset over half extent, as the mobility tree's rule 2b,
+    :func:`kinmo.mobility_tree.build_mobility_tree`); the part sits on it when that share is
+    at least 1 (its centre beyond the face; a drawer inside its carcass is left alone).
+
+    Parameters
+    ----------
+    graph : PartGraph
+        Mesh frame (y-up), mesh units.
+    edge : int
+        Row of ``graph.sibling_edges``: ``(moving, reference)``. The caller checks that the
+        object has no known part names, that the reference is predicted not to move and
+        that the moving part touches no part predicted to move: a handle sliding across its
+        moving drawer is the mobility tree's to fix to the drawer, and a handle on a drawer
+        slides across the body's face with it.
+    refinement : EdgeRefinement
+        The learned selector's choice for the edge (:func:`select_edge`).
+    confidence : callable, optional
+        ``(p, dir_prior) -> float``, the ranker's calibration, for the new line's confidence.
+
+    Returns
+    -------
+    EdgeRefinement
+        ``refinement`` itself unless the rule acts: a prismatic edge (``"P"``; cylindrical
+        ones are left alone) in contact (``sibling_contact``), the moving part at most
+        :data:`PRESS_VOLUME_RATIO` of the reference's OBB volume and on one of its faces,
+        its half widths along the face's other two axes (its OBB's support) within
+        :data:`PRESS_SECTION_RATIO` of each other, the chosen line at least
+        :data:`PRESS_ACROSS_DEG` from that face's normal, and a candidate within
+        :data:`PRESS_ALONG_DEG` of the normal that is free one way (``free`` at least
+        :data:`OPEN_FREE`; every line counts as free without meshes). Then the most probable
+        such candidate, with the sign the selector found freer.
+    """
+    r = refinement
+    cands, b = r.candidates, r.scores.best
+    if cands.motion != "P" or b < 0 or not bool(np.asarray(graph.sibling_contact)[edge]):
+        return r
+    i, j = (int(x) for x in graph.sibling_edges[edge])
+    half = np.asarray(graph.obb_half_extents, dtype=np.float64)
+    vol = np.prod(2.0 * half[[i, j]], axis=1)
+    if not (vol[1] > 0.0 and vol[0] <= PRESS_VOLUME_RATIO * vol[1]):
+        return r
+    axes = np.asarray(graph.obb_axes[j], dtype=np.float64)
+    centre = np.asarray(graph.obb_center, dtype=np.float64)
+    share = np.abs(axes @ (centre[i] - centre[j])) / np.maximum(half[j], 1e-12)
+    face = int(np.argmax(share))
+    if float(share[face]) < 1.0:
+        return r
+    # the part's half widths (its OBB's support) along the face's two other axes: a cap, not
+    # a lever's tab
+    other = axes[[a for a in range(3) if a != face]]
+    widths = np.sort(np.abs(other @ np.asarray(graph.obb_axes[i], dtype=np.float64).T) @ half[i])
+    if not (widths[1] > 0.0 and widths[0] >= PRESS_SECTION_RATIO * widths[1]):
+        return r
+    dirs = np.asarray(cands.directions, dtype=np.float64)
+    cos = np.abs(dirs @ axes[face]) / np.maximum(np.linalg.norm(dirs, axis=1), 1e-12)
+    if float(cos[b]) > np.cos(np.radians(PRESS_ACROSS_DEG)):
+        return r
+    along = cos >= np.cos(np.radians(PRESS_ALONG_DEG))
+    if r.free is not None:
+        along &= np.asarray(r.free, dtype=np.float64) >= OPEN_FREE
+    ok = np.flatnonzero(along)
+    if not ok.size:
+        return r
+    p = np.asarray(r.scores.total, dtype=np.float64)
+    nb = int(ok[np.argmax(p[ok])])
+    o, d = chosen_line(graph, i, cands, nb, int(r.scores.sign[nb]))
+    calibrated = r.calibrated
+    if confidence is not None:
+        prior = 1.0 if r.dir_prior is None else float(r.dir_prior[nb])
+        calibrated = confidence(float(p[nb]), prior)
+    return replace(r, scores=replace(r.scores, best=nb), origin=o, direction=d, calibrated=calibrated)
 
 
 def select_edge(

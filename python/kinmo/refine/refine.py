@@ -57,7 +57,8 @@ from kinmo.mobility_tree import (
 )
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import (OPEN_FREE, SLIDE_ALONG_DEG, EdgeRefinement, fixed_parts_slide_veto,
-                               hinge_blocked, refine_edge, select_edge, spin_blocked)
+                               hinge_blocked, pressed_into_face, refine_edge, select_edge,
+                               spin_blocked)
 from kinmo.refine.paired import open_from_the_middle
 from kinmo.refine.repeated import vote_repeated
 from kinmo.refine.ranker import DIRECTION_TOL_DEG
@@ -338,6 +339,12 @@ def refine_predictions(
     types = list(pred.types)
     moving = np.array([t not in ("Fixed", "None") for t in types], dtype=bool)
     movers = pred.edges[moving, 0]  # every part predicted to move, refined (``only``) or not
+    mover_set = {int(n) for n in movers}
+    # parts touching a part predicted to move: a handle on a drawer moves with the drawer
+    touch = np.asarray(graph.sibling_edges, dtype=np.int64).reshape(-1, 2)[
+        np.asarray(graph.sibling_contact, dtype=bool).reshape(-1)]
+    carried = {int(a) for a, b in touch.tolist() if b in mover_set} | \
+        {int(b) for a, b in touch.tolist() if a in mover_set}
     if only is not None:
         sel = np.zeros(e, dtype=bool)
         sel[np.asarray(list(only), dtype=np.int64)] = True
@@ -394,6 +401,11 @@ def refine_predictions(
                 types[k] = "P_H"
         if fixed is not None:
             r = fixed_parts_slide_veto(graph, int(k), r, meshes, fixed, ranker.confidence)
+        if ranker is not None and cfg.sweep_vetoes and priors.turned and j not in mover_set \
+                and i not in carried:
+            # an unnamed object's button, on a part predicted not to move, carried by none
+            # that moves (edge module docs)
+            r = pressed_into_face(graph, int(k), r, ranker.confidence)
         details[int(k)] = r
     if ranker is not None and cfg.vote_repeated and details:
         details.update(vote_repeated(graph, pred.edges, types, details, ranker.confidence,
