@@ -234,7 +234,7 @@ def test_a_slide_that_is_no_button_across_its_face_is_kept():
 
 
 def _press(monkeypatch, tmp_path, reference_moves: bool, neighbour_moves: bool = False,
-           unnamed: bool = True) -> np.ndarray:
+           unnamed: bool = True, name: str | None = None) -> np.ndarray:
     """refine_predictions on the button edge, its chosen line vertical (across its face): the
     button's axis afterwards, with its reference (the body) predicted static or moving, the
     drawer it touches predicted static or moving, in an object with or without known part
@@ -248,6 +248,8 @@ def _press(monkeypatch, tmp_path, reference_moves: bool, neighbour_moves: bool =
 
     monkeypatch.setattr(rr, "select_edge", lambda *a, **kw: _slide(2))
     g, k = _button()
+    if name is not None:
+        g = dataclasses.replace(g, node_names=[name if n == 2 else v for n, v in enumerate(g.node_names)])
     e = len(g.sibling_edges)
     pri = dataclasses.replace(_priors(g, k, "P_V"), turned=unnamed)
     if reference_moves:  # the body typed a slider against the drawer (another edge)
@@ -278,6 +280,21 @@ def test_only_a_button_on_a_part_predicted_static_is_pressed_in(monkeypatch, tmp
     # known part names tell a button from a slider or a lever (a PartNet toaster's lever has
     # a button's square section): the GNN's line stays
     assert abs(_press(monkeypatch, tmp_path, reference_moves=False, unnamed=False)[1]) == pytest.approx(1.0)
+    assert abs(_press(monkeypatch, tmp_path, reference_moves=False, unnamed=False, name="slider")[1]) == \
+        pytest.approx(1.0)
+    # ... unless the name says button (a Meta-World button box's MJCF body)
+    assert abs(_press(monkeypatch, tmp_path, reference_moves=False, unnamed=False, name="button")[2]) == \
+        pytest.approx(1.0)
+
+
+def test_button_and_key_names_are_pressable():
+    from kinmo.refine.edge import pressable
+
+    for name in ("button", "Button_3", "power button", "key", "key_12"):
+        assert pressable(name, unnamed=False)
+    for name in ("slider", "lever", "switch", "keyboard", "buttonbox", "door", ""):
+        assert not pressable(name, unnamed=False)
+        assert pressable(name, unnamed=True)
 
 
 def test_a_lever_tab_slid_across_its_face_is_kept():

@@ -46,8 +46,8 @@ features (the part against the rest of the object, contact at rest not counted):
   sliders (tried: out of fold, staplers, a safe door and a toilet lid became sliders);
 - a **button slid across its face** (:func:`pressed_into_face`), in an object without known
   part names (the GNN's answer averaged over quarter turns, :attr:`GNNPriors.turned
-  <kinmo.refine.selector.GNNPriors.turned>`; a name tells a button from a slider or a
-  lever): a small part (at most :data:`PRESS_VOLUME_RATIO` of its reference's OBB volume) in
+  <kinmo.refine.selector.GNNPriors.turned>`) or for a part named a button or a key
+  (:func:`pressable`; a name tells a button from a slider or a lever): a small part (at most :data:`PRESS_VOLUME_RATIO` of its reference's OBB volume) in
   contact with a reference predicted not to move, touching no part predicted to move, its
   centre beyond one face of the reference's OBB, its section along that face a cap's
   (:data:`PRESS_SECTION_RATIO`), typed a slider along a line across the face (at least
@@ -58,8 +58,8 @@ features (the part against the rest of the object, contact at rest not counted):
   toaster's lever, a long narrow tab sliding across the face, is what the section ratio
   leaves alone. Robot-learning button boxes and nail blocks were typed vertical sliders
   across the face they stick out of (issue 36). A PartNet toaster whose lever (named
-  ``slider``) has a button's square section is why names keep the rule off. The rule needs
-  no meshes.
+  ``slider``) has a button's square section is why other names keep the rule off. The rule
+  needs no meshes.
 
 Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: the fine
 ranker to a sure GNN, :func:`~kinmo.refine.defer.sure_prior`; the coarse ranker to the GNN and
@@ -74,6 +74,7 @@ Frames and units: mesh frame (y-up), mesh units.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -104,10 +105,11 @@ from kinmo.refine.scoring import (
 from kinmo.refine.selector import candidate_features, edge_candidates, freer_sign, line_sweeps
 
 __all__ = ["BLOCKED_FREE", "OPEN_FREE", "PRESS_ACROSS_DEG", "PRESS_ALONG_DEG",
-           "PRESS_SECTION_RATIO", "PRESS_VOLUME_RATIO", "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE",
+           "PRESS_NAMES", "PRESS_SECTION_RATIO", "PRESS_VOLUME_RATIO", "SLIDE_ALONG_DEG",
+           "SPIN_BLOCKED_FREE",
            "EdgeRefinement", "blocked_slide_veto", "chosen_line", "fixed_parts_slide_veto",
-           "hinge_blocked", "pressed_into_face", "refine_edge", "select_edge", "spin_blocked",
-           "vetoed_slides"]
+           "hinge_blocked", "pressable", "pressed_into_face", "refine_edge", "select_edge",
+           "spin_blocked", "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -128,6 +130,10 @@ PRESS_VOLUME_RATIO = 0.1
 #: button's cap, round or square; a toaster's lever or a slide switch's tab is a long, narrow
 #: section that slides across the face in its slot) ...
 PRESS_SECTION_RATIO = 0.5
+#: ... in an object without known part names, or named as one of these words (every
+#: labelled slider the rule's count holds is a ``button`` or a ``key``; the one across is a
+#: ``switch``) ...
+PRESS_NAMES = frozenset({"button", "key"})
 #: ... a slide across its face is at least this many degrees from the face's normal ...
 PRESS_ACROSS_DEG = 60.0
 #: ... and the line it is pressed along instead at most this many.
@@ -446,6 +452,15 @@ def fixed_parts_slide_veto(graph: PartGraph, edge: int, refinement: EdgeRefineme
     return replace(r, scores=scores, origin=o, direction=d, calibrated=calibrated, free=fmax)
 
 
+def pressable(name: str, unnamed: bool) -> bool:
+    """Whether :func:`pressed_into_face` may judge a part named ``name``: in an object
+    without known part names (``unnamed``: :attr:`GNNPriors.turned
+    <kinmo.refine.selector.GNNPriors.turned>`), or when a word of its name (lower case,
+    split at anything but letters) is one of :data:`PRESS_NAMES`. A ``slider``, a ``lever``
+    or a ``switch`` is left to the model."""
+    return unnamed or bool(set(re.split(r"[^a-z]+", name.lower())) & PRESS_NAMES)
+
+
 def pressed_into_face(graph: PartGraph, edge: int, refinement: EdgeRefinement,
                       confidence=None) -> EdgeRefinement:
     """A small slider's choice with a slide across the face it sits on replaced by a press
@@ -462,7 +477,7 @@ def pressed_into_face(graph: PartGraph, edge: int, refinement: EdgeRefinement,
         Mesh frame (y-up), mesh units.
     edge : int
         Row of ``graph.sibling_edges``: ``(moving, reference)``. The caller checks that the
-        object has no known part names, that the reference is predicted not to move and
+        part may be judged (:func:`pressable`), that the reference is predicted not to move and
         that the moving part touches no part predicted to move: a handle sliding across its
         moving drawer is the mobility tree's to fix to the drawer, and a handle on a drawer
         slides across the body's face with it.

@@ -57,8 +57,8 @@ from kinmo.mobility_tree import (
 )
 from kinmo.refine.config import RefineConfig
 from kinmo.refine.edge import (OPEN_FREE, SLIDE_ALONG_DEG, EdgeRefinement, fixed_parts_slide_veto,
-                               hinge_blocked, pressed_into_face, refine_edge, select_edge,
-                               spin_blocked)
+                               hinge_blocked, pressable, pressed_into_face, refine_edge,
+                               select_edge, spin_blocked)
 from kinmo.refine.paired import open_from_the_middle
 from kinmo.refine.repeated import vote_repeated
 from kinmo.refine.ranker import DIRECTION_TOL_DEG
@@ -401,9 +401,9 @@ def refine_predictions(
                 types[k] = "P_H"
         if fixed is not None:
             r = fixed_parts_slide_veto(graph, int(k), r, meshes, fixed, ranker.confidence)
-        if ranker is not None and cfg.sweep_vetoes and priors.turned and j not in mover_set \
-                and i not in carried:
-            # an unnamed object's button, on a part predicted not to move, carried by none
+        if ranker is not None and cfg.sweep_vetoes and j not in mover_set and i not in carried \
+                and pressable(graph.node_names[i] if i < len(graph.node_names) else "", priors.turned):
+            # a button (unnamed, or named so) on a part predicted not to move, carried by none
             # that moves (edge module docs)
             r = pressed_into_face(graph, int(k), r, ranker.confidence)
         details[int(k)] = r
