@@ -95,7 +95,10 @@ class RefineConfig(BaseModel):
         does a continuous one whose chosen horizontal line cannot turn it, when it slides
         along that line (:func:`kinmo.refine.edge.spin_blocked`); a slider blocked every way
         by the whole object is judged again against the parts predicted not to move (a drawer
-        behind a closed door, :func:`kinmo.refine.edge.fixed_parts_slide_veto`).
+        behind a closed door, :func:`kinmo.refine.edge.fixed_parts_slide_veto`); and a
+        button slid across the face it sits on is pressed along the face's normal, in an
+        unnamed object or when named a button or a key
+        (:func:`kinmo.refine.edge.pressed_into_face`, with or without meshes).
     ranges : str or None
         kinmo extension (issue 35): path of the range-of-motion prior (``ranges.json``,
         :class:`kinmo.ranges.RangePrior`); after the selector, every moving joint gets its
