@@ -184,3 +184,20 @@ def test_refinement_slides_a_drawer_out_past_a_door_predicted_to_open(monkeypatc
     # without the sweep vetoes nothing changes
     np.testing.assert_allclose(np.abs(_refine(monkeypatch, tmp_path, door_moves=True, vetoes=False)),
                                [0.0, 0.0, 1.0])
+
+
+def test_a_drawer_freeing_a_little_of_its_side_line_is_judged_against_the_fixed_parts():
+    """IAI cabinet 2's upper drawer: its side line frees 0.108 against the whole object, over
+    BLOCKED_FREE; the veto has its own bar, FIXED_PARTS_BLOCKED_FREE."""
+    from kinmo.refine.edge import FIXED_PARTS_BLOCKED_FREE
+
+    graph, meshes = _cabinet()
+    k = _drawer_edge(graph)
+    r = _choice(graph, meshes, 0)
+    for whole, acts in ((0.108, True), (FIXED_PARTS_BLOCKED_FREE - 0.01, True), (FIXED_PARTS_BLOCKED_FREE, False)):
+        assert BLOCKED_FREE < whole
+        free = r.free.copy()
+        free[0] = whole
+        little = EdgeRefinement(r.candidates, r.scores, r.origin, r.direction, free=free)
+        out = fixed_parts_slide_veto(graph, k, little, meshes, fixed_leaves(graph, [2, 3]))
+        assert (out.scores.best == 1) is acts and (out is little) is not acts
