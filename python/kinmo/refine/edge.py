@@ -28,10 +28,10 @@ features (the part against the rest of the object, contact at rest not counted):
   one only: a vertical line never replaces another (a drawer's own rails free its lift);
 - a **slide blocked by the fixed parts** (:func:`fixed_parts_slide_veto`): the same veto,
   when every horizontal line is blocked against the rest of the object, judged against the
-  parts predicted not to move, with its own bar (:data:`FIXED_PARTS_BLOCKED_FREE`). A drawer behind a closed door cannot slide out in the swept
-  test (the door is in the way along its real line too), so the blocked-slide veto cannot
-  act; against the carcass alone its front line is free and a sideways line still blocked
-  (a ROS cabinet facing +x, issue 36);
+  parts predicted not to move, with its own bar (:data:`FIXED_PARTS_BLOCKED_FREE`). A drawer
+  behind a closed door cannot slide out in the swept test (the door is in the way along its
+  real line too), so the blocked-slide veto cannot act; against the carcass alone its front
+  line is free and a sideways line still blocked (a ROS cabinet facing +x, issue 36);
 - a **blocked hinge** (:func:`hinge_blocked`): when no candidate line of a revolute edge
   lets the part turn either way, :func:`kinmo.refine.refine.refine_predictions` tries the
   edge as a slider and keeps it when the chosen line is free one way (a drawer named
@@ -47,19 +47,19 @@ features (the part against the rest of the object, contact at rest not counted):
 - a **button slid across its face** (:func:`pressed_into_face`), in an object without known
   part names (the GNN's answer averaged over quarter turns, :attr:`GNNPriors.turned
   <kinmo.refine.selector.GNNPriors.turned>`) or for a part named a button or a key
-  (:func:`pressable`; a name tells a button from a slider or a lever): a small part (at most :data:`PRESS_VOLUME_RATIO` of its reference's OBB volume) in
-  contact with a reference predicted not to move, touching no part predicted to move, its
-  centre beyond one face of the reference's OBB, its section along that face a cap's
-  (:data:`PRESS_SECTION_RATIO`), typed a slider along a line across the face (at least
-  :data:`PRESS_ACROSS_DEG` from its normal), is pressed along the normal instead, when a
-  candidate line runs there (within :data:`PRESS_ALONG_DEG`) and is free one way. Of the
-  labelled slider joints of such parts, 246 of 247 run along the face's normal (remote and
-  keyboard keys, camera, phone, oven and safe buttons); the one across is a slide switch. A
-  toaster's lever, a long narrow tab sliding across the face, is what the section ratio
-  leaves alone. Robot-learning button boxes and nail blocks were typed vertical sliders
-  across the face they stick out of (issue 36). A PartNet toaster whose lever (named
-  ``slider``) has a button's square section is why other names keep the rule off. The rule
-  needs no meshes.
+  (:func:`pressable`; a name tells a button from a slider or a lever): a small part (at most
+  :data:`PRESS_VOLUME_RATIO` of its reference's OBB volume) in contact with a reference
+  predicted not to move, touching no part predicted to move, its centre beyond one face of
+  the reference's OBB, its section along that face a cap's (:data:`PRESS_SECTION_RATIO`),
+  typed a slider along a line across the face (at least :data:`PRESS_ACROSS_DEG` from its
+  normal), is pressed along the normal instead, when a candidate line runs there (within
+  :data:`PRESS_ALONG_DEG`) and is free one way. Of the labelled slider joints of such parts,
+  246 of 247 run along the face's normal (remote and keyboard keys, camera, phone, oven and
+  safe buttons); the one across is a slide switch. A toaster's lever, a long narrow tab
+  sliding across the face, is what the section ratio leaves alone. Robot-learning button
+  boxes and nail blocks were typed vertical sliders across the face they stick out of (issue
+  36). A PartNet toaster whose lever (named ``slider``) has a button's square section is why
+  other names keep the rule off. The rule needs no meshes.
 
 Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: the fine
 ranker to a sure GNN, :func:`~kinmo.refine.defer.sure_prior`; the coarse ranker to the GNN and
@@ -104,10 +104,9 @@ from kinmo.refine.scoring import (
 )
 from kinmo.refine.selector import candidate_features, edge_candidates, freer_sign, line_sweeps
 
-__all__ = ["BLOCKED_FREE", "FIXED_PARTS_BLOCKED_FREE", "OPEN_FREE", "PRESS_ACROSS_DEG", "PRESS_ALONG_DEG",
-           "PRESS_NAMES", "PRESS_SECTION_RATIO", "PRESS_VOLUME_RATIO", "SLIDE_ALONG_DEG",
-           "SPIN_BLOCKED_FREE",
-           "EdgeRefinement", "blocked_slide_veto", "chosen_line", "fixed_parts_slide_veto",
+__all__ = ["BLOCKED_FREE", "FIXED_PARTS_BLOCKED_FREE", "OPEN_FREE", "PRESS_ACROSS_DEG",
+           "PRESS_ALONG_DEG", "PRESS_NAMES", "PRESS_SECTION_RATIO", "PRESS_VOLUME_RATIO",
+           "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line", "fixed_parts_slide_veto",
            "hinge_blocked", "pressable", "pressed_into_face", "refine_edge", "select_edge",
            "spin_blocked", "vetoed_slides"]
 
@@ -125,8 +124,8 @@ SLIDE_ALONG_DEG = 20.0
 SPIN_BLOCKED_FREE = 0.2
 #: The fixed-parts slide veto (:func:`fixed_parts_slide_veto`) judges a chosen line blocked,
 #: against the whole object and against the fixed parts, below this fraction: IAI cabinet 2's
-#: upper drawer behind its door frees 0.108 along the side line it was given (the spin test's
-#: bar; the other vetoes keep :data:`BLOCKED_FREE`).
+#: second drawer frees 0.108 along the side line it was given (the spin test's bar; the other
+#: vetoes keep :data:`BLOCKED_FREE`).
 FIXED_PARTS_BLOCKED_FREE = 0.2
 #: A button (:func:`pressed_into_face`) has at most this fraction of its reference's OBB
 #: volume ...
