@@ -106,7 +106,8 @@ from kinmo.refine.selector import candidate_features, edge_candidates, freer_sig
 
 __all__ = ["BLOCKED_FREE", "FIXED_PARTS_BLOCKED_FREE", "OPEN_FREE", "PRESS_ACROSS_DEG",
            "PRESS_ALONG_DEG", "PRESS_NAMES", "PRESS_SECTION_RATIO", "PRESS_VOLUME_RATIO",
-           "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE", "EdgeRefinement", "blocked_slide_veto", "chosen_line", "fixed_parts_slide_veto",
+           "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE", "EdgeRefinement", "blocked_slide_veto",
+           "chosen_line", "fixed_parts_slide_veto",
            "hinge_blocked", "pressable", "pressed_into_face", "refine_edge", "select_edge",
            "spin_blocked", "vetoed_slides"]
 
