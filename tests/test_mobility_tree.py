@@ -109,16 +109,17 @@ def test_fixed_merge_keeps_the_larger_parts_motion():
     assert abs(tree.moving_links[0].joint.direction[0]) == pytest.approx(1.0)
 
 
-def _front_cabinet(tmp_path):
+def _front_cabinet(tmp_path, handle_x: float = 0.23):
     """A URDF read as kinmo reads a user's asset: a body, a drawer and a door on its front
-    (apart), and a small handle on the drawer touching nothing else. Returns the graph and
-    its node index by name."""
+    (apart), and a small handle on the drawer touching nothing else (``handle_x`` its centre;
+    0.245 leaves it floating 0.015 off the drawer, twice the contact tolerance). Returns the
+    graph and its node index by name."""
     from kinmo.data.build import build_graph
     from kinmo.data.readers import read_shape
     from kinmo.user_input import stage_partnet
 
     boxes = {"body": ((0, 0, 0), (0.4, 0.4, 0.4)), "drawer": ((0.21, 0, 0.1), (0.02, 0.38, 0.18)),
-             "door": ((0.21, 0, -0.1), (0.02, 0.38, 0.18)), "handle": ((0.23, 0, 0.15), (0.02, 0.1, 0.02))}
+             "door": ((0.21, 0, -0.1), (0.02, 0.38, 0.18)), "handle": ((handle_x, 0, 0.15), (0.02, 0.1, 0.02))}
     links = "".join(f'<link name="{n}"><visual><origin xyz="{" ".join(map(str, c))}"/><geometry><box '
                     f'size="{" ".join(map(str, sz))}"/></geometry></visual></link>' for n, (c, sz) in boxes.items())
     joints = "".join(f'<joint name="j_{n}" type="fixed"><parent link="body"/><child link="{n}"/></joint>'
@@ -152,6 +153,29 @@ def test_a_small_moving_part_not_touching_its_reference_rides_on_the_part_it_tou
     knob = build_mobility_tree(g, _pred(g, {**spec, (n["handle"], n["door"]): ("None", 0.9),
                                             (n["handle"], n["drawer"]): ("R", 0.9, [1, 0, 0])}))
     assert [n["handle"]] in [sorted(lk.parts) for lk in knob.moving_links]
+
+
+def test_a_handle_floating_off_its_drawer_rides_on_it(tmp_path):
+    """Floating parts (session 49): a handle modelled a little off its drawer touches nothing,
+    so rule 2c cannot mount it; it counts as touching its nearest sibling, within
+    FLOAT_CONTACT_FRACTION of the diagonal."""
+    from kinmo import mobility_tree as mt
+
+    g, n = _front_cabinet(tmp_path, handle_x=0.245)
+    touching = {frozenset((int(a), int(b))) for (a, b), c in zip(g.sibling_edges, g.sibling_contact) if c}
+    assert not any(n["handle"] in pair for pair in touching)
+    spec = {(n["drawer"], n["body"]): ("P", 0.95, [1, 0, 0]), (n["door"], n["body"]): ("R", 0.9, [0, 1, 0]),
+            (n["handle"], n["door"]): ("R", 0.9, [1, 0, 0])}
+    parts = sorted(sorted(lk.parts) for lk in build_mobility_tree(g, _pred(g, spec)).moving_links)
+    assert parts == sorted([sorted([n["drawer"], n["handle"]]), [n["door"]]])
+    # farther than the tolerance it stays a floating part with its own (false) motion
+    tight = mt.FLOAT_CONTACT_FRACTION
+    try:
+        mt.FLOAT_CONTACT_FRACTION = 0.001
+        parts = sorted(sorted(lk.parts) for lk in build_mobility_tree(g, _pred(g, spec)).moving_links)
+    finally:
+        mt.FLOAT_CONTACT_FRACTION = tight
+    assert [n["handle"]] in parts
 
 
 def test_conflict_keeps_the_most_confident_reference():

@@ -25,6 +25,11 @@ by the following deterministic rules.
    sibling's group the same way: a joint joins parts that touch, and a drawer's handle
    predicted to turn relative to the door below it rides on its drawer (the Franka cabinet of
    IsaacGymEnvs, IAI kitchen cabinets).
+   **Floating parts** (session 49): here and in rule 3, a node whose mesh touches no sibling
+   counts as touching its nearest sibling within :data:`FLOAT_CONTACT_FRACTION` of the
+   shape's diagonal (``sibling_distance``): an IAI cabinet's handle modelled a little off its
+   door. Counting every part within that distance as touching was tried in session 19 and
+   moved the foreign scores both ways; only parts that touch nothing are changed here.
 3. **Fixed merge.** Moving nodes with the same reference that are joined by an edge predicted
    ``Fixed`` (either direction) are one rigid part (a door and its handle, both moving
    relative to the cabinet): they form one *motion group* whose joint is that of its largest
@@ -116,6 +121,10 @@ _P, _R, _PR, _FIXED, _NONE = (COARSE_INDEX[n] for n in ("P", "R", "PR", "Fixed",
 MERGE_AXIS_DEG = 10.0
 #: ... the largest OBB volume of the smaller part relative to the larger one ...
 MERGE_VOLUME_RATIO = 0.05
+#: A part whose mesh touches no sibling counts, in rules 2 and 3, as touching its nearest
+#: sibling when that one lies within this fraction of the shape's diagonal
+#: (:func:`_touch_floating`).
+FLOAT_CONTACT_FRACTION = 0.03
 #: ... and, for turning types, the largest distance between the two axis lines, relative to
 #: the larger part's OBB diagonal.
 MERGE_LINE_FRACTION = 0.1
@@ -308,6 +317,26 @@ def _compact_parts(graph: PartGraph, leaf_owner: dict[int, int], link: int) -> t
     return tuple(out)
 
 
+def _touch_floating(edges: np.ndarray, distance: np.ndarray, tolerance: float, n_nodes: int,
+                    touching: dict[int, set[int]]) -> None:
+    """Add to ``touching`` (each node's siblings in contact) the nearest sibling of every node
+    that touches none, when it lies within ``tolerance`` (mesh units; ``distance`` ``(Es,)``
+    the exact mesh distances of ``edges`` ``(Es, 2)``, ties to the lower edge index). A
+    handle modelled a little off its door rides on the door (IAI kitchen cabinets); parts
+    that touch something keep exactly their contacts."""
+    for n in range(n_nodes):
+        if n in touching:
+            continue
+        rows = np.flatnonzero(edges[:, 0] == n)
+        if not rows.size:
+            continue
+        near = int(rows[np.argmin(distance[rows])])
+        if distance[near] <= tolerance:
+            m = int(edges[near, 1])
+            touching.setdefault(n, set()).add(m)
+            touching.setdefault(m, set()).add(n)
+
+
 def _touch(a: int, b: int, touching: dict[int, set[int]]) -> bool:
     """Nodes ``a`` and ``b`` touch (``touching``: each node's siblings in contact, from
     ``sibling_contact`` of their edge in either direction)."""
@@ -454,6 +483,8 @@ def build_mobility_tree(
     for a, b in edges[contact].tolist():
         touching.setdefault(a, set()).add(b)
         touching.setdefault(b, set()).add(a)
+    _touch_floating(edges, np.asarray(graph.sibling_distance, dtype=np.float64).reshape(-1),
+                    FLOAT_CONTACT_FRACTION * float(graph.scale), v, touching)
 
     # 1. one reference per moving node
     dropped: list[int] = []
