@@ -121,13 +121,13 @@ _P, _R, _PR, _FIXED, _NONE = (COARSE_INDEX[n] for n in ("P", "R", "PR", "Fixed",
 MERGE_AXIS_DEG = 10.0
 #: ... the largest OBB volume of the smaller part relative to the larger one ...
 MERGE_VOLUME_RATIO = 0.05
+#: ... and, for turning types, the largest distance between the two axis lines, relative to
+#: the larger part's OBB diagonal.
+MERGE_LINE_FRACTION = 0.1
 #: A part whose mesh touches no sibling counts, in rules 2 and 3, as touching its nearest
 #: sibling when that one lies within this fraction of the shape's diagonal
 #: (:func:`_touch_floating`).
 FLOAT_CONTACT_FRACTION = 0.03
-#: ... and, for turning types, the largest distance between the two axis lines, relative to
-#: the larger part's OBB diagonal.
-MERGE_LINE_FRACTION = 0.1
 
 #: Rule 3, Fixed merge: two moving nodes whose OBBs' largest half extents are both at least
 #: this share of the whole object's (the root node's) are large parts (doors, drawers, lids),
