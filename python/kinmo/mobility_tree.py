@@ -111,6 +111,7 @@ __all__ = [
     "TreeOptions",
     "build_mobility_tree",
     "coarse_probs",
+    "obb_face",
     "consistent_fine",
     "opening_direction",
 ]
@@ -395,10 +396,23 @@ def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, ha
     nd = float(np.linalg.norm(d))
     if nd == 0.0:
         return False
-    a = np.asarray(axes[j], dtype=np.float64)
-    offset = np.abs(a @ (np.asarray(center[i], dtype=np.float64) - np.asarray(center[j], dtype=np.float64)))
-    face = int(np.argmax(offset / np.maximum(np.asarray(half[j], dtype=np.float64), 1e-12)))
-    return abs(float(a[face] @ d)) / nd <= np.cos(np.radians(ACROSS_FACE_DEG))
+    face, _ = obb_face(center[i], center[j], axes[j], half[j])
+    normal = np.asarray(axes[j], dtype=np.float64)[face]
+    return abs(float(normal @ d)) / nd <= np.cos(np.radians(ACROSS_FACE_DEG))
+
+
+def obb_face(center: np.ndarray, other_center: np.ndarray, other_axes: np.ndarray,
+             other_half: np.ndarray) -> tuple[int, float]:
+    """The face of another part's OBB that a part sits on: the axis (row of ``other_axes``
+    ``(3, 3)``) holding the largest share of the part's centre offset (``center`` minus
+    ``other_center``, ``(3,)``, mesh frame) over that OBB's half extent (``other_half``
+    ``(3,)``), and that share (at least 1: the part's centre lies beyond the face). Used by
+    rule 2b and by :func:`kinmo.refine.edge.pressed_into_face`."""
+    a = np.asarray(other_axes, dtype=np.float64)
+    offset = np.abs(a @ (np.asarray(center, dtype=np.float64) - np.asarray(other_center, dtype=np.float64)))
+    share = offset / np.maximum(np.asarray(other_half, dtype=np.float64), 1e-12)
+    face = int(np.argmax(share))
+    return face, float(share[face])
 
 
 def _mounted_on(i: int, j: int, ref: dict[int, tuple[int, int]], volume: np.ndarray,

@@ -80,6 +80,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinmo.data.graph import PartGraph
+from kinmo.mobility_tree import obb_face
 from kinmo.refine.candidates import (
     Candidates,
     candidate_axes,
@@ -109,7 +110,7 @@ __all__ = ["BLOCKED_FREE", "FIXED_PARTS_BLOCKED_FREE", "OPEN_FREE", "PRESS_ACROS
            "SLIDE_ALONG_DEG", "SPIN_BLOCKED_FREE", "EdgeRefinement", "blocked_slide_veto",
            "chosen_line", "fixed_parts_slide_veto",
            "hinge_blocked", "pressable", "pressed_into_face", "refine_edge", "select_edge",
-           "spin_blocked", "vetoed_slides"]
+           "spin_blocked", "switched_line", "vetoed_slides"]
 
 #: A slider line is blocked when the swept test (``sweep_free_max``: the larger free fraction
 #: of the two directions, :func:`kinmo.refine.selector.candidate_features`) is below this ...
@@ -448,16 +449,28 @@ def fixed_parts_slide_veto(graph: PartGraph, edge: int, refinement: EdgeRefineme
     ok = np.flatnonzero(_free_horizontal(cands, fmax))
     if float(fmax[b]) >= FIXED_PARTS_BLOCKED_FREE or not ok.size:
         return r
-    p = np.asarray(r.scores.total, dtype=np.float64)
-    nb = int(ok[np.argmax(p[ok])])
-    sign = freer_sign(free, coll)
-    o, d = chosen_line(graph, moving, cands, nb, int(sign[nb]))
+    nb = int(ok[np.argmax(np.asarray(r.scores.total, dtype=np.float64)[ok])])
+    return switched_line(graph, moving, r, nb, confidence, sign=freer_sign(free, coll), free=fmax)
+
+
+def switched_line(graph: PartGraph, moving: int, refinement: EdgeRefinement, best: int,
+                  confidence=None, sign: np.ndarray | None = None, **changes) -> EdgeRefinement:
+    """``refinement`` with candidate ``best`` chosen instead: its line (:func:`chosen_line`,
+    signed by ``sign`` ``(C,) int64``, default the refinement's own), ``scores.best`` (and
+    ``scores.sign``), and the calibrated confidence of the new line when ``confidence``
+    (``(p, dir_prior) -> float``, :meth:`kinmo.refine.ranker.Ranker.confidence`) is given
+    (its direction prior 1 when the refinement has none); ``changes`` are further fields.
+    The vetoes and the repeated-parts vote (:mod:`kinmo.refine.repeated`) move a choice
+    this way."""
+    r = refinement
+    sign = r.scores.sign if sign is None else sign
+    o, d = chosen_line(graph, moving, r.candidates, best, int(sign[best]))
     calibrated = r.calibrated
     if confidence is not None:
-        prior = 1.0 if r.dir_prior is None else float(r.dir_prior[nb])
-        calibrated = confidence(float(p[nb]), prior)
-    scores = replace(r.scores, sign=sign, best=nb)
-    return replace(r, scores=scores, origin=o, direction=d, calibrated=calibrated, free=fmax)
+        prior = 1.0 if r.dir_prior is None else float(r.dir_prior[best])
+        calibrated = confidence(float(r.scores.total[best]), prior)
+    return replace(r, scores=replace(r.scores, sign=sign, best=best), origin=o, direction=d,
+                   calibrated=calibrated, **changes)
 
 
 def pressable(name: str, unnamed: bool) -> bool:
@@ -517,10 +530,8 @@ def pressed_into_face(graph: PartGraph, edge: int, refinement: EdgeRefinement,
     if not (vol[1] > 0.0 and vol[0] <= PRESS_VOLUME_RATIO * vol[1]):
         return r
     axes = np.asarray(graph.obb_axes[j], dtype=np.float64)
-    centre = np.asarray(graph.obb_center, dtype=np.float64)
-    share = np.abs(axes @ (centre[i] - centre[j])) / np.maximum(half[j], 1e-12)
-    face = int(np.argmax(share))
-    if float(share[face]) < 1.0:
+    face, share = obb_face(graph.obb_center[i], graph.obb_center[j], axes, half[j])
+    if share < 1.0:
         return r
     # the part's half widths (its OBB's support) along the face's two other axes: a cap, not
     # a lever's tab
@@ -538,14 +549,8 @@ def pressed_into_face(graph: PartGraph, edge: int, refinement: EdgeRefinement,
     ok = np.flatnonzero(along)
     if not ok.size:
         return r
-    p = np.asarray(r.scores.total, dtype=np.float64)
-    nb = int(ok[np.argmax(p[ok])])
-    o, d = chosen_line(graph, i, cands, nb, int(r.scores.sign[nb]))
-    calibrated = r.calibrated
-    if confidence is not None:
-        prior = 1.0 if r.dir_prior is None else float(r.dir_prior[nb])
-        calibrated = confidence(float(p[nb]), prior)
-    return replace(r, scores=replace(r.scores, best=nb), origin=o, direction=d, calibrated=calibrated)
+    nb = int(ok[np.argmax(np.asarray(r.scores.total, dtype=np.float64)[ok])])
+    return switched_line(graph, i, r, nb, confidence)
 
 
 def select_edge(

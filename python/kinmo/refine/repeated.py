@@ -46,13 +46,12 @@ refined edges times the groups of one bucket.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Callable, Sequence
 
 import numpy as np
 
 from kinmo.data.graph import PartGraph
-from kinmo.refine.edge import EdgeRefinement, chosen_line, vetoed_slides
+from kinmo.refine.edge import EdgeRefinement, switched_line, vetoed_slides
 
 __all__ = ["repeated_groups", "vote_repeated"]
 
@@ -177,12 +176,6 @@ def vote_repeated(graph: PartGraph, edges: np.ndarray, types: Sequence[str],
             ok = (local[k] @ win >= cos) & allowed[k]
             if not ok.any():
                 continue
-            p = np.where(ok, r.scores.total, -np.inf)
-            b = int(np.argmax(p))
-            scores = replace(r.scores, best=b)
-            o, d = chosen_line(graph, int(edges[k, 0]), r.candidates, b, int(r.scores.sign[b]))
-            pb = float(r.scores.total[b])
-            conf = confidence(pb) if r.dir_prior is None else confidence(pb, float(r.dir_prior[b]))
-            changed[k] = replace(r, scores=scores, origin=o, direction=d, calibrated=conf,
-                                 voted=True)
+            b = int(np.argmax(np.where(ok, r.scores.total, -np.inf)))
+            changed[k] = switched_line(graph, int(edges[k, 0]), r, b, confidence, voted=True)
     return changed
