@@ -109,20 +109,26 @@ def test_fixed_merge_keeps_the_larger_parts_motion():
     assert abs(tree.moving_links[0].joint.direction[0]) == pytest.approx(1.0)
 
 
-def _front_cabinet(tmp_path, handle_x: float = 0.23):
+def _front_cabinet(tmp_path, handle_x: float = 0.23, handle_size=(0.02, 0.1, 0.02)):
     """A URDF read as kinmo reads a user's asset: a body, a drawer and a door on its front
     (apart), and a small handle on the drawer touching nothing else (``handle_x`` its centre;
-    0.245 leaves it floating 0.015 off the drawer, twice the contact tolerance). Returns the
-    graph and its node index by name."""
+    0.245 leaves it floating 0.015 off the drawer, twice the contact tolerance;
+    ``handle_size`` its box). Returns the graph and its node index by name."""
+    return _box_asset(tmp_path, {"body": ((0, 0, 0), (0.4, 0.4, 0.4)), "drawer": ((0.21, 0, 0.1), (0.02, 0.38, 0.18)),
+                                 "door": ((0.21, 0, -0.1), (0.02, 0.38, 0.18)),
+                                 "handle": ((handle_x, 0, 0.15), handle_size)})
+
+
+def _box_asset(tmp_path, boxes):
+    """A URDF of boxes (name -> (centre, size), the first the body, every other fixed to it)
+    read as kinmo reads a user's asset. Returns the graph and its node index by name."""
     from kinmo.data.build import build_graph
     from kinmo.data.readers import read_shape
     from kinmo.user_input import stage_partnet
 
-    boxes = {"body": ((0, 0, 0), (0.4, 0.4, 0.4)), "drawer": ((0.21, 0, 0.1), (0.02, 0.38, 0.18)),
-             "door": ((0.21, 0, -0.1), (0.02, 0.38, 0.18)), "handle": ((handle_x, 0, 0.15), (0.02, 0.1, 0.02))}
     links = "".join(f'<link name="{n}"><visual><origin xyz="{" ".join(map(str, c))}"/><geometry><box '
                     f'size="{" ".join(map(str, sz))}"/></geometry></visual></link>' for n, (c, sz) in boxes.items())
-    joints = "".join(f'<joint name="j_{n}" type="fixed"><parent link="body"/><child link="{n}"/></joint>'
+    joints = "".join(f'<joint name="j_{n}" type="fixed"><parent link="{next(iter(boxes))}"/><child link="{n}"/></joint>'
                      for n in list(boxes)[1:])
     urdf = tmp_path / "cab.urdf"
     urdf.write_text(f'<robot name="cab">{links}{joints}</robot>')
@@ -149,9 +155,14 @@ def test_a_small_moving_part_not_touching_its_reference_rides_on_the_part_it_tou
     # the drawer does not move: the handle keeps its motion
     alone = build_mobility_tree(g, _pred(g, {k: v for k, v in spec.items() if k != drawer}))
     assert [n["handle"]] in [sorted(lk.parts) for lk in alone.moving_links]
-    # turning relative to its drawer (a knob on it): its own link, nested in the drawer's
-    knob = build_mobility_tree(g, _pred(g, {**spec, (n["handle"], n["door"]): ("None", 0.9),
-                                            (n["handle"], n["drawer"]): ("R", 0.9, [1, 0, 0])}))
+    # turning relative to its drawer: a bar (the handle) rides on it (rule 2b, bars) ...
+    turn = {**spec, (n["handle"], n["door"]): ("None", 0.9), (n["handle"], n["drawer"]): ("R", 0.9, [1, 0, 0])}
+    bar = build_mobility_tree(g, _pred(g, turn))
+    assert sorted(sorted(lk.parts) for lk in bar.moving_links) == parts
+    # ... a knob (as wide as long) gets its own link, nested in the drawer's
+    (tmp_path / "knob").mkdir()
+    g, n = _front_cabinet(tmp_path / "knob", handle_size=(0.03, 0.05, 0.05))
+    knob = build_mobility_tree(g, _pred(g, turn))
     assert [n["handle"]] in [sorted(lk.parts) for lk in knob.moving_links]
 
 
@@ -403,3 +414,83 @@ def test_a_small_slider_mounted_on_a_moving_part_slides_only_into_it():
     # not on a moving part (the door static): its own link
     alone = build_mobility_tree(button, _pred(button, {(3, 2): ("P", 0.9, [0, 1, 0])}))
     assert [sorted(lk.parts) for lk in alone.moving_links] == [[3]]
+
+
+def test_a_handle_bar_on_a_moving_part_moves_with_it_whatever_its_predicted_motion():
+    """Rule 2b, bars (session 50): a small elongated part touching a moving part it is
+    predicted to turn or slide on is a handle fixed to it (an IAI kitchen drawer's handle
+    predicted to turn on its drawer); a knob as wide as long keeps its motion."""
+    import dataclasses
+
+    from kinmo import mobility_tree as mt
+
+    g = cabinet_graph()
+    # node 3 made a bar on the front face (+z) of the door (node 2: half extents 0.25, 0.25,
+    # 0.01 about (-0.25, 0.75, 0.31)): 5 times as long as wide, 3.2 % of the door's OBB volume
+    centre = g.obb_center.copy()
+    centre[3] = [-0.25, 0.75, 0.34]
+    half = g.obb_half_extents.copy()
+    half[3] = [0.01, 0.1, 0.02]
+    bar = dataclasses.replace(g, obb_center=centre, obb_half_extents=half)
+    door = ("R", 0.9, [0, 1, 0], [-0.5, 0.75, 0.31])
+    for motion in (("R", 0.9, [0, 0, 1], [-0.25, 0.75, 0.34]), ("P", 0.9, [0, 0, 1]), ("PR", 0.9, [0, 1, 0])):
+        tree = build_mobility_tree(bar, _pred(bar, {(2, 1): door, (3, 2): motion}))
+        assert [sorted(lk.parts) for lk in tree.moving_links] == [[2, 3]], motion
+    turning = {(2, 1): door, (3, 2): ("R", 0.9, [0, 0, 1], [-0.25, 0.75, 0.34])}
+    # just below the bar's elongation it keeps its motion ...
+    short = dataclasses.replace(bar, obb_half_extents=np.where(np.arange(len(half))[:, None] == 3,
+                                                               [0.01, 0.066, 0.02], half))
+    assert len(build_mobility_tree(short, _pred(short, turning)).moving_links) == 2
+    saved = mt.BAR_ELONGATION
+    try:
+        mt.BAR_ELONGATION = 3.0
+        assert len(build_mobility_tree(short, _pred(short, turning)).moving_links) == 1
+    finally:
+        mt.BAR_ELONGATION = saved
+    # ... and so it does on a part that does not move (the door static) ...
+    assert [sorted(lk.parts) for lk in build_mobility_tree(bar, _pred(bar, {(3, 2): turning[(3, 2)]})).moving_links] == [[3]]
+    # ... or when it is not small beside the part
+    large = dataclasses.replace(bar, obb_half_extents=np.where(np.arange(len(half))[:, None] == 3,
+                                                               [0.06, 0.24, 0.06], half))
+    assert len(build_mobility_tree(large, _pred(large, turning)).moving_links) == 2
+
+
+def test_stacked_drawers_welded_by_fixed_edges_stay_apart_also_through_their_handle(tmp_path):
+    """Rule 3 (session 50): two large sliders side by side across their slide (two stacked
+    drawers) are not one part because the GNN calls the edge between them Fixed, nor through
+    a handle fixed to both (an IAI kitchen cabinet); the handle joins the drawer it is surer
+    of. Sliding along the stack instead, one lies behind the other and they join as before,
+    and so do two boards seen edge on (a drawer's sides)."""
+    g, n = _box_asset(tmp_path, {"body": ((0, 0, 0), (0.4, 0.4, 0.4)),
+                                 "top": ((0.21, 0.1, 0), (0.02, 0.2, 0.38)),
+                                 "bottom": ((0.21, -0.1, 0), (0.02, 0.2, 0.38)),
+                                 "handle": ((0.23, 0, 0), (0.02, 0.04, 0.08))})
+    touching = {frozenset((int(a), int(b))) for (a, b), c in zip(g.sibling_edges, g.sibling_contact) if c}
+    assert {frozenset((n["top"], n["bottom"])), frozenset((n["handle"], n["top"])),
+            frozenset((n["handle"], n["bottom"]))} <= touching
+    assert frozenset((n["handle"], n["body"])) not in touching
+
+    def spec(d, weld=0.6):
+        return {(n["top"], n["body"]): ("P", 0.95, d), (n["bottom"], n["body"]): ("P", 0.95, d),
+                (n["top"], n["bottom"]): ("Fixed", weld), (n["handle"], n["body"]): ("P", 0.9, d),
+                (n["handle"], n["top"]): ("Fixed", 0.8), (n["handle"], n["bottom"]): ("Fixed", 0.7)}
+
+    def groups(tree):
+        return sorted(sorted(lk.parts) for lk in tree.moving_links)
+
+    out = build_mobility_tree(g, _pred(g, spec([1, 0, 0])))
+    assert groups(out) == sorted([sorted([n["top"], n["handle"]]), [n["bottom"]]])
+    assert all(lk.joint.type is JointType.SLIDER for lk in out.moving_links)
+    # sliding along the stack (y) the two drawers overlap across the slide: one part
+    assert groups(build_mobility_tree(g, _pred(g, spec([0, 1, 0])))) == [sorted([n["top"], n["bottom"], n["handle"]])]
+    # surer of the weld than of their own motion: one part, as before
+    assert groups(build_mobility_tree(g, _pred(g, spec([1, 0, 0], weld=0.97)))) == \
+        [sorted([n["top"], n["bottom"], n["handle"]])]
+    # the two side boards of one drawer, seen edge on along the slide, are not side by side
+    (tmp_path / "boards").mkdir()
+    g, n = _box_asset(tmp_path / "boards", {"body": ((0, 0, 0), (0.4, 0.4, 0.4)),
+                                            "left": ((0.1, 0, 0.18), (0.3, 0.2, 0.02)),
+                                            "right": ((0.1, 0, -0.18), (0.3, 0.2, 0.02))})
+    boards = {(n["left"], n["body"]): ("P", 0.95, [1, 0, 0]), (n["right"], n["body"]): ("P", 0.95, [1, 0, 0]),
+              (n["left"], n["right"]): ("Fixed", 0.6)}
+    assert groups(build_mobility_tree(g, _pred(g, boards))) == [sorted([n["left"], n["right"]])]
