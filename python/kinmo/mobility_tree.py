@@ -417,8 +417,7 @@ def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, ha
     largest share of ``i``'s offset from ``j``'s centre (offset over half extent), the slide at
     least :data:`ACROSS_FACE_DEG` from that face's normal. A button pressed into a door slides
     along the normal and keeps its motion."""
-    if not (volume[j] > 0.0 and volume[i] <= MERGE_VOLUME_RATIO * volume[j]) or \
-            not _touch(i, j, touching):
+    if not _small_on(i, j, volume, touching):
         return False
     d = np.asarray(direction, dtype=np.float64)
     nd = float(np.linalg.norm(d))
@@ -429,13 +428,19 @@ def _slides_across(i: int, j: int, direction: np.ndarray, center: np.ndarray, ha
     return abs(float(normal @ d)) / nd <= np.cos(np.radians(ACROSS_FACE_DEG))
 
 
+def _small_on(i: int, j: int, volume: np.ndarray, touching: dict[int, set[int]]) -> bool:
+    """Rule 2b: node ``i`` touches node ``j`` and is small beside it (OBB volume at most
+    :data:`MERGE_VOLUME_RATIO` of ``j``'s, ``volume`` ``(V,) float64``)."""
+    return bool(volume[j] > 0.0 and volume[i] <= MERGE_VOLUME_RATIO * volume[j]) and _touch(i, j, touching)
+
+
 def _bar_on(i: int, j: int, half: np.ndarray, volume: np.ndarray, touching: dict[int, set[int]]) -> bool:
     """Rule 2b, bars: node ``i``, predicted to move relative to the moving node ``j``, is a
     handle on it: it touches ``j``, is small beside it (OBB volume at most
     :data:`MERGE_VOLUME_RATIO` of ``j``'s) and elongated (its OBB's longest half extent at
     least :data:`BAR_ELONGATION` times the middle one; ``half`` ``(V, 3) float64``). An IAI
     kitchen drawer's handle predicted to turn on its drawer moves with the drawer."""
-    if not (volume[j] > 0.0 and volume[i] <= MERGE_VOLUME_RATIO * volume[j]) or not _touch(i, j, touching):
+    if not _small_on(i, j, volume, touching):
         return False
     longest, middle = np.sort(np.asarray(half[i], dtype=np.float64))[::-1][:2]
     return bool(longest >= BAR_ELONGATION * middle)
@@ -623,13 +628,14 @@ def build_mobility_tree(
                 if fixed or _small_in_contact(a, b, ref, lab, pred.direction, pred.origin, volume, half,
                                              touching):
                     joins.append((max((float(cp[e, _FIXED]) for e in weld), default=0.0), a, b))
+    held: dict[int, set[int]] = {a: {a} for a in moving}  # each group's members, by root
     for _, a, b in sorted(joins, key=lambda t: (-t[0], t[1], t[2])):
         ra, rb = dsu.find(a), dsu.find(b)
-        if ra == rb or (apart and any((min(x, y), max(x, y)) in apart
-                                      for x in moving if dsu.find(x) == ra
-                                      for y in moving if dsu.find(y) == rb)):
+        if ra == rb or any((min(x, y), max(x, y)) in apart for x in held[ra] for y in held[rb]):
             continue
         dsu.union(a, b)
+        both = held.pop(ra) | held.pop(rb)
+        held[dsu.find(a)] = both
     members: dict[int, list[int]] = {}
     for a in moving:
         members.setdefault(dsu.find(a), []).append(a)
