@@ -300,3 +300,36 @@ def test_a_round_part_lying_on_its_side_gives_the_same_joints_at_every_quarter_t
         r, r0 = rows[turn], rows[0]
         assert (r["n_pred"], r["type_ok"]) == (r0["n_pred"], r0["type_ok"]), (turn, r, r0)
         assert np.allclose(r["angles"], r0["angles"], atol=1.0), (turn, r["angles"], r0["angles"])
+
+
+# Real assets for the mobility tree's handle and drawer rules (tests/data/foreign-tree/SOURCES.md)
+TREE = Path(__file__).resolve().parents[1] / "data" / "foreign-tree"
+
+
+def test_stacked_drawers_and_a_handle_on_its_drawer_come_out_as_their_links(tmp_path):
+    """Two IAI kitchen cabinets (ROS URDFs, z-up, facing +x), through the bundle as
+    `bench/bench_foreign.py` scores them (kinmo.mobility_tree, session 50):
+
+    - cabinet 1: two stacked drawers, welded by a Fixed edge and by the middle handle touching
+      both, used to come out as one sliding link with the oven between them. Now its door and
+      both drawers are found, of the right type and within 10 degrees, from the file and from
+      the generic-name GLB.
+    - cabinet 5: the middle drawer's handle, predicted to turn on its drawer, used to be a
+      link of its own; a bar on a moving part now moves with it (the file's parts are its
+      URDF links in order: 3 the middle drawer, 4 its handle).
+    """
+    from kinmo.inference.predictor import Predictor
+    from kinmo.pretrained import default_model
+
+    predictor = Predictor.from_bundle(default_model(), device="cpu")
+    res = evaluate_foreign(TREE, predictor, tmp_path, progress=False)
+    rows = json.loads((tmp_path / "foreign.json").read_text())["rows"]
+    for variant in ("file", "glb"):
+        assert res[variant]["failed"] == 0
+        (one,) = [r for r in rows[variant] if r["id"] == "iai_apartment-cabinet1"]
+        assert one["n_true"] == 3 and all(one["type_ok"]) and len(one["type_ok"]) == 3, (variant, one)
+        assert all(a is not None and a <= 10.0 for a in one["angles"]), (variant, one)
+    links = json.loads((tmp_path / "pred" / "file" / "iai_apartment-cabinet5" / "mobility_v2.json").read_text())
+    parts = [sorted(p["name"] for p in lk["parts"]) for lk in links if lk["joint"] != "free"]
+    assert any({"part_3", "part_4"} <= set(p) for p in parts), parts
+    assert ["part_4"] not in parts, parts
