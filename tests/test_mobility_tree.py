@@ -381,6 +381,20 @@ def test_a_small_part_touching_a_moving_part_on_its_axis_moves_with_it():
     assert len(build_mobility_tree(off_big, _pred(off_big, other)).moving_links) == 2
 
 
+def _part_on_door(half):
+    """The cabinet graph with node 3 (the drawer) made a small part of OBB half extents
+    ``half`` on the front face (+z) of the door (node 2: half extents 0.25, 0.25, 0.01 about
+    (-0.25, 0.75, 0.31)), touching it, and the door's predicted hinge for ``_pred``."""
+    import dataclasses
+
+    g = cabinet_graph()
+    centre = g.obb_center.copy()
+    centre[3] = [-0.25, 0.75, 0.34]
+    h = g.obb_half_extents.copy()
+    h[3] = half
+    return dataclasses.replace(g, obb_center=centre, obb_half_extents=h), ("R", 0.9, [0, 1, 0], [-0.5, 0.75, 0.31])
+
+
 def test_a_small_slider_mounted_on_a_moving_part_slides_only_into_it():
     """Rule 2b (issue 36): a small part predicted to slide relative to a moving part it sits on
     keeps its motion only along the normal of that face (a button pressed into a safe's door);
@@ -388,15 +402,7 @@ def test_a_small_slider_mounted_on_a_moving_part_slides_only_into_it():
     part and moves with it."""
     import dataclasses
 
-    g = cabinet_graph()
-    # node 3 made a small block on the front face (+z) of the door (node 2: half extents
-    # 0.25, 0.25, 0.01 about (-0.25, 0.75, 0.31)), 2.9 % of the door's OBB volume
-    centre = g.obb_center.copy()
-    centre[3] = [-0.25, 0.75, 0.34]
-    half = g.obb_half_extents.copy()
-    half[3] = [0.03, 0.03, 0.02]
-    button = dataclasses.replace(g, obb_center=centre, obb_half_extents=half)
-    door = ("R", 0.9, [0, 1, 0], [-0.5, 0.75, 0.31])
+    button, door = _part_on_door([0.03, 0.03, 0.02])  # a block, 2.9 % of the door's OBB volume
     across = build_mobility_tree(button, _pred(button, {(2, 1): door, (3, 2): ("P", 0.9, [0, 1, 0])}))
     assert [sorted(lk.parts) for lk in across.moving_links] == [[2, 3]]
     assert across.moving_links[0].joint.type is JointType.HINGE
@@ -409,7 +415,7 @@ def test_a_small_slider_mounted_on_a_moving_part_slides_only_into_it():
     knob = build_mobility_tree(button, _pred(button, {(2, 1): door, (3, 2): ("R", 0.9, [0, 1, 0])}))
     assert len(knob.moving_links) == 2
     # not small beside the door (the drawer's own size): it keeps its motion
-    big = dataclasses.replace(button, obb_half_extents=g.obb_half_extents)
+    big = dataclasses.replace(button, obb_half_extents=cabinet_graph().obb_half_extents)
     assert len(build_mobility_tree(big, _pred(big, {(2, 1): door, (3, 2): ("P", 0.9, [0, 1, 0])})).moving_links) == 2
     # not on a moving part (the door static): its own link
     alone = build_mobility_tree(button, _pred(button, {(3, 2): ("P", 0.9, [0, 1, 0])}))
@@ -424,15 +430,8 @@ def test_a_handle_bar_on_a_moving_part_moves_with_it_whatever_its_predicted_moti
 
     from kinmo import mobility_tree as mt
 
-    g = cabinet_graph()
-    # node 3 made a bar on the front face (+z) of the door (node 2: half extents 0.25, 0.25,
-    # 0.01 about (-0.25, 0.75, 0.31)): 5 times as long as wide, 3.2 % of the door's OBB volume
-    centre = g.obb_center.copy()
-    centre[3] = [-0.25, 0.75, 0.34]
-    half = g.obb_half_extents.copy()
-    half[3] = [0.01, 0.1, 0.02]
-    bar = dataclasses.replace(g, obb_center=centre, obb_half_extents=half)
-    door = ("R", 0.9, [0, 1, 0], [-0.5, 0.75, 0.31])
+    bar, door = _part_on_door([0.01, 0.1, 0.02])  # 5 times as long as wide, 3.2 % of the door
+    half = bar.obb_half_extents
     for motion in (("R", 0.9, [0, 0, 1], [-0.25, 0.75, 0.34]), ("P", 0.9, [0, 0, 1]), ("PR", 0.9, [0, 1, 0])):
         tree = build_mobility_tree(bar, _pred(bar, {(2, 1): door, (3, 2): motion}))
         assert [sorted(lk.parts) for lk in tree.moving_links] == [[2, 3]], motion
