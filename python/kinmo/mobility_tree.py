@@ -636,11 +636,8 @@ def build_mobility_tree(
         dsu.union(a, b)
         both = held.pop(ra) | held.pop(rb)
         held[dsu.find(a)] = both
-    members: dict[int, list[int]] = {}
-    for a in moving:
-        members.setdefault(dsu.find(a), []).append(a)
     groups: dict[int, dict] = {}
-    for root, mem in members.items():
+    for mem in held.values():
         rep = max(mem, key=lambda n: (volume[n], n_leaves[n], -n))
         groups[rep] = {"members": sorted(mem), "rep": rep, "edge": ref[rep][1],
                        "ref": ref[rep][0], "conf": float(conf[ref[rep][1]]), "attached": []}
