@@ -189,6 +189,31 @@ def test_a_handle_floating_off_its_drawer_rides_on_it(tmp_path):
     assert [n["handle"]] in parts
 
 
+def test_a_part_moving_only_about_tiny_parts_it_does_not_touch_stays(tmp_path):
+    """Rule 1b (session 51): a cabinet's body predicted to turn only relative to a handle on
+    its drawer, tiny beside it and not touching it, does not move (IAI cabinet 4's body
+    turned about its door's handle); it keeps that motion when it also moves relative to a
+    part that is not tiny, or when the handle touches it."""
+    g, n = _front_cabinet(tmp_path)
+    spec = {(n["drawer"], n["body"]): ("P", 0.95, [1, 0, 0]), (n["door"], n["body"]): ("R", 0.9, [0, 1, 0]),
+            (n["body"], n["handle"]): ("R", 0.6, [0, 1, 0])}
+    parts = sorted(sorted(lk.parts) for lk in build_mobility_tree(g, _pred(g, spec)).moving_links)
+    assert parts == sorted([[n["door"]], [n["drawer"]]])
+    # a second moving edge to a part that is not tiny: the body's motion stays
+    also = {**spec, (n["body"], n["door"]): ("R", 0.55, [0, 1, 0])}
+    assert [n["body"]] in [sorted(lk.parts) for lk in build_mobility_tree(g, _pred(g, also)).moving_links]
+    # the handle touching the body (on its front face, the drawer beside it): the body's motion stays
+    (tmp_path / "on").mkdir()
+    g, n = _box_asset(tmp_path / "on", {"body": ((0, 0, 0), (0.4, 0.4, 0.4)),
+                                        "drawer": ((0.21, 0, 0.1), (0.02, 0.38, 0.18)),
+                                        "door": ((0.21, 0, -0.1), (0.02, 0.38, 0.18)),
+                                        "handle": ((0.21, 0, 0.195), (0.02, 0.1, 0.01))})
+    assert n["body"] in {int(b) for (a, b), c in zip(g.sibling_edges, g.sibling_contact) if c and a == n["handle"]}
+    spec = {(n["drawer"], n["body"]): ("P", 0.95, [1, 0, 0]), (n["door"], n["body"]): ("R", 0.9, [0, 1, 0]),
+            (n["body"], n["handle"]): ("R", 0.6, [0, 1, 0])}
+    assert [n["body"]] in [sorted(lk.parts) for lk in build_mobility_tree(g, _pred(g, spec)).moving_links]
+
+
 def test_conflict_keeps_the_most_confident_reference():
     g = cabinet_graph()
     spec = {(2, 1): ("R", 0.6), (2, 3): ("P", 0.9, [0, 0, 1])}
