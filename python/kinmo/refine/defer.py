@@ -34,7 +34,24 @@ win where the ranker's geometric terms overrule them against the evidence:
   and 90° off after (Knife 101108's blades, Fan 101450; session 32), so it no longer applies
   to the fine ranker.
 
-Both mark the edge deferred (:attr:`kinmo.refine.edge.EdgeRefinement.deferred`), so the
+A third rule, for both rankers, defers to the GNN's direction where the *type* is unsure:
+
+- **an unsure type** (:func:`unsure_type`, session 51): when the type head gives both the
+  sliding and the turning types at least :data:`TYPE_UNSURE`, the likeliest candidate line
+  along the GNN's axis direction wins over a choice across it. The candidate lines are made
+  for the predicted type, so a hinge typed a slider is offered slides (and a slider typed a
+  hinge, hinge lines), and the ranker picks the freest of the wrong kind; the axis head is
+  not tied to the type's guess. Out of fold on the 235 labelled objects (fold seeds 0–2),
+  6 fine joints came to the right axis (Switch 102872's lever 90° → 0°; Toaster 103555,
+  twice, and 103482; Safe 101611; WashingMachine 103508) and none left it, while TrashCan
+  102181 gained an unmatched link on fold seed 2. Of the coarse joints, 3 came right
+  (TrashCan 102181, CoffeeMachine 103069, Keyboard 7619) and FoldingChair 100568's seat went
+  0° → 90° on fold seed 2. Per-category mean OBB_fine error: 13.32° → 12.82°, 11.50° →
+  11.35°, 10.47° → 9.99°; OBB_coarse: 11.99° → 11.53°, unchanged, 10.84° → 12.78° (that
+  seat alone is a category); pooled, both settings fell or stayed on every seed
+  (docs/results/table1_four_settings.md).
+
+All three mark the edge deferred (:attr:`kinmo.refine.edge.EdgeRefinement.deferred`), so the
 repeated-parts vote (:mod:`kinmo.refine.repeated`) leaves it alone.
 """
 
@@ -45,7 +62,7 @@ import numpy as np
 from kinmo.refine.features import FEATURES
 
 __all__ = ["NAMED_UNSURE_CONFIDENCE", "PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN", "PRIORS_AGREE_NAMES",
-           "UNSURE_CONFIDENCE", "agreeing_priors", "sure_prior"]
+           "TYPE_UNSURE", "UNSURE_CONFIDENCE", "agreeing_priors", "sure_prior", "unsure_type"]
 
 #: :func:`sure_prior`: the GNN's axis head holds at least this mass on one direction ...
 PRIOR_SURE = 0.95
@@ -60,6 +77,12 @@ NAMED_UNSURE_CONFIDENCE = 0.3
 PRIORS_AGREE_GNN = 0.9
 #: ... and the part-name prior (``sem_prior``) at least this share on it.
 PRIORS_AGREE_NAMES = 0.5
+#: :func:`unsure_type`: the type head gives both the sliding types and the turning types at
+#: least this much probability. Out of fold (fold seeds 0–2, fine networks, session 51), of
+#: the 14, 20 and 13 matched joints so unsure, the GNN's own direction beat the selector's
+#: choice by more than 5° on 2, 3 and 1 and lost on none; at 0.2 one Suitcase hinge (seed 0)
+#: lost.
+TYPE_UNSURE = 0.25
 
 
 def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
@@ -103,6 +126,63 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
             return best
     idx = np.flatnonzero(ok)
     return int(idx[np.argmax(np.asarray(prob)[idx])])
+
+
+def unsure_type(type_prob: np.ndarray, type_names, directions: np.ndarray, gnn_direction: np.ndarray,
+                prob: np.ndarray, best: int, max_deg: float = 5.0) -> int:
+    """The learned selector's choice, or the likeliest line along the GNN's direction where
+    the type head cannot tell a slider from a hinge (module docstring).
+
+    The candidate lines are made for the predicted type (:mod:`kinmo.refine.candidates`): a
+    slider's lines are the directions it may slide along, a hinge's the lines it may turn
+    about. When the type is a near guess between the two, the candidates answer the wrong
+    question as often as the right one, while the GNN's axis head, trained on the true axis
+    of either type, is not tied to the guess: a lever switch typed a slider (P 0.72, R 0.27)
+    had its hinge line turned into a free slide 90° off.
+
+    Parameters
+    ----------
+    type_prob : (T,) float64
+        The edge's type probabilities (fine or coarse, over ``type_names``).
+    type_names : sequence of str
+        ``P``/``P_*`` types slide, ``R``/``R_*`` types turn (``PR`` types count for neither).
+    directions : (C, 3) float64
+        The candidates' directions.
+    gnn_direction : (3,) float64
+        The GNN's axis direction.
+    prob : (C,) float64
+        The ranker's probabilities.
+    best : int
+        The selector's choice.
+    max_deg : float
+        A candidate within this angle of the GNN's direction (up to sign) lies along it.
+
+    Returns
+    -------
+    int
+        ``best``, unless the sliding types and the turning types both have at least
+        :data:`TYPE_UNSURE`, ``best`` is not along the GNN's direction and some candidate
+        is: then the most probable of those.
+    """
+    if best < 0:
+        return best
+    names = [str(n) for n in type_names]
+    tp = np.asarray(type_prob, dtype=np.float64).reshape(-1)
+    slide = float(sum(tp[k] for k, n in enumerate(names) if n == "P" or n.startswith("P_")))
+    turn = float(sum(tp[k] for k, n in enumerate(names) if n == "R" or n.startswith("R_")))
+    if min(slide, turn) < TYPE_UNSURE:
+        return best
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    g = np.asarray(gnn_direction, dtype=np.float64).reshape(3)
+    ng = float(np.linalg.norm(g))
+    if ng == 0.0:
+        return best
+    cos = np.abs(d @ g) / np.maximum(np.linalg.norm(d, axis=1) * ng, 1e-12)
+    along = cos >= np.cos(np.radians(max_deg))
+    if along[best] or not along.any():
+        return best
+    idx = np.flatnonzero(along)
+    return int(idx[np.argmax(np.asarray(prob, dtype=np.float64)[idx])])
 
 
 def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:

@@ -63,7 +63,9 @@ features (the part against the rest of the object, contact at rest not counted):
 
 Before the vetoes, the selector may defer to its priors (:mod:`kinmo.refine.defer`: the fine
 ranker to a sure GNN, :func:`~kinmo.refine.defer.sure_prior`; the coarse ranker to the GNN and
-the part names where they agree, :func:`~kinmo.refine.defer.agreeing_priors`).
+the part names where they agree, :func:`~kinmo.refine.defer.agreeing_priors`; both rankers to
+the GNN's direction where the type head cannot tell a slider from a hinge,
+:func:`~kinmo.refine.defer.unsure_type`).
 
 Both return an :class:`EdgeRefinement`: the chosen line (origin moved to the point nearest
 the centre of the moving part's OBB, like the labels of :mod:`kinmo.data.labels`), its
@@ -89,7 +91,7 @@ from kinmo.refine.candidates import (
     merge_candidates,
 )
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.defer import agreeing_priors, sure_prior
+from kinmo.refine.defer import agreeing_priors, sure_prior, unsure_type
 from kinmo.refine.features import FEATURE_GROUPS, FEATURES
 from kinmo.refine.position import freer_line, reposition
 from kinmo.refine.motions import (
@@ -613,6 +615,7 @@ def select_edge(
     p = ranker.probabilities(x)
     chosen = ranker.choose(p, cands.directions)
     b = b0 = agreeing_priors(ranker, x, p, sure_prior(ranker, x, p, chosen))
+    b = b0 = unsure_type(priors.probs[edge], priors.type_names, cands.directions, gnn_direction, p, b)
     deferred = b != chosen
     if cfg.sweep_vetoes:
         b = b0 = blocked_slide_veto(cands, x, p, b)
