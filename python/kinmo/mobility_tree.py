@@ -590,21 +590,19 @@ def build_mobility_tree(
     # 1. one reference per moving node
     dropped: list[int] = []
     ref: dict[int, tuple[int, int]] = {}
+    movers: dict[int, list[int]] = {}  # every reference each moving node is predicted to move about
     for k in np.argsort(-conf, kind="stable"):
         k = int(k)
         if lab[k] not in _MOVING:
             continue
         i, j = int(edges[k, 0]), int(edges[k, 1])
+        movers.setdefault(i, []).append(j)
         if i in ref:
             dropped.append(k)
         else:
             ref[i] = (j, k)
     # 1b. a part predicted to move only relative to parts tiny beside it that it does not
     # touch does not move
-    movers: dict[int, list[int]] = {}
-    for k in range(n_e):
-        if lab[k] in _MOVING:
-            movers.setdefault(int(edges[k, 0]), []).append(int(edges[k, 1]))
     for i, refs in movers.items():
         if all(volume[j] <= MERGE_VOLUME_RATIO * volume[i] and not _touch(i, j, touching) for j in refs):
             dropped.append(ref.pop(i)[1])

@@ -60,6 +60,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinmo.refine.features import FEATURES
+from kinmo.refine.ranker import DIRECTION_TOL_DEG
 
 __all__ = ["NAMED_UNSURE_CONFIDENCE", "PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN", "PRIORS_AGREE_NAMES",
            "TYPE_UNSURE", "UNSURE_CONFIDENCE", "agreeing_priors", "sure_prior", "unsure_type"]
@@ -128,8 +129,7 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
     return int(idx[np.argmax(np.asarray(prob)[idx])])
 
 
-def unsure_type(type_prob: np.ndarray, type_names, directions: np.ndarray, gnn_direction: np.ndarray,
-                prob: np.ndarray, best: int, max_deg: float = 5.0) -> int:
+def unsure_type(motion: tuple[float, float], features: np.ndarray, prob: np.ndarray, best: int) -> int:
     """The learned selector's choice, or the likeliest line along the GNN's direction where
     the type head cannot tell a slider from a hinge (module docstring).
 
@@ -142,43 +142,26 @@ def unsure_type(type_prob: np.ndarray, type_names, directions: np.ndarray, gnn_d
 
     Parameters
     ----------
-    type_prob : (T,) float64
-        The edge's type probabilities (fine or coarse, over ``type_names``).
-    type_names : sequence of str
-        ``P``/``P_*`` types slide, ``R``/``R_*`` types turn (``PR`` types count for neither).
-    directions : (C, 3) float64
-        The candidates' directions.
-    gnn_direction : (3,) float64
-        The GNN's axis direction.
+    motion : (float, float)
+        The edge's sliding and turning type masses
+        (:meth:`kinmo.refine.selector.GNNPriors.motion`).
+    features : (C, len(FEATURES)) float64
+        The candidates' features; ``cos_gnn`` is each line's ``|cos|`` with the GNN's axis,
+        and a line within :data:`~kinmo.refine.ranker.DIRECTION_TOL_DEG` of it lies along it.
     prob : (C,) float64
         The ranker's probabilities.
     best : int
         The selector's choice.
-    max_deg : float
-        A candidate within this angle of the GNN's direction (up to sign) lies along it.
 
     Returns
     -------
     int
-        ``best``, unless the sliding types and the turning types both have at least
-        :data:`TYPE_UNSURE`, ``best`` is not along the GNN's direction and some candidate
-        is: then the most probable of those.
+        ``best``, unless both masses are at least :data:`TYPE_UNSURE`, ``best`` is not along
+        the GNN's direction and some candidate is: then the most probable of those.
     """
-    if best < 0:
+    if best < 0 or min(motion) < TYPE_UNSURE:
         return best
-    names = [str(n) for n in type_names]
-    tp = np.asarray(type_prob, dtype=np.float64).reshape(-1)
-    slide = float(sum(tp[k] for k, n in enumerate(names) if n == "P" or n.startswith("P_")))
-    turn = float(sum(tp[k] for k, n in enumerate(names) if n == "R" or n.startswith("R_")))
-    if min(slide, turn) < TYPE_UNSURE:
-        return best
-    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    g = np.asarray(gnn_direction, dtype=np.float64).reshape(3)
-    ng = float(np.linalg.norm(g))
-    if ng == 0.0:
-        return best
-    cos = np.abs(d @ g) / np.maximum(np.linalg.norm(d, axis=1) * ng, 1e-12)
-    along = cos >= np.cos(np.radians(max_deg))
+    along = np.asarray(features[:, FEATURES.index("cos_gnn")]) >= np.cos(np.radians(DIRECTION_TOL_DEG))
     if along[best] or not along.any():
         return best
     idx = np.flatnonzero(along)

@@ -615,7 +615,7 @@ def select_edge(
     p = ranker.probabilities(x)
     chosen = ranker.choose(p, cands.directions)
     b = b0 = agreeing_priors(ranker, x, p, sure_prior(ranker, x, p, chosen))
-    b = b0 = unsure_type(priors.probs[edge], priors.type_names, cands.directions, gnn_direction, p, b)
+    b = b0 = unsure_type(priors.motion(edge), x, p, b)
     deferred = b != chosen
     if cfg.sweep_vetoes:
         b = b0 = blocked_slide_veto(cands, x, p, b)

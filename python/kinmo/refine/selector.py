@@ -145,6 +145,14 @@ class GNNPriors:
         s = sum(p[n] for n, t in enumerate(FINE_TYPES) if t.startswith("R_") and t.endswith("_S"))
         return (0.5, 0.5) if c + s <= 0 else (float(c / (c + s)), float(s / (c + s)))
 
+    def motion(self, k: int) -> tuple[float, float]:
+        """``(P(slide), P(turn))`` of edge ``k``: the mass of its ``P``/``P_*`` types and of its
+        ``R``/``R_*`` types, fine or coarse (``PR`` types count for neither)."""
+        p = self.probs[k]
+        slide = sum(p[n] for n, t in enumerate(self.type_names) if _coarse_motion(t) == "P")
+        turn = sum(p[n] for n, t in enumerate(self.type_names) if _coarse_motion(t) == "R")
+        return float(slide), float(turn)
+
     def direction_prior(self, k: int, directions: np.ndarray) -> np.ndarray:
         """``(C,)``: the GNN's axis-candidate mass within 5° of each line (0.1 each without)."""
         d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
