@@ -2,10 +2,12 @@
 fold GNNs train N at a time, then the ANCSH models one category per worker, giving the models
 the one-after-the-other run gives, timed once."""
 
+import io
 import json
 
 import pytest
 import torch
+from rich.console import Console
 
 from kinmo.pipeline import PipelineConfig, category_runs, run_pipeline
 from kinmo.synth import generate_dataset
@@ -26,7 +28,9 @@ def runs(tmp_path_factory):
     for j in (2, 1):
         cfg = PipelineConfig(labeled=data, out=root / f"j{j}", gnn_epochs=2, axis_epochs=1, skip_ancsh=True, train_synth=0,
                              render=False, workers=j)
-        out[j] = run_pipeline(cfg, progress=False)
+        log = io.StringIO()
+        out[j] = run_pipeline(cfg, console=Console(file=log, width=1000, no_color=True), progress=False)
+        (root / f"j{j}.log").write_text(log.getvalue())
     return root, out
 
 
@@ -42,11 +46,14 @@ def test_the_pool_trains_the_models_of_the_sequential_run(runs):
 
 
 def test_pooled_stages_are_timed_once(runs):
-    _, out = runs
+    root, out = runs
     t2, t1 = out[2].timings, out[1].timings
     pool = [k for k in t2 if k.startswith("train 9 models, 2 at a time")]
     assert pool == ["train 9 models, 2 at a time"]
     assert not any(k.startswith("train ") and "at a time" in k for k in t1)
+    # the pool's opening line names a few of its trainings and counts the rest
+    line = next(ln for ln in (root / "j2.log").read_text().splitlines() if ln.startswith("train 9 models"))
+    assert line.endswith(" and 3 more") and line.count(", ") == 1 + 5, line
     for name in ("train gnn (fine)", "train gnn (coarse)", "train axis", "train ranker: fold GNN fine_0"):
         assert t2[name].ran and t2[name].parallel and t2[name].cpu_s > 0, name
     assert not t1["train gnn (fine)"].parallel

@@ -56,6 +56,9 @@ SPLIT_TEST_FRACTION = 0.25
 #: Out-of-fold GNNs of the ranker stage: folds and type sets (``kinmo train ranker``'s defaults).
 RANKER_FOLDS = 3
 RANKER_TYPES = ("fine", "coarse")
+#: The parallel pool's opening line names this many of its trainings, then counts the rest (a
+#: run with ``--ancsh-seeds 3`` has 189, which made one line of some 12,000 characters in a log).
+_POOL_NAMES = 6
 
 
 def run_pipeline(cfg: PipelineConfig, console: Any = None, progress: bool = True,
@@ -390,7 +393,10 @@ class _Context:
         if len(chains) < 2 or workers < 2:
             return
         pool = name(sum(map(len, chains)), workers)
-        self.console.print(f"[bold cyan]{pool}[/]: " + ", ".join(literal(t.name) for c in chains for t in c))
+        names = [literal(t.name) for c in chains for t in c]
+        more = len(names) - _POOL_NAMES
+        self.console.print(f"[bold cyan]{pool}[/]: " + ", ".join(names[:_POOL_NAMES])
+                           + (f" and {more} more" if more > 0 else ""))
 
         def done(chain: list[Any], timings: list[tuple[str, float, float]]) -> None:
             for stage_name, wall, cpu in timings:
