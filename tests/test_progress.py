@@ -52,6 +52,33 @@ def test_a_report_table_written_to_a_log_is_not_cut_to_80_columns():
     assert "…" not in r.stdout
 
 
+WIDE = """
+from rich.table import Table
+from kinmo.progress import console, print_table
+t = Table(title="Table 2 - Microwave")
+for c in ("setting", "frames", "train scans", "rot.", "transl.", "IoU", "state", "axis", "axis dist."):
+    t.add_column(c, justify="right")
+for s in ("supervised", "semi", "semi-weakly"):
+    t.add_row(s, "24", "48+0+0", *["25.31 (32.20 / 31.84 / 32.21 / 4.99)"] * 6)
+print_table(console(), t)
+"""
+
+
+def test_a_table_wider_than_the_log_keeps_one_line_per_row():
+    # Table 2 of a category with three joints needs more than the log's 200 columns; the
+    # plain console wraps its cells over two lines, print_table widens it for the table
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "FORCE_COLOR", "TERM")}
+    r = subprocess.run([sys.executable, "-c", WIDE], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    rows = [ln for ln in r.stdout.splitlines() if "(32.20 / 31.84 / 32.21 / 4.99)" in ln]
+    assert len(rows) == 3 and all(ln.count("25.31 (") == 6 for ln in rows), r.stdout
+    assert max(map(len, r.stdout.splitlines())) > 200
+    plain = subprocess.run([sys.executable, "-c", WIDE.replace("print_table(console(), t)", "console().print(t)")],
+                           capture_output=True, text=True, env=env, timeout=120)
+    assert "25.31 (" in plain.stdout  # rich alone wraps every such cell over two lines
+    assert not any("(32.20 / 31.84 / 32.21 / 4.99)" in ln for ln in plain.stdout.splitlines())
+
+
 REPEATS = """
 import logging
 from kinmo.progress import setup_logging

@@ -30,7 +30,7 @@ from kinmo.errors import KinmoError
 
 __all__ = [
     "LOG_ENV", "LOG_WIDTH", "CountingBar", "RepeatFilter", "TrainingBar", "console", "literal", "log_level", "plain",
-    "setup_logging", "stderr_console",
+    "print_table", "setup_logging", "stderr_console",
 ]
 
 #: Environment variable giving the ``kinmo`` loggers' level when ``-v`` is not given.
@@ -70,6 +70,28 @@ def console(stderr: bool = False, **kw: Any) -> Any:
         # never cut to 80 with an ellipsis
         c.width = LOG_WIDTH
     return c
+
+
+def print_table(console: Any, table: Any) -> None:
+    """Print a rich table on ``console``; in a log file or pipe, at the table's full width.
+
+    A terminal lays the table out at its own width, as rich does. A console that is not a
+    terminal (:func:`console` gives it :data:`LOG_WIDTH` columns) is widened for this one table
+    to the width the table needs, so a wide one (Table 2 of a category with four joints) keeps
+    one line per row instead of wrapping its cells over several.
+    """
+    if console.is_terminal:
+        console.print(table)
+        return
+    from rich.measure import Measurement
+
+    need = Measurement.get(console, console.options.update_width(1_000_000), table).maximum
+    width = console.width
+    console.width = max(width, need)
+    try:
+        console.print(table)
+    finally:
+        console.width = width
 
 
 def literal(text: object) -> str:

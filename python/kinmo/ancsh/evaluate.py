@@ -79,6 +79,7 @@ from kinmo.errors import KinmoDataError, KinmoError
 from kinmo.io import write_json, write_text
 from kinmo.render.dataset import load_frame
 from kinmo.parallel import torch_threads
+from kinmo.progress import print_table
 from kinmo.train.loop import rows_csv
 from kinmo.train.split import Split
 
@@ -348,18 +349,19 @@ def evaluate_category(
     })
     if console is not None:
         for e in evals if multi else []:
-            console.print(rich_table(e.rows, name, e.structure))
+            print_table(console, rich_table(e.rows, name, e.structure))
             if e.groups:
-                console.print(matched_rich_table(e.rows, name, e.structure, describe_groups(e.groups, e.structure)))
+                print_table(console, matched_rich_table(e.rows, name, e.structure,
+                                                        describe_groups(e.groups, e.structure)))
         if multi:
-            console.print(rich_table(rows, name, None))
+            print_table(console, rich_table(rows, name, None))
             if any(e.groups for e in evals):
-                console.print(matched_rich_table(rows, name, None, "; ".join(
+                print_table(console, matched_rich_table(rows, name, None, "; ".join(
                     f"{e.structure.signature()}: {describe_groups(e.groups, e.structure)}" for e in evals if e.groups)))
         else:
-            console.print(rich_table(rows, name, evals[0].structure))
+            print_table(console, rich_table(rows, name, evals[0].structure))
             if evals[0].groups:
-                console.print(matched_rich_table(rows, name, evals[0].structure,
+                print_table(console, matched_rich_table(rows, name, evals[0].structure,
                                                  describe_groups(evals[0].groups, evals[0].structure)))
     return rows, paths
 

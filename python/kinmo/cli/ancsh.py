@@ -129,7 +129,7 @@ def eval_ancsh_cmd(
     if ctx.invoked_subcommand is not None:
         return
     _single_blas_thread()
-    from kinmo.progress import console as new_console, literal
+    from kinmo.progress import console as new_console, literal, print_table
 
     console = new_console()
     if not console.is_terminal:  # pipes and logs: do not squeeze the 9-column tables
@@ -157,6 +157,6 @@ def eval_ancsh_cmd(
         rows, paths = evaluate_category(category, run_paths, data=data, out=out, scans=scans, frames=frames,
                                         seed=seed, device=device, workers=workers, progress=not quiet,
                                         console=console, symmetric=symmetric)
-    console.print(paper_table(rows, category))
+    print_table(console, paper_table(rows, category))
     console.print(f"wrote {paths['csv']}, {paths['markdown']} and {paths['frames']}", highlight=False,
                   soft_wrap=True)

@@ -53,7 +53,7 @@ def pseudo_label_cmd(
     scores.json). OUT/summary.csv counts kept and rejected shapes per category,
     OUT/shapes.csv gives every shape's status and reason. Re-running resumes.
     """
-    from kinmo.progress import console as new_console, literal
+    from kinmo.progress import console as new_console, literal, print_table
     from rich.table import Table
 
     from kinmo.cli._errors import cli_errors
@@ -97,7 +97,7 @@ def pseudo_label_cmd(
     for row in summary_rows(res.records):
         table.add_row(literal(row["category"]), str(row["shapes"]), *(str(row[s]) for s in STATUSES),
                       end_section=row["category"] == "all")
-    console.print(table)
+    print_table(console, table)
     failed = [r for r in res.records if r.status == "failed"]
     if failed:
         ft = Table(title="Failed shapes")
