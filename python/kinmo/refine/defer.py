@@ -63,7 +63,7 @@ from kinmo.refine.features import FEATURES
 from kinmo.refine.ranker import DIRECTION_TOL_DEG
 
 __all__ = ["NAMED_UNSURE_CONFIDENCE", "PRIOR_AGAINST", "PRIOR_SURE", "PRIORS_AGREE_GNN", "PRIORS_AGREE_NAMES",
-           "TYPE_UNSURE", "UNSURE_CONFIDENCE", "agreeing_priors", "sure_prior", "unsure_type"]
+           "TYPE_UNSURE", "UNSURE_CONFIDENCE", "agreeing_priors", "likeliest", "sure_prior", "unsure_type"]
 
 #: :func:`sure_prior`: the GNN's axis head holds at least this mass on one direction ...
 PRIOR_SURE = 0.95
@@ -84,6 +84,27 @@ PRIORS_AGREE_NAMES = 0.5
 #: choice by more than 5° on 2, 3 and 1 and lost on none; at 0.2 one Suitcase hinge (seed 0)
 #: lost.
 TYPE_UNSURE = 0.25
+
+
+def likeliest(scores: np.ndarray, mask: np.ndarray) -> int:
+    """Index of the highest of ``scores`` among the candidates ``mask`` keeps (the first on a
+    tie): the choice every deferral and veto here and in :mod:`kinmo.refine.edge` falls back
+    to.
+
+    Parameters
+    ----------
+    scores : (C,) float
+        The ranker's probabilities or the candidates' total scores.
+    mask : (C,) bool
+        The candidates allowed; at least one.
+
+    Raises
+    ------
+    ValueError
+        ``mask`` keeps no candidate.
+    """
+    idx = np.flatnonzero(mask)
+    return int(idx[np.argmax(np.asarray(scores, dtype=np.float64)[idx])])
 
 
 def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
@@ -125,8 +146,7 @@ def sure_prior(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int
         ok &= np.asarray(features[:, FEATURES.index("sem_prior")]) >= PRIORS_AGREE_NAMES
         if conf >= NAMED_UNSURE_CONFIDENCE or not ok.any():
             return best
-    idx = np.flatnonzero(ok)
-    return int(idx[np.argmax(np.asarray(prob)[idx])])
+    return likeliest(prob, ok)
 
 
 def unsure_type(motion: tuple[float, float], features: np.ndarray, prob: np.ndarray, best: int) -> int:
@@ -164,8 +184,7 @@ def unsure_type(motion: tuple[float, float], features: np.ndarray, prob: np.ndar
     along = np.asarray(features[:, FEATURES.index("cos_gnn")]) >= np.cos(np.radians(DIRECTION_TOL_DEG))
     if along[best] or not along.any():
         return best
-    idx = np.flatnonzero(along)
-    return int(idx[np.argmax(np.asarray(prob, dtype=np.float64)[idx])])
+    return likeliest(prob, along)
 
 
 def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -> int:
@@ -194,7 +213,7 @@ def agreeing_priors(ranker, features: np.ndarray, prob: np.ndarray, best: int) -
     names = np.asarray(features[:, FEATURES.index("sem_prior")], dtype=np.float64)
     if prior[best] > 1.0 - PRIORS_AGREE_GNN:
         return best
-    ok = np.flatnonzero((prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES))
-    if not ok.size:
+    ok = (prior >= PRIORS_AGREE_GNN) & (names >= PRIORS_AGREE_NAMES)
+    if not ok.any():
         return best
-    return int(ok[np.argmax(np.asarray(prob)[ok])])
+    return likeliest(prob, ok)

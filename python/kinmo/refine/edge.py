@@ -91,7 +91,7 @@ from kinmo.refine.candidates import (
     merge_candidates,
 )
 from kinmo.refine.config import RefineConfig
-from kinmo.refine.defer import agreeing_priors, sure_prior, unsure_type
+from kinmo.refine.defer import agreeing_priors, likeliest, sure_prior, unsure_type
 from kinmo.refine.features import FEATURE_GROUPS, FEATURES
 from kinmo.refine.position import freer_line, reposition
 from kinmo.refine.motions import (
@@ -397,8 +397,7 @@ def blocked_slide_veto(cands: Candidates, features: np.ndarray, prob: np.ndarray
     free = np.asarray(features[:, FEATURES.index("sweep_free_max")], dtype=np.float64)
     if not vetoed_slides(cands, free)[best]:
         return best
-    ok = np.flatnonzero(_free_horizontal(cands, free))
-    return int(ok[np.argmax(np.asarray(prob)[ok])])
+    return likeliest(prob, _free_horizontal(cands, free))
 
 
 def fixed_parts_slide_veto(graph: PartGraph, edge: int, refinement: EdgeRefinement, meshes,
@@ -448,10 +447,10 @@ def fixed_parts_slide_veto(graph: PartGraph, edge: int, refinement: EdgeRefineme
     moving = int(graph.sibling_edges[edge][0])
     free, coll = line_sweeps(graph, moving, cands, meshes, np.asarray(fixed_leaves, np.int64))
     fmax = free.max(axis=1)
-    ok = np.flatnonzero(_free_horizontal(cands, fmax))
-    if float(fmax[b]) >= FIXED_PARTS_BLOCKED_FREE or not ok.size:
+    ok = _free_horizontal(cands, fmax)
+    if float(fmax[b]) >= FIXED_PARTS_BLOCKED_FREE or not ok.any():
         return r
-    nb = int(ok[np.argmax(np.asarray(r.scores.total, dtype=np.float64)[ok])])
+    nb = likeliest(r.scores.total, ok)
     return switched_line(graph, moving, r, nb, confidence, sign=freer_sign(free, coll), free=fmax)
 
 
@@ -548,10 +547,9 @@ def pressed_into_face(graph: PartGraph, edge: int, refinement: EdgeRefinement,
     along = cos >= np.cos(np.radians(PRESS_ALONG_DEG))
     if r.free is not None:
         along &= np.asarray(r.free, dtype=np.float64) >= OPEN_FREE
-    ok = np.flatnonzero(along)
-    if not ok.size:
+    if not along.any():
         return r
-    nb = int(ok[np.argmax(np.asarray(r.scores.total, dtype=np.float64)[ok])])
+    nb = likeliest(r.scores.total, along)
     return switched_line(graph, i, r, nb, confidence)
 
 
