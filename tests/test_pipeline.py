@@ -2,6 +2,7 @@
 
 import csv
 import json
+from pathlib import Path
 
 from typer.testing import CliRunner
 
@@ -181,6 +182,15 @@ def test_demo_runs_the_whole_pipeline_and_resumes(tmp_path, chromium, monkeypatc
     assert "train gnn (fine) ->" not in res2.output
     timings2 = json.loads((run / "pipeline_result.json").read_text())["timings"]
     assert {k for k, t in timings2.items() if t["ran"]} == {"report"}
+    # the same run folder spelt relative to another directory resumes too: stage keys hold
+    # paths, made absolute by PipelineConfig (else every cache, then every stage, ran again)
+    cwd = Path.cwd()
+    monkeypatch.chdir(tmp_path)
+    res2b = runner.invoke(app, ["demo", "--out", out.name, "--n", "12", "--tiny"])
+    assert res2b.exit_code == 0, res2b.output
+    timings2b = json.loads((run / "pipeline_result.json").read_text())["timings"]
+    assert {k for k, t in timings2b.items() if t["ran"]} == {"report"}
+    monkeypatch.chdir(cwd)
 
     # generated objects as ANCSH data (--ancsh-synth, issue 38): Laptop is made by kinmo synth,
     # so its three ANCSH settings train again with them, and Table 2 is scored again on the

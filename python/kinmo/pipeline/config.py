@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 __all__ = ["RELEASE_SYNTH", "SETTINGS", "TINY", "TRAIN_SYNTH", "PipelineConfig"]
 
@@ -37,6 +38,11 @@ class PipelineConfig(BaseModel):
         the ``semi`` / ``semi-weakly`` settings.
     out : Path
         Run folder.
+
+        The three paths are made absolute (``os.path.abspath``; symbolic links are kept) when
+        the configuration is made: stage keys hold paths, so ``--out runs/all`` and the same
+        folder spelt from another directory resume the same run instead of invalidating its
+        caches (and, through their markers, every later stage).
     preset : {"quick", "paper"}
         Preset of every model (``quick``: 2 CPU cores; ``paper``: the paper's sizes, a GPU).
     categories : list of str or None
@@ -173,6 +179,11 @@ class PipelineConfig(BaseModel):
     release: bool = False
     release_synth: int = Field(RELEASE_SYNTH, ge=0, le=100000)
     train_synth: int = Field(TRAIN_SYNTH, ge=0, le=100000)
+
+    @field_validator("labeled", "unlabeled", "out", mode="after")
+    @classmethod
+    def _absolute(cls, v: Path | None) -> Path | None:
+        return None if v is None else Path(os.path.abspath(os.path.expanduser(v)))
 
     @model_validator(mode="after")
     def _check(self) -> PipelineConfig:
