@@ -86,8 +86,9 @@ class ObjectParts:
 
 #: Two sibling parts lie in one row (or column, or layer) of :func:`sibling_places` when their
 #: centroids differ by at most this fraction of :func:`place_scale` along that axis. Without a
-#: tolerance, a few micrometres of modelling noise in height decided the order of the two
-#: temples of eyeglasses, the wheels of a cart or two doors side by side.
+#: tolerance, modelling noise in height (1e-8 to 4e-8 mesh units between the temples of
+#: PartNet-Mobility eyeglasses) decided the order of two temples, a cart's wheels or two doors
+#: side by side (issue 38, ``docs/results/table2.md``, session 53).
 PLACE_TOLERANCE = 0.05
 
 
