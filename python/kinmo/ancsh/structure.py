@@ -14,6 +14,9 @@ categories (and objects) with a single structure per category.
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+import numpy as np
+
 from kinmo.data.labels import rigid_groups
 from kinmo.data.model import JointType
 
@@ -95,12 +98,9 @@ PLACE_TOLERANCE = 0.05
 def place_scale(centroids: dict) -> float:
     """The length :data:`PLACE_TOLERANCE` is a fraction of: the diagonal of the box spanned by
     the link centroids ``{link id: (3,) array}`` (mesh units; 1.0 when they span nothing)."""
-    c = [tuple(float(x) for x in v) for v in centroids.values()]
-    if len(c) < 2:
+    if len(centroids) < 2:
         return 1.0
-    lo = [min(p[a] for p in c) for a in range(3)]
-    hi = [max(p[a] for p in c) for a in range(3)]
-    d = sum((h - l) ** 2 for h, l in zip(hi, lo)) ** 0.5
+    d = float(np.linalg.norm(np.ptp(np.asarray(list(centroids.values()), dtype=np.float64), axis=0)))
     return d if d > 0 else 1.0
 
 
@@ -197,8 +197,8 @@ def object_parts(links: list, centroids: dict[int, "object"] | None = None) -> O
         for lk in kids:
             same.setdefault((lk.joint.type.value, lk.name), []).append(lk)
         place: dict = {}
-        for group in same.values():
-            if centroids:
+        if centroids:
+            for group in same.values():
                 place.update(sibling_places({lk.id: centroids[lk.id] for lk in group
                                              if lk.id in centroids}, scale))
         return sorted(kids, key=lambda lk: (lk.joint.type.value, lk.name,
