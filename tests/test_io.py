@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import json
+import os
+import stat
 import subprocess
 import sys
 
 import pytest
 
 from kinmo.errors import KinmoError
-from kinmo.io import atomic_write, folder_lock, write_json, write_text
+import kinmo.io as kio
+from kinmo.io import atomic_path, atomic_write, folder_lock, write_json, write_text
 
 
 def test_atomic_write_leaves_the_old_file_when_the_writer_fails(tmp_path):
@@ -26,6 +29,33 @@ def test_atomic_write_leaves_the_old_file_when_the_writer_fails(tmp_path):
     assert sorted(x.name for x in tmp_path.iterdir()) == ["a.txt"]  # no temporary left
     write_json(p, {"k": [1, 2]})
     assert json.loads(p.read_text()) == {"k": [1, 2]}
+
+
+def test_atomic_path_skips_taken_names_and_gives_a_normal_files_permissions(tmp_path, monkeypatch):
+    # the next temporary names of this process are taken: by a stale file and by a link
+    # to a file that must not be touched; the write goes on under the name after them
+    serial = next(kio._TMP_SERIAL) + 1
+    pid = os.getpid()
+    stale = tmp_path / f".a.obj.{pid}-{serial}.tmp"
+    stale.write_text("stale")
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep")
+    (tmp_path / f".a.obj.{pid}-{serial + 1}.tmp").symlink_to(victim)
+    old = os.umask(0o027)
+    try:
+        with atomic_path(tmp_path / "a.obj") as tmp:
+            assert tmp.name == f".a.obj.{pid}-{serial + 2}.tmp" and tmp.read_bytes() == b""
+            tmp.write_text("v 0 0 0\n")
+    finally:
+        os.umask(old)
+    out = tmp_path / "a.obj"
+    assert out.read_text() == "v 0 0 0\n" and stale.read_text() == "stale" and victim.read_text() == "keep"
+    assert stat.S_IMODE(out.stat().st_mode) == 0o640  # 0o666 less the umask, as a plain open gives
+    monkeypatch.setattr(kio, "_TMP_TRIES", 0)
+    with pytest.raises(FileExistsError, match="no free temporary name"):
+        with atomic_path(tmp_path / "b.obj"):
+            pass
+    assert not (tmp_path / "b.obj").exists()
 
 
 def test_folder_lock_excludes_a_second_process_and_is_released(tmp_path):

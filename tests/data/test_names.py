@@ -5,13 +5,14 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import unicodedata
 from pathlib import Path
 
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from kinmo.data.names import check_mesh_name, inside, name_problem
+from kinmo.data.names import check_mesh_name, clean_text, inside, name_problem
 from kinmo.data.readers import find_shapes, read_hierarchy, read_shape
 from kinmo.errors import KinmoDataError
 
@@ -90,3 +91,13 @@ def test_mesh_links_leaving_the_shape_folder_are_refused(tmp_path, partnet_root)
     assert read_shape(shape).hierarchy.nodes
     (tmp_path / "alias").symlink_to(shape, target_is_directory=True)
     assert read_shape(tmp_path / "alias").id == "alias"
+
+
+@given(st.text(max_size=40) | st.text(st.characters(max_codepoint=127), max_size=40))
+def test_clean_text_replaces_exactly_the_control_characters(text):
+    # the definition, character by character (the function returns printable ASCII as it is)
+    want = "".join(" " if unicodedata.category(c) == "Cc" or c in "\ufffe\uffff" else c
+                   for c in text.encode("utf-8", "backslashreplace").decode("utf-8"))
+    assert clean_text(text) == want
+    assert clean_text("link_3 rotation_door") == "link_3 rotation_door"
+    assert clean_text("a\tb\x7fc\x85d") == "a b c d"

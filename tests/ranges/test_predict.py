@@ -12,6 +12,7 @@ import trimesh
 from motion_cabinet import cabinet_graph, oracle_prediction
 
 from kinmo.mobility_tree import ShapePrediction, build_mobility_tree
+import kinmo.refine.selector as selector
 from kinmo.ranges import RangeEntry, RangePrior, predict_ranges
 from kinmo.refine.selector import ShapeMeshes
 
@@ -447,3 +448,27 @@ def test_predicted_slider_travel_uses_the_prior_s_own_floor():
     b = _limits(predict_ranges(p, coarse, None))["drawer"]
     assert a == pytest.approx((0.0, ext), rel=0.05)
     assert b == pytest.approx((0.0, 0.5 * p.graph.scale), rel=1e-6)
+
+
+def test_the_range_sweeps_reuse_the_shapes_prepared_obstacles(monkeypatch):
+    # one obstacle (parry BVH) per set of static leaves and shape, shared by the selector's
+    # sweeps and the range sweeps: a second pass over the same meshes builds none
+    built = []
+    real = selector.SweepObstacle
+
+    def counting(*args, **kw):
+        built.append(1)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(selector, "SweepObstacle", counting)
+    p = _prediction()
+    prior = _prior(("hinge", None, None, 5, 0.0, -20.0, 120.0), ("slider", None, None, 5, 0.0, -0.5, 1.0))
+    meshes = _meshes(p.graph)
+    first = predict_ranges(p, prior, meshes)
+    n = len(built)
+    assert n == len({lk.id for lk in p.tree.moving_links})  # door and drawer: one obstacle each
+    again = predict_ranges(p, prior, meshes)
+    assert len(built) == n and _limits(again) == _limits(first)
+    assert _limits(predict_ranges(p, prior, _meshes(p.graph))) == _limits(first)  # fresh: same ranges
+    leaves = np.flatnonzero(p.graph.is_leaf)
+    assert meshes.obstacle(leaves) is meshes.obstacle(leaves.copy())

@@ -120,7 +120,10 @@ def clean_text(text: object) -> str:
     Source: issue 21, finding 10 (a part name with ``\\u0001`` made ``mobility.urdf``
     ill-formed).
     """
-    s = str(text).encode("utf-8", "backslashreplace").decode("utf-8")
+    s = str(text)
+    if s.isascii() and s.isprintable():  # nothing to replace (ASCII's non-printables are Cc)
+        return s
+    s = s.encode("utf-8", "backslashreplace").decode("utf-8")
     return "".join(" " if unicodedata.category(c) == "Cc" or c in "\ufffe\uffff" else c for c in s)
 
 

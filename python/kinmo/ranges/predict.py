@@ -337,7 +337,7 @@ def predict_ranges(pred: ShapePrediction, prior: RangePrior, meshes=None, seed: 
                 warned_meshes = True
         else:
             reach = 2 * math.pi if hinge else max(2.0, 1.25 * max(abs(entry.lo), abs(entry.hi))) * unit  # type: ignore[arg-type]
-            obstacle = SweepObstacle(*meshes.union(rest))
+            obstacle = meshes.obstacle(rest)  # shared with the selector's sweeps of this part
             n_points = len(pts)
             if hinge:
                 pts = off_axis_points(pts, j.origin, direction)

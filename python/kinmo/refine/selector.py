@@ -308,7 +308,9 @@ class ShapeMeshes:
     One object serves every edge of one shape, and :meth:`sweep` remembers its results: the
     edges of one moving part (one per sibling it may move against) share most candidate lines
     (its OBB edges and centre lines), and their swept collisions do not depend on the
-    reference part.
+    reference part. :meth:`obstacle` keeps one prepared obstacle (parry BVH) per set of
+    static leaves, for the selector's sweeps and the range sweeps
+    (:func:`kinmo.ranges.predict_ranges`) of the same shape alike.
     """
 
     leaves: dict[int, tuple[np.ndarray, np.ndarray]]
@@ -345,10 +347,8 @@ class ShapeMeshes:
                  float(ranges[k]), int(n_steps)) for k in range(len(origins))]
         todo = [k for k, key in enumerate(keys) if key not in self._sweeps]
         if todo:
-            if part[:2] not in self._obstacles:  # one BVH per obstacle, not per call
-                self._obstacles[part[:2]] = SweepObstacle(*self.union(static_leaves))
             t = np.asarray(todo)
-            free, coll = self._obstacles[part[:2]].sweep(
+            free, coll = self.obstacle(static_leaves).sweep(
                 points, np.ascontiguousarray(origins[t]), np.ascontiguousarray(directions[t]),
                 kinds[t], ranges[t], n_steps=n_steps)
             for n, k in enumerate(todo):
@@ -356,6 +356,16 @@ class ShapeMeshes:
         got = [self._sweeps[key] for key in keys]
         return (np.array([g[0] for g in got]).reshape(-1, 2),
                 np.array([g[1] for g in got]).reshape(-1, 2))
+
+    def obstacle(self, nodes) -> SweepObstacle:
+        """The union of the leaves ``nodes`` ``(L,) int`` (:meth:`union`, in that order) as a
+        swept-collision obstacle, prepared once per shape and node list: its BVH is built on
+        the first call and shared by every later one (same results:
+        :class:`~kinmo.geometry.SweepObstacle`)."""
+        key = np.asarray(nodes, dtype=np.int64).tobytes()
+        if key not in self._obstacles:
+            self._obstacles[key] = SweepObstacle(*self.union(nodes))
+        return self._obstacles[key]
 
     def union(self, nodes) -> tuple[np.ndarray, np.ndarray]:
         """One mesh of the given leaf nodes (faces re-indexed); empty arrays for none."""

@@ -13,7 +13,7 @@
 //!
 //! [`concave_pieces`] is `kinmo.export.collision.concave_parts`' loop over the pieces of
 //! one leaf. Its building blocks are the crate's: the exact hull ([`crate::hull`]), the
-//! seeded area sampler ([`crate::sampling`]), parry's point-to-mesh projection
+//! seeded area sampler ([`crate::sampling`]), parry's point-to-triangle projection
 //! ([`crate::proximity`]) and nalgebra's SVD.
 
 use std::collections::HashMap;
@@ -24,7 +24,7 @@ use parry3d_f64::bounding_volume::Aabb;
 use crate::error::{GeometryError, Result};
 use crate::hull::convex_hull;
 use crate::mesh::TriMesh;
-use crate::proximity::point_mesh_distance;
+use crate::proximity::any_farther_than;
 use crate::sampling::sample_surface;
 
 /// Settings of [`concave_pieces`] (the constants of `kinmo.export.collision`).
@@ -235,9 +235,7 @@ fn concave(
         .map(|&f| faces[f as usize].map(|i| slot[&i]))
         .collect();
     let surface = TriMesh::new(local, tris, "faces")?;
-    Ok(point_mesh_distance(&on_hull, &surface)?
-        .iter()
-        .any(|&d| d > p.tolerance))
+    any_farther_than(&on_hull, &surface, p.tolerance)
 }
 
 /// Face ids of each connected component (faces sharing a vertex position), in order of
