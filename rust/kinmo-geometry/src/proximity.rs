@@ -19,10 +19,11 @@ use crate::mesh::{check_finite, TriMesh};
 ///
 /// A triangle is projected on only when the point lies in its bounding box grown by twice
 /// the tolerance (a triangle within the tolerance always passes, whatever the rounding), and
-/// a point is done at its first triangle within the tolerance, so a typical query tries a
-/// handful of triangles per point and builds no hierarchy: the concavity test asks this of
-/// 64 points per convex piece, fewer queries than a bounding volume hierarchy of the piece
-/// needs to pay for its construction.
+/// a point is done at its first triangle within the tolerance. No hierarchy is built: the
+/// concavity test asks this of 64 points per convex piece, too few queries to pay for a
+/// bounding volume hierarchy of the piece (on the 546 links of the 141 shared PartNet shapes,
+/// the split took 3.37 s with parry's `TriMesh` queries and takes 2.23 s with this, every
+/// piece the same: docs/results/collision.md).
 ///
 /// # Errors
 ///
