@@ -317,3 +317,20 @@ def test_real_door_true_axis_free_opposite_edge_blocked(mobility_root: Path, sha
     diag = np.linalg.norm(ov.max(0) - ov.min(0))
     dist = line_mesh_distance([j.origin], [u], ov, of)
     assert dist[0] <= 0.01 * diag
+
+
+def test_an_obstacles_default_skin_is_default_skin_of_points_and_vertices():
+    # the obstacle keeps its vertices' box; the skin it derives from it is the function's,
+    # bit for bit, for points inside, outside or across that box, and 0 for a NaN point
+    rng = np.random.default_rng(0)
+    box = trimesh.creation.box(extents=(1.0, 2.0, 0.5))
+    obstacle = SweepObstacle(box.vertices, box.faces)
+    for scale, shift in [(0.1, 0.0), (3.0, 0.0), (0.5, 2.0), (1e-3, -5.0)]:
+        pts = rng.normal(size=(37, 3)) * scale + shift
+        assert obstacle._default_skin(pts) == default_skin(pts, box.vertices)
+    assert obstacle._default_skin(np.zeros((0, 3))) == default_skin(np.zeros((0, 3)), box.vertices) > 0.0
+    bad = np.array([[0.0, np.nan, 0.0]])
+    assert obstacle._default_skin(bad) == default_skin(bad, box.vertices) == 0.0
+    empty = SweepObstacle(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+    pts = rng.normal(size=(5, 3))
+    assert empty._default_skin(pts) == default_skin(pts, np.zeros((0, 3)))

@@ -188,6 +188,9 @@ class SweepObstacle:
             v = v.reshape(0, 3)
         self._vertices = v  # for the default skin, which also spans the obstacle
         self._core = _core.SweepObstacle(v, _faces(faces))
+        # the obstacle's part of every default skin, once: the box of its vertices (finite:
+        # the core refuses anything else)
+        self._box = (v.min(0), v.max(0)) if len(v) and np.isfinite(v).all() else None
 
     @property
     def n_faces(self) -> int:
@@ -218,7 +221,7 @@ class SweepObstacle:
         """
         p = _f64(moving_points)
         if skin is None:
-            skin = default_skin(p, self._vertices)
+            skin = self._default_skin(p)
         return self._core.sweep(
             p,
             _f64(origins),
@@ -230,6 +233,20 @@ class SweepObstacle:
             hit_tolerance=float(hit_tolerance),
             skip_inside=bool(skip_inside),
         )
+
+    def _default_skin(self, points: np.ndarray) -> float:
+        """:func:`default_skin` of ``points`` and this obstacle's vertices, from the box of
+        the vertices kept at construction (the same value: the maximum and minimum of a union
+        are those of its parts)."""
+        if self._box is None:
+            return default_skin(points, self._vertices)
+        p = points.reshape(-1, 3)
+        if not np.isfinite(p).all():
+            return 0.0
+        lo, hi = self._box
+        if len(p):
+            lo, hi = np.minimum(lo, p.min(0)), np.maximum(hi, p.max(0))
+        return float(DEFAULT_RELATIVE_SKIN * np.linalg.norm(hi - lo))
 
 
 def line_mesh_distance(
