@@ -59,6 +59,24 @@ def test_visual_geoms_stand_for_their_body_when_it_has_any(tmp_path):
     np.testing.assert_allclose(np.abs(lid - [0, 0, 2]).max(0), [1, 2, 0.5], atol=0.05)
 
 
+def test_moving_bodies_without_mass_load(tmp_path):
+    # object files completed by their framework (LIBERO's, robosuite adds the inertials): a
+    # hinged body whose only geom is massless, and a slide body of visual geoms without
+    # density, which MuJoCo alone refuses ("mass and inertia of moving bodies ...")
+    xml = tmp_path / "m.xml"
+    xml.write_text(
+        '<mujoco><worldbody><geom type="box" size="1 1 1"/>'
+        '<body name="door" pos="0 1.2 0"><joint type="hinge" axis="0 0 1"/>'
+        '<geom type="box" size="1 0.1 1" mass="0"/></body>'
+        '<body name="drawer" pos="0 0 1.5"><joint type="slide" axis="0 1 0"/>'
+        '<geom type="box" size="0.5 0.5 0.2" density="0" contype="0" conaffinity="0"/></body>'
+        "</worldbody></mujoco>")
+    parts = dict((n, v) for n, v, _ in read_parts(xml))
+    assert list(parts) == ["world", "door", "drawer"]
+    np.testing.assert_allclose(parts["door"].min(0), [-1, 1.1, -1], atol=1e-6)
+    np.testing.assert_allclose(parts["drawer"].max(0), [0.5, 0.5, 1.7], atol=1e-6)
+
+
 def test_an_xml_file_of_another_kind_is_not_an_asset(tmp_path):
     other = tmp_path / "scene.xml"
     other.write_text('<?xml version="1.0"?><!-- a comment --><sdf version="1.6"/>')

@@ -149,13 +149,22 @@ def _geom_mesh(m, d, g: int) -> tuple[np.ndarray, np.ndarray] | None:
     return v @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g], f
 
 
+#: Least mass and inertia of a body in the compiled model (``compiler/boundmass``,
+#: ``boundinertia``): object files written to be completed by their framework (LIBERO's
+#: ``microwave.xml``, ``window.xml``: robosuite adds the inertials) give moving bodies no
+#: mass, which MuJoCo refuses. kinmo never simulates the model, and kinematics do not depend
+#: on mass.
+BOUND_MASS, BOUND_INERTIA = 1e-6, 1e-9
+
+
 def _compiled_geometry(spec):
     """``spec`` (a parsed ``mujoco.MjSpec``, no asset file opened yet) compiled without its
     looks: textures and materials deleted, and every element's ``material`` emptied. They
     carry no geometry, so texture files are neither checked nor opened (robosuite's objects
     name ``../textures/*.png`` beside their folder), and a material the file uses but does
     not define (robosuite's ``cabinet.xml`` and ``button.xml`` expect the arena's) is no
-    error. Returns the ``mujoco.MjModel``."""
+    error. A moving body without mass gets :data:`BOUND_MASS` and :data:`BOUND_INERTIA`.
+    Returns the ``mujoco.MjModel``."""
     for texture in list(spec.textures):
         spec.delete(texture)
     for material in list(spec.materials):
@@ -163,6 +172,8 @@ def _compiled_geometry(spec):
     for kind in ("geoms", "sites", "skins", "tendons", "flexes"):
         for el in getattr(spec, kind, ()):
             el.material = ""
+    spec.compiler.boundmass = max(float(spec.compiler.boundmass), BOUND_MASS)
+    spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), BOUND_INERTIA)
     return spec.compile()
 
 
