@@ -18,10 +18,14 @@ The folder is what ``bench/bench_foreign.py`` evaluates (the true joints are the
 kinmo's MJCF reader ignores them when predicting). It needs ``git`` and network access
 (or ``--git-base``) and ``mujoco`` >= 3.2 (``MjSpec``).
 
+``--sources bench/foreign/heldout.json`` builds the held-out set instead: sources measured
+once and never used to make or tune a rule (``docs/results/foreign_assets.md``, *A held-out
+source*).
+
 Usage::
 
     python bench/foreign_assets.py --out foreign/ [--cache ~/.cache/kinmo/foreign]
-        [--git-base 'https://github.com/{repo}.git']
+        [--git-base 'https://github.com/{repo}.git'] [--sources bench/foreign/heldout.json]
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ from pathlib import Path
 
 import mujoco
 from PIL import Image  # Pillow, installed with matplotlib
+
+from kinmo.assets.mjcf import BOUND_INERTIA, BOUND_MASS
 
 REPO = Path(__file__).resolve().parent.parent
 SOURCES = REPO / "bench" / "foreign" / "sources.json"
@@ -126,6 +132,14 @@ def furniture_sim_objects(root: Path, exclude: set[str], together: set[str]) -> 
     return out
 
 
+def mjcf_file_objects(root: Path, exclude: set[str]) -> list[tuple[str, str, list[str]]]:
+    """Stand-alone MJCF object files (``kind`` ``mjcf_files``: LIBERO's
+    ``assets/articulated_objects/NAME.xml``): each ``root/*.xml`` is one object, its text the
+    wrapper, written beside it so that its relative paths resolve as in the repository."""
+    return [(f.stem, f.read_text(), [str(f.relative_to(root.parent))])
+            for f in sorted(root.glob("*.xml")) if f.stem not in exclude]
+
+
 def urdf_objects(repo_dir: Path, src: dict, out: Path, keep_dae: bool = False) -> list[dict]:
     """Objects cut from one URDF scene (``kind`` ``urdf_split``): every child link of a link
     in ``split`` (without ``split``: the URDF's root link, the whole URDF one object) with a
@@ -214,19 +228,25 @@ def urdf_objects(repo_dir: Path, src: dict, out: Path, keep_dae: bool = False) -
     return rows
 
 
-def write_object(wrapper: Path, xml: str, out: Path) -> list[dict[str, str]]:
+def write_object(wrapper: Path, xml: str, out: Path, massless: bool = False) -> list[dict[str, str]]:
     """Compile ``xml`` (written at ``wrapper``), copy its files into ``out/assets`` and write
-    ``out/model.xml``; return its hinge / slide joints (empty: nothing written)."""
+    ``out/model.xml``; return its hinge / slide joints (empty: nothing written). ``massless``:
+    moving bodies may lack mass (files their framework completes, as robosuite does LIBERO's);
+    they get the least mass and inertia kinmo's reader gives them
+    (:data:`kinmo.assets.mjcf.BOUND_MASS`), written into the copy."""
     wrapper.write_text(xml)
     try:
         spec = mujoco.MjSpec.from_file(str(wrapper))
+        if massless:
+            spec.compiler.boundmass = max(float(spec.compiler.boundmass), BOUND_MASS)
+            spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), BOUND_INERTIA)
         for t in spec.textures:  # a texture the clone lacks: grey (geometry is what counts)
             f = wrapper.parent / spec.texturedir / t.file
             if t.file and not f.is_file():
                 f.parent.mkdir(parents=True, exist_ok=True)
                 Image.new("RGB", (8, 8), (128, 128, 128)).save(f, format="PNG")
         model = spec.compile()
-    except ValueError as e:  # not a model on its own (a fragment of a scene)
+    except ValueError as e:  # not a model on its own (a fragment of a scene), or not valid MJCF
         print(f"{out.name}: skipped, {' '.join(str(e).split())[:120]}")
         return []
     finally:
@@ -265,8 +285,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep-dae", action="store_true",
                     help="Keep URDF visual meshes in COLLADA (.dae; reading them needs pycollada) "
                          "instead of the links' collision meshes.")
+    ap.add_argument("--sources", type=Path, default=None,
+                    help="The manifest of sources (default bench/foreign/sources.json; "
+                         "bench/foreign/heldout.json: the held-out set).")
     args = ap.parse_args(argv)
-    manifest = json.loads(SOURCES.read_text())
+    sources = SOURCES if args.sources is None else args.sources
+    manifest = json.loads(sources.read_text())
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "LICENSES").mkdir(exist_ok=True)
     rows = []
@@ -294,12 +318,17 @@ def main(argv: list[str] | None = None) -> int:
             root = link
             objects = furniture_sim_objects(root, set(src["exclude"]), set(src.get("together", [])))
             where = root
+        elif src["kind"] == "mjcf_files":
+            root = repo_dir / src["root"]
+            objects = mjcf_file_objects(root, set(src["exclude"]))
+            where = root
         else:
-            raise SystemExit(f"{SOURCES}: unknown kind {src['kind']!r}")
+            raise SystemExit(f"{sources}: unknown kind {src['kind']!r}")
         where.mkdir(exist_ok=True)
         for name, xml, files in objects:
             oid = f"{src['name']}-{name}"
-            joints = write_object(where / f"_kinmo_{name}.xml", xml, args.out / oid)
+            joints = write_object(where / f"_kinmo_{name}.xml", xml, args.out / oid,
+                                  massless=src["kind"] == "mjcf_files")
             if joints:
                 rows.append({"id": oid, "source": src["name"], "repo": src["repo"], "commit": src["commit"],
                              "license": src["license"], "files": files, "joints": joints})

@@ -149,3 +149,31 @@ def test_a_urdf_without_split_is_one_object(tmp_path, monkeypatch):
     parts = {n: v for n, v, _ in read_parts(out / "gym-body" / "model.urdf")}
     assert set(parts) == {"body", "drawer", "handle"}
     assert parts["handle"].mean(0)[0] == pytest.approx(0.21)  # placed through both joints
+
+
+def test_stand_alone_object_files_with_massless_moving_bodies_are_staged(tmp_path, monkeypatch):
+    # LIBERO's layout (the held-out set, kind mjcf_files): one object per file, its meshes
+    # in a folder beside it, moving bodies without inertials; a file MuJoCo refuses is skipped
+    import trimesh
+
+    root = tmp_path / "src" / "fake" / "objs"
+    (root / "box").mkdir(parents=True)
+    trimesh.creation.box((0.4, 0.02, 0.4)).export(root / "box" / "door.stl")
+    (root / "cab.xml").write_text(
+        '<mujoco model="cab"><compiler meshdir="./"/><asset><mesh name="door" file="box/door.stl"/></asset>'
+        '<worldbody><body name="carcass"><geom type="box" size="0.2 0.2 0.2"/>'
+        '<body name="door" pos="0 0.21 0"><joint name="hinge" type="hinge" axis="0 0 1"/>'
+        '<geom type="mesh" mesh="door" contype="0" conaffinity="0" density="0"/></body></body>'
+        "</worldbody></mujoco>")
+    (root / "bad.xml").write_text('<mujoco model="bad"><worldbody><region/></worldbody></mujoco>')
+    (root.parent / "LICENSE").write_text("MIT (test)\n")
+    commit = _commit(root.parent)
+    rows = _build(tmp_path, monkeypatch, {
+        "name": "libero", "repo": "owner/fake", "commit": commit, "license": "MIT", "license_file": "LICENSE",
+        "kind": "mjcf_files", "root": "objs", "exclude": []})
+    assert [r["id"] for r in rows] == ["libero-cab"] and rows[0]["joints"] == [{"name": "hinge", "type": "hinge"}]
+    folder = tmp_path / "out" / "libero-cab"
+    assert any(p.name.endswith("door.stl") for p in (folder / "assets").iterdir())
+    parts = {n: v for n, v, _ in read_parts(folder / "model.xml")}
+    assert set(parts) == {"carcass", "door"}
+    np.testing.assert_allclose(np.ptp(parts["door"], axis=0), [0.4, 0.02, 0.4], atol=1e-6)
