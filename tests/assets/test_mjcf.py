@@ -12,6 +12,12 @@ from kinmo.assets import asset_up, is_user_input, read_parts
 from kinmo.errors import KinmoDataError
 
 
+def _parts(xml, text: str) -> dict[str, np.ndarray]:
+    """The model ``text`` written at ``xml``, read: part name -> vertices."""
+    xml.write_text(text)
+    return {n: v for n, v, _ in read_parts(xml)}
+
+
 def test_a_model_of_boxes_reads_one_part_per_body_and_the_world(tmp_path):
     parts = read_parts(box_mjcf(tmp_path / "cab.xml"))
     assert [n for n, _, _ in parts] == ["world", "door", "drawer", "handle"]
@@ -26,14 +32,12 @@ def test_a_model_of_boxes_reads_one_part_per_body_and_the_world(tmp_path):
 
 def test_meshes_are_placed_by_the_body_pose_and_scale_despite_mujoco_recentring(tmp_path):
     write_mesh(tmp_path / "meshes" / "door.stl", extents=(1, 2, 3), offset=(5, 0, 0))
-    xml = tmp_path / "m.xml"
-    xml.write_text(
+    parts = _parts(tmp_path / "m.xml",
         '<mujoco><compiler meshdir="meshes" angle="degree"/><asset><mesh name="d" file="door.stl" '
         'scale="2 2 2"/></asset><worldbody><geom type="sphere" size="0.5"/>'
         '<body name="door" pos="1 0 0" euler="0 0 90"><joint type="hinge"/><geom type="mesh" mesh="d"/>'
         '<body name="knob"><geom type="capsule" fromto="0 0 0 0 0 1" size="0.05"/></body>'
         "</body></worldbody></mujoco>")
-    parts = dict((n, v) for n, v, _ in read_parts(xml))
     assert list(parts) == ["world", "door", "knob"]
     # the box (centre (10, 0, 0), extents (2, 4, 6) once scaled) turned 90 degrees about z, moved by +x
     np.testing.assert_allclose(parts["door"].min(0), [-1, 9, -3], atol=1e-5)
@@ -63,15 +67,13 @@ def test_moving_bodies_without_mass_load(tmp_path):
     # object files completed by their framework (LIBERO's, robosuite adds the inertials): a
     # hinged body whose only geom is massless, and a slide body of visual geoms without
     # density, which MuJoCo alone refuses ("mass and inertia of moving bodies ...")
-    xml = tmp_path / "m.xml"
-    xml.write_text(
+    parts = _parts(tmp_path / "m.xml",
         '<mujoco><worldbody><geom type="box" size="1 1 1"/>'
         '<body name="door" pos="0 1.2 0"><joint type="hinge" axis="0 0 1"/>'
         '<geom type="box" size="1 0.1 1" mass="0"/></body>'
         '<body name="drawer" pos="0 0 1.5"><joint type="slide" axis="0 1 0"/>'
         '<geom type="box" size="0.5 0.5 0.2" density="0" contype="0" conaffinity="0"/></body>'
         "</worldbody></mujoco>")
-    parts = dict((n, v) for n, v, _ in read_parts(xml))
     assert list(parts) == ["world", "door", "drawer"]
     np.testing.assert_allclose(parts["door"].min(0), [-1, 1.1, -1], atol=1e-6)
     np.testing.assert_allclose(parts["drawer"].max(0), [0.5, 0.5, 1.7], atol=1e-6)
