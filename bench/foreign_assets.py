@@ -41,7 +41,7 @@ from pathlib import Path
 import mujoco
 from PIL import Image  # Pillow, installed with matplotlib
 
-from kinmo.assets.mjcf import BOUND_INERTIA, BOUND_MASS
+from kinmo.assets.mjcf import allow_massless
 
 REPO = Path(__file__).resolve().parent.parent
 SOURCES = REPO / "bench" / "foreign" / "sources.json"
@@ -233,13 +233,12 @@ def write_object(wrapper: Path, xml: str, out: Path, massless: bool = False) -> 
     ``out/model.xml``; return its hinge / slide joints (empty: nothing written). ``massless``:
     moving bodies may lack mass (files their framework completes, as robosuite does LIBERO's);
     they get the least mass and inertia kinmo's reader gives them
-    (:data:`kinmo.assets.mjcf.BOUND_MASS`), written into the copy."""
+    (:func:`kinmo.assets.mjcf.allow_massless`), written into the copy."""
     wrapper.write_text(xml)
     try:
         spec = mujoco.MjSpec.from_file(str(wrapper))
         if massless:
-            spec.compiler.boundmass = max(float(spec.compiler.boundmass), BOUND_MASS)
-            spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), BOUND_INERTIA)
+            allow_massless(spec)
         for t in spec.textures:  # a texture the clone lacks: grey (geometry is what counts)
             f = wrapper.parent / spec.texturedir / t.file
             if t.file and not f.is_file():

@@ -19,9 +19,12 @@ from kinmo.data.labels import rigid_groups
 from kinmo.data.readers import read_shape
 from kinmo.geometry import load_objs, sample_surface
 from kinmo.geometry.sweep import (
+    DEFAULT_RELATIVE_SKIN,
     PRISMATIC,
     REVOLUTE,
     SweepObstacle,
+    _f64,
+    _skin_with_box,
     default_skin,
     line_mesh_distance,
     sweep_collisions,
@@ -319,18 +322,33 @@ def test_real_door_true_axis_free_opposite_edge_blocked(mobility_root: Path, sha
     assert dist[0] <= 0.01 * diag
 
 
+def _skin_by_definition(points, vertices) -> float:
+    """The default skin as first written: ``DEFAULT_RELATIVE_SKIN`` times the diagonal of the
+    box of all points and vertices together (0 for none, or for a non-finite one)."""
+    allp = np.concatenate([np.asarray(a, float).reshape(-1, 3) for a in (points, vertices)])
+    if len(allp) == 0 or not np.isfinite(allp).all():
+        return 0.0
+    return float(DEFAULT_RELATIVE_SKIN * np.linalg.norm(allp.max(0) - allp.min(0)))
+
+
 def test_an_obstacles_default_skin_is_default_skin_of_points_and_vertices():
     # the obstacle keeps its vertices' box; the skin it derives from it is the function's,
     # bit for bit, for points inside, outside or across that box, and 0 for a NaN point
     rng = np.random.default_rng(0)
     box = trimesh.creation.box(extents=(1.0, 2.0, 0.5))
     obstacle = SweepObstacle(box.vertices, box.faces)
+
+    def skin(obs, pts):  # what obs.sweep uses without a skin
+        return _skin_with_box(_f64(pts), obs._box)
+
     for scale, shift in [(0.1, 0.0), (3.0, 0.0), (0.5, 2.0), (1e-3, -5.0)]:
         pts = rng.normal(size=(37, 3)) * scale + shift
-        assert obstacle._default_skin(pts) == default_skin(pts, box.vertices)
-    assert obstacle._default_skin(np.zeros((0, 3))) == default_skin(np.zeros((0, 3)), box.vertices) > 0.0
+        assert skin(obstacle, pts) == default_skin(pts, box.vertices) == _skin_by_definition(pts, box.vertices)
+    none = np.zeros((0, 3))
+    assert skin(obstacle, none) == default_skin(none, box.vertices) == _skin_by_definition(none, box.vertices) > 0.0
     bad = np.array([[0.0, np.nan, 0.0]])
-    assert obstacle._default_skin(bad) == default_skin(bad, box.vertices) == 0.0
-    empty = SweepObstacle(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+    assert skin(obstacle, bad) == default_skin(bad, box.vertices) == 0.0
+    assert default_skin(box.vertices, bad) == default_skin(none, none) == 0.0
+    empty = SweepObstacle(none, np.zeros((0, 3), np.int64))
     pts = rng.normal(size=(5, 3))
-    assert empty._default_skin(pts) == default_skin(pts, np.zeros((0, 3)))
+    assert skin(empty, pts) == default_skin(pts, none) == _skin_by_definition(pts, none)

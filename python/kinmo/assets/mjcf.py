@@ -44,7 +44,7 @@ from kinmo.assets.primitives import primitive
 from kinmo.assets.refs import file_inside, reference_problem
 from kinmo.errors import KinmoDataError
 
-__all__ = ["MAX_FILES", "check_references", "compile_mjcf", "read_mjcf"]
+__all__ = ["BOUND_INERTIA", "BOUND_MASS", "MAX_FILES", "allow_massless", "check_references", "compile_mjcf", "read_mjcf"]
 
 #: Most XML files one model may name through ``<include>`` (a cycle is refused before).
 MAX_FILES = 256
@@ -157,14 +157,23 @@ def _geom_mesh(m, d, g: int) -> tuple[np.ndarray, np.ndarray] | None:
 BOUND_MASS, BOUND_INERTIA = 1e-6, 1e-9
 
 
+def allow_massless(spec) -> None:
+    """Let ``spec`` (a parsed ``mujoco.MjSpec``) compile with moving bodies that have no mass:
+    its ``compiler/boundmass`` and ``boundinertia`` raised to :data:`BOUND_MASS` and
+    :data:`BOUND_INERTIA` (larger bounds the file sets are kept). For kinmo's reader and for
+    the staging of foreign assets (``bench/foreign_assets.py``) alike."""
+    spec.compiler.boundmass = max(float(spec.compiler.boundmass), BOUND_MASS)
+    spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), BOUND_INERTIA)
+
+
 def _compiled_geometry(spec):
     """``spec`` (a parsed ``mujoco.MjSpec``, no asset file opened yet) compiled without its
     looks: textures and materials deleted, and every element's ``material`` emptied. They
     carry no geometry, so texture files are neither checked nor opened (robosuite's objects
     name ``../textures/*.png`` beside their folder), and a material the file uses but does
     not define (robosuite's ``cabinet.xml`` and ``button.xml`` expect the arena's) is no
-    error. A moving body without mass gets :data:`BOUND_MASS` and :data:`BOUND_INERTIA`.
-    Returns the ``mujoco.MjModel``."""
+    error. A moving body without mass is no error either (:func:`allow_massless`). Returns
+    the ``mujoco.MjModel``."""
     for texture in list(spec.textures):
         spec.delete(texture)
     for material in list(spec.materials):
@@ -172,8 +181,7 @@ def _compiled_geometry(spec):
     for kind in ("geoms", "sites", "skins", "tendons", "flexes"):
         for el in getattr(spec, kind, ()):
             el.material = ""
-    spec.compiler.boundmass = max(float(spec.compiler.boundmass), BOUND_MASS)
-    spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), BOUND_INERTIA)
+    allow_massless(spec)
     return spec.compile()
 
 

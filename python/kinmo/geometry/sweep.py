@@ -82,11 +82,24 @@ def default_skin(moving_points: np.ndarray, obstacle_vertices: np.ndarray) -> fl
     float
         Mesh units; 0 for empty input.
     """
-    pts = [np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in (moving_points, obstacle_vertices)]
-    allp = np.concatenate(pts)
-    if len(allp) == 0 or not np.isfinite(allp).all():
+    v = np.asarray(obstacle_vertices, dtype=np.float64).reshape(-1, 3)
+    if not np.isfinite(v).all():
         return 0.0
-    return float(DEFAULT_RELATIVE_SKIN * np.linalg.norm(allp.max(0) - allp.min(0)))
+    return _skin_with_box(moving_points, (v.min(0), v.max(0)) if len(v) else None)
+
+
+def _skin_with_box(moving_points: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None) -> float:
+    """:func:`default_skin` of ``moving_points`` and an obstacle given by the box of its
+    (finite) vertices, ``(lo, hi)`` or None for none: the same value, since the extremes of a
+    union are those of its parts."""
+    p = np.asarray(moving_points, dtype=np.float64).reshape(-1, 3)
+    if not np.isfinite(p).all():
+        return 0.0
+    boxes = [b for b in (box, (p.min(0), p.max(0)) if len(p) else None) if b is not None]
+    if not boxes:
+        return 0.0
+    lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    return float(DEFAULT_RELATIVE_SKIN * np.linalg.norm(hi - lo))
 
 
 def sweep_collisions(
@@ -186,11 +199,10 @@ class SweepObstacle:
         v = _f64(vertices)
         if v.size == 0:
             v = v.reshape(0, 3)
-        self._vertices = v  # for the default skin, which also spans the obstacle
         self._core = _core.SweepObstacle(v, _faces(faces))
-        # the obstacle's part of every default skin, once: the box of its vertices (finite:
-        # the core refuses anything else)
-        self._box = (v.min(0), v.max(0)) if len(v) and np.isfinite(v).all() else None
+        # the obstacle's part of every default skin, which also spans the obstacle, once: the
+        # box of its vertices (finite: the core refuses anything else)
+        self._box = (v.min(0), v.max(0)) if len(v) else None
 
     @property
     def n_faces(self) -> int:
@@ -221,7 +233,7 @@ class SweepObstacle:
         """
         p = _f64(moving_points)
         if skin is None:
-            skin = self._default_skin(p)
+            skin = _skin_with_box(p, self._box)
         return self._core.sweep(
             p,
             _f64(origins),
@@ -233,20 +245,6 @@ class SweepObstacle:
             hit_tolerance=float(hit_tolerance),
             skip_inside=bool(skip_inside),
         )
-
-    def _default_skin(self, points: np.ndarray) -> float:
-        """:func:`default_skin` of ``points`` and this obstacle's vertices, from the box of
-        the vertices kept at construction (the same value: the maximum and minimum of a union
-        are those of its parts)."""
-        if self._box is None:
-            return default_skin(points, self._vertices)
-        p = points.reshape(-1, 3)
-        if not np.isfinite(p).all():
-            return 0.0
-        lo, hi = self._box
-        if len(p):
-            lo, hi = np.minimum(lo, p.min(0)), np.maximum(hi, p.max(0))
-        return float(DEFAULT_RELATIVE_SKIN * np.linalg.norm(hi - lo))
 
 
 def line_mesh_distance(
