@@ -333,3 +333,14 @@ def test_stacked_drawers_and_a_handle_on_its_drawer_come_out_as_their_links(tmp_
     parts = [sorted(p["name"] for p in lk["parts"]) for lk in links if lk["joint"] != "free"]
     assert any({"part_3", "part_4"} <= set(p) for p in parts), parts
     assert ["part_4"] not in parts, parts
+
+
+def test_the_foreign_table_shows_missing_figures_as_dashes():
+    """An asset set with no joint found: NaN means print as en dashes, never ``nan``."""
+    from kinmo.evaluate.foreign import foreign_markdown
+    from kinmo.evaluate.user_format import score
+
+    md = foreign_markdown({"glb": {**score([]), "failed": 1}})
+    assert "nan" not in md.lower()
+    row = md.splitlines()[2]
+    assert row.startswith("| glb | 0 | 0 | – | – | – | **–** |") and row.endswith("| 1 | – | – | – | – |")

@@ -4,6 +4,7 @@ user GLBs and back through `kinmo predict FILE`'s staging, moved-node sets and I
 from __future__ import annotations
 
 import json
+import math
 import numpy as np
 import pytest
 
@@ -222,3 +223,16 @@ def test_the_command_scores_turned_and_z_up_glbs_and_refuses_a_bad_up(objects, t
     r = CliRunner().invoke(app, [*base, "-o", str(tmp_path / "uf2"), "--write-up", "w"])
     assert r.exit_code == 2 and "up axis must be one of y, z" in r.output
     assert not (tmp_path / "uf2").exists()
+
+
+def test_the_markdown_table_shows_missing_figures_as_dashes():
+    """A variant with no matched joint, or none of a joint type, has NaN means: the table
+    prints an en dash there, never ``nan`` (a table captured in a log stays readable)."""
+    from kinmo.evaluate.user_format import results_markdown
+
+    nothing = score([])
+    assert math.isnan(nothing["mean_angle"])
+    md = results_markdown({"generic": nothing})
+    row = md.splitlines()[2]
+    assert "nan" not in md.lower() and row.startswith("| generic | 0 | 0 | – | – | – | – |")
+    assert row.count("|") == md.splitlines()[0].count("|")

@@ -51,6 +51,7 @@ from kinmo.assets.mjcf import compile_mjcf
 from kinmo.data.model import Joint, JointType, Link
 from kinmo.data.readers import read_shape
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.evaluate.cells import cell
 from kinmo.evaluate.user_format import (TrueJoint, input_rotation, links_back, score, score_prediction,
                                         write_parts_glb)
 from kinmo.io import write_json, write_text
@@ -359,10 +360,11 @@ def foreign_markdown(results: dict[str, dict[str, Any]]) -> str:
             "| slider range IoU | IoU >= 0.5 |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n")
     rows = []
     for v, s in results.items():
-        ranges = " | ".join(f"{s.get(k, float('nan')):.2f}" for k in ("range_iou_hinge", "range_ok_hinge",
-                                                                        "range_iou_slider", "range_ok_slider"))
-        rows.append(f"| {v} | {s['objects']} | {s['true_joints']} | {s['recall']:.2f} | {s['type_accuracy']:.2f} | "
-                    f"{s['mean_angle']:.1f}° | **{s['fully_right']:.2f}** | {s['false_movers_per_object']:.2f} | "
+        ranges = " | ".join(cell(s.get(k)) for k in ("range_iou_hinge", "range_ok_hinge",
+                                                       "range_iou_slider", "range_ok_slider"))
+        rows.append(f"| {v} | {s['objects']} | {s['true_joints']} | {cell(s['recall'])} | "
+                    f"{cell(s['type_accuracy'])} | {cell(s['mean_angle'], 1, '°')} | "
+                    f"**{cell(s['fully_right'])}** | {cell(s['false_movers_per_object'])} | "
                     f"{s['failed']} | {ranges} |")
     return head + "\n".join(rows) + "\n"
 

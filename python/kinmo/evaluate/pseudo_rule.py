@@ -49,6 +49,7 @@ import numpy as np
 
 from kinmo.data.graph import PartGraph
 from kinmo.data.model import FINE_TYPES
+from kinmo.evaluate.cells import cell
 from kinmo.evaluate.shape_metrics import match_joints
 from kinmo.io import write_json, write_text
 from kinmo.metrics.axis import axis_angle_deg
@@ -238,21 +239,15 @@ def grade_pseudo_rule(predictor: Any, graphs: Sequence[PartGraph], config: Pseud
     return rep
 
 
-def _fmt(v: float | None, p: int = 3) -> str:
-    """A figure as text: ``–`` where there is nothing to average (null in the JSON, NaN in
-    :meth:`PseudoRuleReport.summary`)."""
-    return "–" if v is None or v != v else f"{v:.{p}f}"
-
-
 def summary_line(s: Mapping[str, float | None]) -> str:
     """The kept objects' figures of :meth:`PseudoRuleReport.summary` (or of ``summary.json``'s
     ``all``, nulls included) as one line of text, as ``kinmo train all`` and ``kinmo eval oof``
     print them: ``K kept, joint precision P, type accuracy T (fine F), axis error A°; per link
     P, T, A°``."""
-    return (f"{int(s['kept'])} kept, joint precision {_fmt(s['joint_precision'])}, type accuracy "
-            f"{_fmt(s['type_acc'])} (fine {_fmt(s['fine_type_acc'])}), axis error "
-            f"{_fmt(s['axis_mean_deg'], 2)}°; per link {_fmt(s['link_precision'])}, "
-            f"{_fmt(s['link_type_acc'])}, {_fmt(s['link_axis_mean_deg'], 2)}°")
+    return (f"{int(s['kept'])} kept, joint precision {cell(s['joint_precision'], 3)}, type accuracy "
+            f"{cell(s['type_acc'], 3)} (fine {cell(s['fine_type_acc'], 3)}), axis error "
+            f"{cell(s['axis_mean_deg'], 2)}°; per link {cell(s['link_precision'], 3)}, "
+            f"{cell(s['link_type_acc'], 3)}, {cell(s['link_axis_mean_deg'], 2)}°")
 
 
 def write_pseudo_rule(rep: PseudoRuleReport, out: str | Path) -> dict[str, Any]:
@@ -277,9 +272,9 @@ def write_pseudo_rule(rep: PseudoRuleReport, out: str | Path) -> dict[str, Any]:
             "axis error (°) | link precision | link type accuracy | link axis error (°) |\n"
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n")
     rows = [(c.replace("|", "\\|"), doc["categories"][c]) for c in cats] + [("**all**", doc["all"])]
-    body = "".join(f"| {c} | {int(s['objects'])} | {int(s['kept'])} | {_fmt(s['joint_precision'])} | "
-                   f"{_fmt(s['type_acc'])} | {_fmt(s['fine_type_acc'])} | {_fmt(s['axis_mean_deg'], 2)} | "
-                   f"{_fmt(s['link_precision'])} | {_fmt(s['link_type_acc'])} | {_fmt(s['link_axis_mean_deg'], 2)} |\n"
+    body = "".join(f"| {c} | {int(s['objects'])} | {int(s['kept'])} | {cell(s['joint_precision'], 3)} | "
+                   f"{cell(s['type_acc'], 3)} | {cell(s['fine_type_acc'], 3)} | {cell(s['axis_mean_deg'], 2)} | "
+                   f"{cell(s['link_precision'], 3)} | {cell(s['link_type_acc'], 3)} | {cell(s['link_axis_mean_deg'], 2)} |\n"
                    for c, s in rows)
     write_text(out / "summary.md", f"Pseudo-label rule at {rep.threshold:g} on labelled objects\n\n" + head + body)
     return doc

@@ -50,6 +50,7 @@ from kinmo.data.build import load_shape_meshes
 from kinmo.data.labels import link_subtree
 from kinmo.data.readers import find_shapes, read_links, read_shape
 from kinmo.errors import KinmoDataError, KinmoError
+from kinmo.evaluate.cells import cell
 from kinmo.features import quarter_turn
 from kinmo.metrics.motion_range import RangeScore, score_range, summarise_ranges
 from kinmo.inference.predictor import Predictor
@@ -532,10 +533,9 @@ def results_markdown(results: dict[str, dict[str, Any]]) -> str:
     for v, s in results.items():
         r = [s.get(k, float("nan")) for k in ("range_iou_hinge", "range_ok_hinge", "range_iou_slider",
                                               "range_ok_slider", "range_cont_acc")]
-        lines.append(f"| {v} | {s['objects']} | {s['true_joints']} | {s['recall']:.2f} | "
-                     f"{s['mean_angle']:.1f} | {s['median_angle']:.1f} | {s['within_5deg']:.2f} | "
-                     f"{s['flips_over_45deg']} | {s['type_accuracy']:.2f} | "
-                     f"{s.get('fully_right', float('nan')):.2f} | "
-                     f"{s.get('false_movers_per_object', float('nan')):.2f} | "
-                     + " | ".join(f"{x:.2f}" for x in r) + " |")
+        lines.append(f"| {v} | {s['objects']} | {s['true_joints']} | {cell(s['recall'])} | "
+                     f"{cell(s['mean_angle'], 1)} | {cell(s['median_angle'], 1)} | "
+                     f"{cell(s['within_5deg'])} | {s['flips_over_45deg']} | {cell(s['type_accuracy'])} | "
+                     f"{cell(s.get('fully_right'))} | {cell(s.get('false_movers_per_object'))} | "
+                     + " | ".join(cell(x) for x in r) + " |")
     return "\n".join(lines) + "\n"
