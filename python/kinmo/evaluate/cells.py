@@ -16,7 +16,8 @@ def cell(v: float | int | None, places: int = 2, suffix: str = "") -> str:
     Parameters
     ----------
     v : float, int or None
-        The figure (numpy scalars too); None or NaN (a mean over nothing) gives ``"–"``, without the suffix.
+        The figure (numpy scalars too); None or NaN (a mean over nothing) gives ``"–"``,
+        without the suffix.
     places : int
         Decimals (``>= 0``).
     suffix : str

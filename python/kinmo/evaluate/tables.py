@@ -13,6 +13,7 @@ import io
 import math
 from pathlib import Path
 
+from kinmo.evaluate.cells import cell
 from kinmo.evaluate.shape_metrics import METRICS, EvalReport, nanmean
 from kinmo.io import write_text
 
@@ -39,15 +40,9 @@ PAPER_MEANS = {
 
 
 def _fmt(key: str, v: float) -> str:
-    if isinstance(v, float) and math.isnan(v):
-        return "–"
-    if key.startswith("angle"):
-        return f"{v:.2f}"
-    if key == "range_end_hinge":
-        return f"{v:.1f}"
-    if key.startswith("dist"):
-        return f"{v:.3f}"
-    return f"{v:.3f}"
+    """A Table 1 figure as a cell (:func:`~kinmo.evaluate.cells.cell`): angles 2 decimals, the
+    hinge range end 1, everything else 3; a mean over nothing an en dash."""
+    return cell(v, 2 if key.startswith("angle") else 1 if key == "range_end_hinge" else 3)
 
 
 def report_csv(report: EvalReport) -> str:

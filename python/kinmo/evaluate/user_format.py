@@ -531,8 +531,8 @@ def results_markdown(results: dict[str, dict[str, Any]]) -> str:
              "| IoU >= 0.5 | slider range IoU | IoU >= 0.5 | continuous acc. |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for v, s in results.items():
-        r = [s.get(k, float("nan")) for k in ("range_iou_hinge", "range_ok_hinge", "range_iou_slider",
-                                              "range_ok_slider", "range_cont_acc")]
+        r = [s.get(k) for k in ("range_iou_hinge", "range_ok_hinge", "range_iou_slider",
+                                "range_ok_slider", "range_cont_acc")]
         lines.append(f"| {v} | {s['objects']} | {s['true_joints']} | {cell(s['recall'])} | "
                      f"{cell(s['mean_angle'], 1)} | {cell(s['median_angle'], 1)} | "
                      f"{cell(s['within_5deg'])} | {s['flips_over_45deg']} | {cell(s['type_accuracy'])} | "
